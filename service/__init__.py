@@ -1,0 +1,1 @@
+"""The QuadSynth web service: a thin FastAPI shell over :mod:`synth_core`."""
