@@ -20,6 +20,7 @@ matplotlib.use("Agg")  # headless: no display on servers or CI
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from matplotlib.animation import FuncAnimation, PillowWriter  # noqa: E402
+from matplotlib.axes import Axes  # noqa: E402
 from numpy.typing import NDArray  # noqa: E402
 
 from synth_core import FOOT_NAMES, bvh  # noqa: E402
@@ -62,7 +63,7 @@ def _travel_axes(root: NDArray[np.floating]) -> tuple[NDArray[np.float64], NDArr
     return along, across
 
 
-def _draw_pose(ax: plt.Axes, xy: NDArray[np.floating], parents: NDArray[np.int32],
+def _draw_pose(ax: Axes, xy: NDArray[np.floating], parents: NDArray[np.int32],
                colors: list[str], alpha: float = 1.0, lw: float = 2.0) -> None:
     for j in range(1, len(parents)):
         p = parents[j]
@@ -88,7 +89,7 @@ class _Scene:
         # Half-width of a side panel: the farthest any joint gets from the root along travel.
         self.reach = float(np.abs(self.side[..., 0] - self.side[:, :1, 0]).max()) + 0.1 * self.height
 
-    def side_view(self, ax: plt.Axes, f: int, follow: bool = True) -> None:
+    def side_view(self, ax: Axes, f: int, follow: bool = True) -> None:
         half = self.reach
         cx = self.side[f, 0, 0]
         _draw_pose(ax, self.side[f], self.parents, self.colors)
@@ -105,7 +106,7 @@ class _Scene:
         ax.set_xticks([])
         ax.set_yticks([])
 
-    def top_view(self, ax: plt.Axes, frames: NDArray[np.int64]) -> None:
+    def top_view(self, ax: Axes, frames: NDArray[np.int64]) -> None:
         ax.plot(self.top[:, 0, 0], self.top[:, 0, 1], color="#999", lw=1, label="root path")
         for k, j in enumerate(self.feet):
             planted = self.contacts[:, k]
@@ -147,7 +148,6 @@ def render(motion: Motion, out: str | Path, *, start: int | None = None, stop: i
 def _contact_sheet(scene: _Scene, out: Path, panels: int) -> None:
     n = len(scene.pos)
     frames = np.unique(np.linspace(0, n - 1, panels).round().astype(np.int64))
-    motion = scene.motion
     fig = plt.figure(figsize=(2.4 * max(len(frames), 4), 8.5), dpi=100)
     grid = fig.add_gridspec(3, len(frames), height_ratios=[0.7, 1.4, 1.0])
     diagram = fig.add_subplot(grid[0, :])
@@ -163,7 +163,7 @@ def _contact_sheet(scene: _Scene, out: Path, panels: int) -> None:
     plt.close(fig)
 
 
-def _gait_diagram(ax: plt.Axes, scene: _Scene, frames: NDArray[np.int64]) -> None:
+def _gait_diagram(ax: Axes, scene: _Scene, frames: NDArray[np.int64]) -> None:
     """Stance bars per foot over time (LF on top), with the sampled frames as dashed lines."""
     motion, n = scene.motion, len(scene.pos)
     t0 = scene.start

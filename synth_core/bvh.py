@@ -301,7 +301,7 @@ def _to_motion(joints: list[_Joint], data: NDArray[np.float64], frame_time: floa
     skeleton = Skeleton(
         names=tuple(j.name for j in joints),
         parents=np.array([j.parent for j in joints]),
-        offsets=offsets,
+        offsets=offsets.astype(np.float32),
         end_site=np.array([j.end_site for j in joints]),
         name=name,
     )
@@ -314,7 +314,7 @@ def _to_motion(joints: list[_Joint], data: NDArray[np.float64], frame_time: floa
         if isinstance(feet, str):
             raise ValueError(f"feet: expected a mapping, 'auto' or None, got {feet!r}")
         skeleton = skeleton.with_feet(feet)
-    return Motion(skeleton, root_pos, rotations, fps, name=name)
+    return Motion(skeleton, root_pos.astype(np.float32), rotations.astype(np.float32), fps, name=name)
 
 
 def read(path: str | Path, *, unit: str | float = "cm", feet: Mapping[str, str] | str | None = "auto",

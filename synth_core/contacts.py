@@ -51,22 +51,32 @@ def runs(mask: NDArray[np.bool_]) -> NDArray[np.int64]:
     return edges.reshape(-1, 2)
 
 
+_VERTICAL = np.array([[0, 1, 0]] * 3, bool)  # label runs along frames, never across feet
+
+
+def _short_runs(mask: NDArray[np.bool_], shorter_than: int, interior: bool) -> NDArray[np.bool_]:
+    """Frames of (F, K) ``mask`` in runs (per column) of fewer than ``shorter_than`` frames.
+
+    ``interior``: only runs that touch neither the first nor the last frame.
+    """
+    labels, count = ndimage.label(mask, structure=_VERTICAL)
+    if count == 0:
+        return np.zeros_like(mask)
+    small = np.bincount(labels.ravel(), minlength=count + 1) < shorter_than
+    if interior:
+        small[labels[0]] = False
+        small[labels[-1]] = False
+    small[0] = False
+    return np.asarray(small[labels])
+
+
 def _fill_gaps_and_drop_short(mask: NDArray[np.bool_], max_gap: int, min_len: int) -> NDArray[np.bool_]:
-    """Per column of a (F, K) mask: close gaps <= max_gap frames, then drop runs < min_len."""
-    out = mask.copy()
-    if max_gap > 0:
-        closed = ndimage.binary_closing(out, structure=np.ones((2 * max_gap + 1, 1), bool),
-                                        border_value=0)
-        # binary_closing can grow runs at the borders; keep only filled interior gaps.
-        out = closed & (ndimage.binary_dilation(out, np.ones((2 * max_gap + 1, 1), bool)))
-    if min_len > 1:
-        labels, count = ndimage.label(out, structure=np.array([[0, 1, 0]] * 3, bool))
-        if count:
-            sizes = np.bincount(labels.ravel())
-            keep = sizes >= min_len
-            keep[0] = False
-            out = keep[labels]
-    return out
+    """Per column of a (F, K) mask: fill interior gaps of <= max_gap frames, then drop runs < min_len.
+
+    A gap at the clip's start or end is not filled: nothing says the foot was planted outside.
+    """
+    out = mask | _short_runs(~mask, max_gap + 1, interior=True)
+    return out & ~_short_runs(out, min_len, interior=False)
 
 
 def ground_height(foot_heights: NDArray[np.floating]) -> float:
@@ -94,7 +104,7 @@ def detect_contacts(motion: Motion, params: ContactParams = ContactParams(),
     strong = (height < params.height * leg) & (foot_speed < speed_limit)
     weak = (height < params.release * params.height * leg) & (foot_speed < params.release * speed_limit)
     # Hysteresis as connected components: a weak run counts only if it holds a strong frame.
-    labels, count = ndimage.label(weak, structure=np.array([[0, 1, 0]] * 3, bool))
+    labels, count = ndimage.label(weak, structure=_VERTICAL)
     has_strong = np.zeros(count + 1, bool)
     has_strong[labels[strong]] = True
     has_strong[0] = False
@@ -137,10 +147,10 @@ def touchdowns(contacts: NDArray[np.bool_], cyclic: bool = False) -> list[NDArra
     """Per foot, the frames where a plant starts (False -> True).
 
     ``cyclic``: the clip loops, so a plant running over the last frame into frame 0 starts
-    where it really starts, not at 0.
+    where it really starts. Otherwise a plant already under way at frame 0 started before the
+    clip and is no touchdown.
     """
-    before = np.roll(contacts, 1, axis=0) if cyclic else np.vstack([np.zeros_like(contacts[:1]),
-                                                                     contacts[:-1]])
+    before = np.roll(contacts, 1, axis=0) if cyclic else np.vstack([contacts[:1], contacts[:-1]])
     starts = contacts & ~before
     return [np.flatnonzero(starts[:, k]) for k in range(contacts.shape[1])]
 
@@ -159,7 +169,7 @@ class FootfallPattern:
         """Circular mean phase per foot over strides, in [0, 1)."""
         angles = 2 * np.pi * self.phases
         mean = np.arctan2(np.nanmean(np.sin(angles), axis=0), np.nanmean(np.cos(angles), axis=0))
-        return np.mod(mean / (2 * np.pi), 1.0)
+        return np.asarray(np.mod(mean / (2 * np.pi), 1.0))
 
     @property
     def mean_duty(self) -> float:
@@ -193,7 +203,9 @@ def footfall_pattern(contacts: NDArray[np.bool_], cyclic: bool = False) -> Footf
             inside = d[(d >= a) & (d < b)]
             if len(inside):
                 phases[s, k] = (inside[0] - a) / length
-        order = np.argsort(np.where(np.isnan(phases[s]), np.inf, phases[s]), kind="stable")
+        # By phase; on a tie (trot, pace) LH first, so every sequence starts at LH.
+        order = np.lexsort((np.arange(4) != FOOT_NAMES.index("LH"),
+                            np.where(np.isnan(phases[s]), np.inf, phases[s])))
         sequences.append(tuple(FOOT_NAMES[k] for k in order if not np.isnan(phases[s, k])))
     return FootfallPattern(strides, phases, duty, tuple(sequences))
 
@@ -249,5 +261,5 @@ def contacts_from_json(document: Mapping[str, object], n_frames: int) -> NDArray
         raise ValueError(f"contacts.frames: the document is for {frames} frames, the clip has {n_frames}")
     if not isinstance(feet, Mapping):
         raise ValueError("contacts.feet: expected an object mapping each foot to frame ranges")
-    ranges = {foot: [tuple(r) for r in rs] for foot, rs in feet.items()}  # type: ignore[union-attr]
-    return ranges_to_contacts(ranges, n_frames)  # type: ignore[arg-type]
+    ranges = {str(foot): [(int(r[0]), int(r[1])) for r in rs] for foot, rs in feet.items()}
+    return ranges_to_contacts(ranges, n_frames)

@@ -55,7 +55,7 @@ def planted_steps_mm(foot_pos: Floats, contacts: NDArray[np.bool_]) -> Floats:
                          f"got {foot_pos.shape} and {contacts.shape}")
     step = np.linalg.norm(np.diff(_horizontal(foot_pos), axis=-3), axis=-1) * 1000.0
     both = contacts[..., 1:, :] & contacts[..., :-1, :]
-    return step[both]
+    return np.asarray(step[both])
 
 
 def foot_skate(foot_pos: Floats, contacts: NDArray[np.bool_]) -> SkateStats:
@@ -131,7 +131,7 @@ def angular_acceleration(rotations: Floats, fps: float) -> Floats:
     """
     q = quat.make_continuous(np.asarray(rotations, dtype=np.float64), axis=-3)
     omega = quat.to_rotvec(quat.mul(quat.inv(q[..., :-1, :, :]), q[..., 1:, :, :])) * fps
-    return np.linalg.norm(np.diff(omega, axis=-3), axis=-1) * fps
+    return np.asarray(np.linalg.norm(np.diff(omega, axis=-3), axis=-1) * fps)
 
 
 def pop_ratio(rotations: Floats, at_frames: Sequence[int] | NDArray[np.integer],

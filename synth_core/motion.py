@@ -22,7 +22,7 @@ class Motion:
     root_pos: NDArray[np.float32]  # (F, 3) metres
     rotations: NDArray[np.float32]  # (F, J, 4) xyzw, local
     fps: float
-    contacts: NDArray[np.bool_] = field(default=None)  # type: ignore[assignment]  # (F, 4)
+    contacts: NDArray[np.bool_] = field(default=None)  # type: ignore[arg-type]  # (F, 4); None: none planted
     name: str = ""
     gait: str | None = None
 

@@ -27,7 +27,7 @@ def _check_last(name: str, a: Array, n: int) -> None:
 
 def identity(shape: tuple[int, ...] = (), dtype: type = np.float32) -> Array:
     """Identity quaternions of the given leading shape."""
-    q = np.zeros((*shape, 4), dtype=dtype)
+    q: Array = np.zeros((*shape, 4), dtype=dtype)
     q[..., 3] = 1.0
     return q
 
@@ -117,7 +117,7 @@ def angle(q: ArrayLike) -> Array:
     q = _as_float(q)
     _check_last("q", q, 4)
     vec_norm = np.linalg.norm(q[..., :3], axis=-1)
-    return 2.0 * np.arctan2(vec_norm, np.abs(q[..., 3]))
+    return np.asarray(2.0 * np.arctan2(vec_norm, np.abs(q[..., 3])))
 
 
 def to_matrix(q: ArrayLike) -> Array:
@@ -160,9 +160,8 @@ def from_matrix(m: ArrayLike) -> Array:
         axis=-2,
     )
     pivot = np.stack([m00, m11, m22, trace], -1).argmax(-1)
-    q = np.take_along_axis(candidates, pivot[..., None, None], axis=-2)[..., 0, :]
-    q = normalize(q)
-    return np.where(q[..., 3:] < 0, -q, q)
+    best = normalize(np.take_along_axis(candidates, pivot[..., None, None], axis=-2)[..., 0, :])
+    return np.where(best[..., 3:] < 0, -best, best)
 
 
 def between(u: ArrayLike, v: ArrayLike) -> Array:
@@ -187,7 +186,7 @@ def between(u: ArrayLike, v: ArrayLike) -> Array:
 
 def dot(a: ArrayLike, b: ArrayLike) -> Array:
     """4D dot product of quaternions."""
-    return np.sum(_as_float(a) * _as_float(b), axis=-1)
+    return np.asarray(np.sum(_as_float(a) * _as_float(b), axis=-1))
 
 
 def nlerp(a: ArrayLike, b: ArrayLike, t: ArrayLike) -> Array:

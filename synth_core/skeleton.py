@@ -7,7 +7,7 @@ here (flagged in ``end_site``), so a paw tip can be a foot's end effector and FK
 from __future__ import annotations
 
 import re
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -30,7 +30,7 @@ class Skeleton:
     names: tuple[str, ...]
     parents: NDArray[np.int32]  # (J,)
     offsets: NDArray[np.float32]  # (J, 3) metres; offsets[0] is unused (root_pos places joint 0)
-    end_site: NDArray[np.bool_] = field(default=None)  # type: ignore[assignment]  # (J,)
+    end_site: NDArray[np.bool_] = field(default=None)  # type: ignore[arg-type]  # (J,); None: no end sites
     feet: tuple[Foot, ...] = ()  # empty, or four feet in FOOT_NAMES order
     name: str = ""
 
@@ -129,7 +129,7 @@ class Skeleton:
         """Length of the bone from each joint's parent to it, (J,); 0 for the root."""
         lengths = np.linalg.norm(self.offsets, axis=-1)
         lengths[0] = 0.0
-        return lengths.astype(np.float32)
+        return np.asarray(lengths, dtype=np.float32)
 
     def leg_length(self) -> float:
         """Mean length of the four limb chains (sum of bone lengths): the animal's size unit."""
