@@ -106,7 +106,8 @@ class _Scene:
         ax.set_xticks([])
         ax.set_yticks([])
 
-    def top_view(self, ax: Axes, frames: NDArray[np.int64]) -> None:
+    def top_view(self, ax: Axes, frames: NDArray[np.int64], follow: bool = False) -> None:
+        """Path, plants and body poses from above; ``follow`` frames a window around frames[-1]."""
         ax.plot(self.top[:, 0, 0], self.top[:, 0, 1], color="#999", lw=1, label="root path")
         for k, j in enumerate(self.feet):
             planted = self.contacts[:, k]
@@ -118,8 +119,15 @@ class _Scene:
             _draw_pose(ax, self.top[f], self.parents, body, alpha=0.6, lw=1.5)
         ax.set_aspect("equal")
         ax.grid(True, color="#eee")
-        ax.legend(loc="upper left", fontsize=7, ncol=5, frameon=False)
-        ax.set_title("top view (metres along / across travel)", fontsize=9)
+        if follow:
+            cx, cy = self.top[frames[-1], 0]
+            half = 1.5 * self.reach
+            ax.set_xlim(cx - half, cx + half)
+            ax.set_ylim(cy - half, cy + half)
+            ax.set_title("top view", fontsize=9)
+        else:
+            ax.legend(loc="upper left", fontsize=7, ncol=5, frameon=False)
+            ax.set_title("top view (metres along / across travel)", fontsize=9)
 
 
 def _frame_range(motion: Motion, start: int | None, stop: int | None) -> tuple[int, int]:
@@ -190,14 +198,14 @@ def _gif(scene: _Scene, out: Path, gif_fps: int) -> None:
     step = max(1, int(round(scene.motion.fps / gif_fps)))
     frames = np.arange(0, n, step)[:600]  # cap the file size: 20 s at 30 fps
     fig, (side, top) = plt.subplots(1, 2, figsize=(9, 4), dpi=80,
-                                    gridspec_kw={"width_ratios": [1.2, 1.0]})
+                                    gridspec_kw={"width_ratios": [1.6, 1.0]})
 
     def draw(f: int) -> None:
         side.clear()
         top.clear()
         scene.side_view(side, f)
         side.set_title(f"{scene.motion.name} frame {scene.start + f}", fontsize=9)
-        scene.top_view(top, np.array([f]))
+        scene.top_view(top, np.array([f]), follow=True)
 
     anim = FuncAnimation(fig, draw, frames=frames, interval=1000 / gif_fps)
     anim.save(out, writer=PillowWriter(fps=max(1, round(scene.motion.fps / step))))
