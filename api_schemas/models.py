@@ -16,10 +16,11 @@ class Readiness(BaseModel):
 
 class LibrarySummary(BaseModel):
     animal: str = Field(description="library name, e.g. 'horse'")
-    joints: int
-    fps: float
-    gaits: list[str]
-    source: str = Field(description="file the library was loaded from")
+    joints: int = Field(description="number of joints, end sites included")
+    feet: dict[str, str] = Field(description="foot (LF, RF, LH, RH) -> end-effector joint name")
+    fps: float = Field(description="frame rate of the library's clips")
+    gaits: list[str] = Field(description="gaits the library can synthesize (empty until built)")
+    source: str = Field(description="'built-in' or the artifact file it was loaded from")
 
 
 class LibrariesResponse(BaseModel):

@@ -53,12 +53,19 @@ def _bone_colors(motion: Motion) -> list[str]:
     return colors
 
 
-def _travel_axes(root: NDArray[np.floating]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Unit horizontal axes (along, across) of the clip's overall travel; +X when it stands."""
-    delta = (root[-1] - root[0]).astype(np.float64)
+def _travel_axes(pos: NDArray[np.floating], feet: NDArray[np.int64]) -> tuple[NDArray[np.float64],
+                                                                              NDArray[np.float64]]:
+    """Unit horizontal axes (along, across) of the clip's overall travel.
+
+    An animal that barely moves is viewed along its body: hind feet to fore feet (any rig with
+    feet), else +X.
+    """
+    delta = (pos[-1, 0] - pos[0, 0]).astype(np.float64)
+    if np.hypot(delta[0], delta[2]) < 0.05 and len(feet) == 4:
+        delta = (pos[0, feet[:2]].mean(axis=0) - pos[0, feet[2:]].mean(axis=0)).astype(np.float64)
     delta[1] = 0.0
     norm = np.linalg.norm(delta)
-    along = delta / norm if norm > 0.05 else np.array([1.0, 0.0, 0.0])
+    along = delta / norm if norm > 1e-6 else np.array([1.0, 0.0, 0.0])
     across = np.cross(along, [0.0, 1.0, 0.0])
     return along, across
 
@@ -79,12 +86,12 @@ class _Scene:
         self.pos = motion.positions()[start:stop].astype(np.float64)
         self.contacts = motion.contacts[start:stop]
         self.start = start
-        along, across = _travel_axes(self.pos[:, 0])
+        self.feet = motion.skeleton.foot_joints if motion.skeleton.feet else np.zeros(0, np.int64)
+        along, across = _travel_axes(self.pos, self.feet)
         self.side = np.stack([self.pos @ along, self.pos[..., 1]], axis=-1)
         self.top = np.stack([self.pos @ along, self.pos @ across], axis=-1)
         self.colors = _bone_colors(motion)
         self.parents = motion.skeleton.parents
-        self.feet = motion.skeleton.foot_joints if motion.skeleton.feet else np.zeros(0, int)
         self.height = float(np.ptp(self.pos[..., 1])) or 1.0
         # Half-width of a side panel: the farthest any joint gets from the root along travel.
         self.reach = float(np.abs(self.side[..., 0] - self.side[:, :1, 0]).max()) + 0.1 * self.height

@@ -67,13 +67,18 @@ def test_livez(server: str) -> None:
 def test_readyz_once_libraries_are_loaded(server: str) -> None:
     response = httpx.get(f"{server}/readyz")
     assert response.status_code == 200
-    assert response.json()["status"] == "ready"
+    assert response.json() == {"status": "ready", "libraries": 2}
 
 
-def test_libraries_lists_what_is_loaded(server: str) -> None:
+def test_libraries_lists_the_built_in_animals(server: str) -> None:
     response = httpx.get(f"{server}/v1/libraries")
     assert response.status_code == 200
-    assert response.json() == {"libraries": []}  # no artifact format exists yet (issue 4)
+    libraries = {lib["animal"]: lib for lib in response.json()["libraries"]}
+    assert set(libraries) == {"horse", "dog"}
+    assert libraries["horse"]["joints"] >= 30
+    assert libraries["dog"]["feet"] == {"LF": "L_FrontToe_end", "RF": "R_FrontToe_end",
+                                        "LH": "L_HindToe_end", "RH": "R_HindToe_end"}
+    assert libraries["horse"]["fps"] == 60.0
 
 
 def test_openapi_describes_the_routes(server: str) -> None:
