@@ -1,0 +1,45 @@
+"""The built-in animals' clip set: idle, four cyclic gaits, eight transitions (the paper's 12 + idle)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+from synth_core import bvh
+from synth_core.contacts import contacts_json
+from synth_core.library.gaits import GAIT_SPECS
+from synth_core.library.generator import cyclic_clip, idle_clip, static_spec, transition_clip
+from synth_core.library.skeletons import build_skeleton
+from synth_core.motion import Motion
+
+GAITS = ("walk", "trot", "canter", "gallop")
+TRANSITIONS = ("static2walk", "walk2static", "walk2trot", "trot2walk", "trot2canter", "canter2trot",
+               "canter2gallop", "gallop2canter")
+CLIP_NAMES = ("idle", *GAITS, *TRANSITIONS)
+
+
+def build_clips(animal: str) -> dict[str, Motion]:
+    """Every clip of a built-in animal, by name (CLIP_NAMES order), at 60 fps with contacts."""
+    skeleton = build_skeleton(animal)
+    specs = dict(GAIT_SPECS[animal])
+    specs["static"] = static_spec(specs["walk"])
+    clips = {"idle": idle_clip(skeleton)}
+    for gait in GAITS:
+        clips[gait] = cyclic_clip(skeleton, specs[gait])[0]
+    for name in TRANSITIONS:
+        source, target = name.split("2")
+        clips[name] = transition_clip(skeleton, specs[source], specs[target], name)[0]
+    return clips
+
+
+def export_clips(animal: str, out: Path) -> list[Path]:
+    """Write ``<clip>.bvh`` (centimetres) and ``<clip>.contacts.json`` for every clip."""
+    out.mkdir(parents=True, exist_ok=True)
+    written = []
+    for name, motion in build_clips(animal).items():
+        path = out / f"{name}.bvh"
+        bvh.write(motion, path)
+        sidecar = out / f"{name}.contacts.json"
+        sidecar.write_text(json.dumps(contacts_json(motion.contacts, motion.fps), indent=1))
+        written += [path, sidecar]
+    return written

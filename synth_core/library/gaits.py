@@ -1,0 +1,160 @@
+"""Gait parameters of the built-in horse and dog, from published gait biomechanics.
+
+Each number says where it comes from; where we had to choose, it says so.
+
+Footfall phases are touchdown times relative to the left hind (LH) as a fraction of the stride;
+duty factor is the share of the stride a foot is planted.
+
+Horse (1.6 m warmblood):
+- Walk: four-beat lateral sequence LH, LF, RH, RF at even quarter-stride spacing, duty factor
+  0.6-0.7 (Robilliard, Pfau & Wilson 2007, J. Exp. Biol. 210:187-197; Hildebrand 1965, Science
+  150:701-708). We use LF 0.25 after LH, duty 0.62.
+- Trot: diagonal pairs together (LH+RF, RH+LF), duty 0.35-0.45 (Robilliard et al. 2007). 0.40.
+- Canter (left lead): trailing hind (RH), then the diagonal pair (LH+RF), then the leading fore
+  (LF), then suspension; duty ~0.3-0.4 (Robilliard et al. 2007; Back & Clayton, *Equine
+  Locomotion*, 2013, ch. 7). Phases RH 0.73, RF 0.0, LF 0.20; duty 0.28.
+- Gallop (left lead, transverse): RH, LH, RF, LF, suspension; duty falls to ~0.2 with speed
+  (Robilliard et al. 2007; Witte, Hirst & Wilson 2006, J. Exp. Biol. 209:4389-4397 for
+  racehorses). Phases RH 0.88, RF 0.22, LF 0.33; duty 0.17.
+- Speeds: walk ~1.4-1.8, trot 3-5, canter 5-7, gallop 9-14+ m/s (Robilliard et al. 2007; Back &
+  Clayton 2013). We use 1.4, 3.0, 5.2 and 9.5 m/s.
+- Cycle lengths follow the paper's Table 1 (walk 82, trot 56, canter 51, gallop 51 frames at 60
+  fps): walk 80 and trot 56 frames; canter 48 and gallop 42. Real horses stride faster than
+  Table 1 (canter ~1.6 Hz, gallop ~2 Hz: Robilliard et al. 2007); at Table 1's 51 frames a
+  gallop at 9.5 m/s would need an 8 m stride whose stance no horse leg can sweep at duty 0.17,
+  so canter and gallop sit within 20% of Table 1 and keep a stance sweep of about +-0.57 m
+  (a limb angle of about +-25 deg, Back & Clayton 2013).
+- Trunk: vertical excursion at the trot ~70 mm peak to peak (Buchner, Obermuller & Scheidl 2000,
+  Vet. J. 160:225-234: centre of mass 53 mm, the trunk 27% more); twice per stride in walk and
+  trot, once per stride in canter and gallop. Head and neck nod twice per stride at the walk and
+  once per stride at the canter, and are held steady at the trot (Buchner et al. 1996, Equine
+  Vet. J. Suppl. 23:59-64; Back & Clayton 2013). Amplitudes are our estimates.
+
+Dog (the MANN dog, ``../shared/mocap/mann_dog/SOURCE.md``, measured there and in issue 2):
+- Walk: four-beat lateral, LF 0.12-0.39 after LH, duty ~0.62 at 0.4-0.9 m/s. We use LF 0.25,
+  duty 0.62, 0.85 m/s, 46 frames (the measured walk cycle is 48 frames at 0.81 m/s; a longer
+  stride is beyond the reach of the dog's short scapula at this duty factor).
+- Trot: duty ~0.42 at 1.5-2.3 m/s, cycles of 28-30 frames. We use 1.9 m/s, 30 frames.
+- Canter: the real dog's asymmetric gait is a rotary gallop at every speed (issue 2 measured
+  phases LF 0.12-0.21, RF 0.31-0.39, RH 0.81-0.88). For the dog's canter we use the classic
+  three-beat canter of dogs (Hildebrand 1977, Am. Zool. 17:143-157): RH 0.75, RF 0.0, LF 0.2,
+  duty 0.30, 3.2 m/s, 28 frames.
+- Gallop: **rotary**, as the real dog: RH 0.86, LF 0.16, RF 0.35, duty 0.24 (measured 0.24 at
+  4.4-5.2 m/s), 4.6 m/s, 25 frames. Spine flexion is large in the dog's gallop (Hildebrand 1959,
+  J. Mammal. 40:481-495); amplitudes are our estimates.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from synth_core import FOOT_NAMES
+
+
+@dataclass(frozen=True)
+class GaitSpec:
+    """One gait of one animal. Angles in degrees, lengths in metres, phases in strides."""
+
+    name: str
+    speed: float  # m/s
+    frames: int  # one stride at 60 fps
+    phases: dict[str, float]  # touchdown phase per foot, LH = 0
+    duty: float
+    step_height: float  # peak lift of the toe in swing, in leg lengths
+    crouch: float  # trunk lowered by this (m) so legs reach the stance extremes
+    bob: float  # trunk vertical amplitude (m, half peak-to-peak)
+    bob_per_stride: int  # 2: walk, trot; 1: canter, gallop
+    bob_low: float  # phase of the lowest trunk point (first one)
+    pitch: float  # trunk pitch amplitude (deg, + nose down)
+    pitch_down: float  # phase of the most nose-down pitch
+    nod: float  # head-and-neck nod amplitude (deg)
+    nod_per_stride: int
+    nod_down: float  # phase of the lowest head
+    steady_head: bool  # hold the head's world pitch (trot)
+    spine_flex: float  # dorsoventral spine flexion amplitude (deg, + = arched)
+    spine_arched: float  # phase of the most arched spine
+    carpus_flex: float  # peak carpus flexion in swing (deg)
+    hock_flex: float  # peak hock flexion in swing (deg)
+    hock_load: float  # hock flexion at mid-stance (deg)
+    fetlock_sink: float  # extra pastern slope at mid-stance (deg): the fetlock sinks under load
+    digit_flex: float  # peak digit (fetlock, toe) flexion in swing (deg)
+    breakover: float  # digit rotation over the toe at lift-off (deg)
+    tail_lift: float  # tail raised (deg)
+    tail_swing: float  # tail follow-through amplitude (deg)
+    notes: str = field(default="", compare=False)
+
+    @property
+    def stride_length(self) -> float:
+        return self.speed * self.frames / 60.0
+
+
+def _spec(**kw: object) -> GaitSpec:
+    spec = GaitSpec(**kw)  # type: ignore[arg-type]
+    if set(spec.phases) != set(FOOT_NAMES) or spec.phases["LH"] != 0.0:
+        raise ValueError(f"{spec.name}: phases must name all four feet with LH = 0")
+    return spec
+
+
+HORSE_GAITS: dict[str, GaitSpec] = {g.name: g for g in (
+    _spec(name="walk", speed=1.4, frames=80, phases={"LH": 0.0, "LF": 0.25, "RH": 0.5, "RF": 0.75},
+          duty=0.62, step_height=0.09, crouch=0.0, bob=0.012, bob_per_stride=2, bob_low=0.1,
+          pitch=1.0, pitch_down=0.25, nod=4.0, nod_per_stride=2, nod_down=0.3, steady_head=False,
+          spine_flex=0.5, spine_arched=0.0, carpus_flex=55.0, hock_flex=35.0, hock_load=4.0,
+          fetlock_sink=8.0, digit_flex=40.0, breakover=25.0, tail_lift=0.0, tail_swing=4.0),
+    _spec(name="trot", speed=3.0, frames=56, phases={"LH": 0.0, "RF": 0.0, "RH": 0.5, "LF": 0.5},
+          duty=0.40, step_height=0.14, crouch=0.03, bob=0.035, bob_per_stride=2, bob_low=0.2,
+          pitch=1.0, pitch_down=0.2, nod=0.0, nod_per_stride=2, nod_down=0.0, steady_head=True,
+          spine_flex=1.0, spine_arched=0.2, carpus_flex=85.0, hock_flex=50.0, hock_load=8.0,
+          fetlock_sink=14.0, digit_flex=55.0, breakover=30.0, tail_lift=10.0, tail_swing=6.0),
+    _spec(name="canter", speed=5.2, frames=48, phases={"RH": 0.73, "LH": 0.0, "RF": 0.0, "LF": 0.20},
+          duty=0.28, step_height=0.16, crouch=0.05, bob=0.05, bob_per_stride=1, bob_low=0.1,
+          pitch=4.0, pitch_down=0.33, nod=8.0, nod_per_stride=1, nod_down=0.35, steady_head=False,
+          spine_flex=2.5, spine_arched=0.0, carpus_flex=95.0, hock_flex=55.0, hock_load=10.0,
+          fetlock_sink=18.0, digit_flex=60.0, breakover=30.0, tail_lift=15.0, tail_swing=10.0),
+    _spec(name="gallop", speed=9.5, frames=42, phases={"RH": 0.88, "LH": 0.0, "RF": 0.22, "LF": 0.33},
+          duty=0.17, step_height=0.18, crouch=0.07, bob=0.06, bob_per_stride=1, bob_low=0.2,
+          pitch=5.0, pitch_down=0.38, nod=10.0, nod_per_stride=1, nod_down=0.4, steady_head=False,
+          spine_flex=4.0, spine_arched=0.1, carpus_flex=110.0, hock_flex=60.0, hock_load=12.0,
+          fetlock_sink=22.0, digit_flex=70.0, breakover=35.0, tail_lift=25.0, tail_swing=12.0),
+)}
+
+DOG_GAITS: dict[str, GaitSpec] = {g.name: g for g in (
+    _spec(name="walk", speed=0.85, frames=46, phases={"LH": 0.0, "LF": 0.25, "RH": 0.5, "RF": 0.75},
+          duty=0.62, step_height=0.10, crouch=0.0, bob=0.006, bob_per_stride=2, bob_low=0.1,
+          pitch=1.0, pitch_down=0.25, nod=4.0, nod_per_stride=2, nod_down=0.3, steady_head=False,
+          spine_flex=1.0, spine_arched=0.0, carpus_flex=60.0, hock_flex=35.0, hock_load=5.0,
+          fetlock_sink=6.0, digit_flex=35.0, breakover=25.0, tail_lift=5.0, tail_swing=8.0),
+    _spec(name="trot", speed=1.9, frames=30, phases={"LH": 0.0, "RF": 0.0, "RH": 0.5, "LF": 0.5},
+          duty=0.42, step_height=0.13, crouch=0.01, bob=0.012, bob_per_stride=2, bob_low=0.21,
+          pitch=1.0, pitch_down=0.2, nod=0.0, nod_per_stride=2, nod_down=0.0, steady_head=True,
+          spine_flex=2.0, spine_arched=0.2, carpus_flex=80.0, hock_flex=45.0, hock_load=8.0,
+          fetlock_sink=8.0, digit_flex=45.0, breakover=30.0, tail_lift=10.0, tail_swing=8.0),
+    _spec(name="canter", speed=3.2, frames=28, phases={"RH": 0.75, "LH": 0.0, "RF": 0.0, "LF": 0.20},
+          duty=0.30, step_height=0.15, crouch=0.02, bob=0.02, bob_per_stride=1, bob_low=0.1,
+          pitch=5.0, pitch_down=0.33, nod=8.0, nod_per_stride=1, nod_down=0.35, steady_head=False,
+          spine_flex=8.0, spine_arched=0.0, carpus_flex=90.0, hock_flex=50.0, hock_load=10.0,
+          fetlock_sink=10.0, digit_flex=50.0, breakover=30.0, tail_lift=15.0, tail_swing=12.0),
+    _spec(name="gallop", speed=4.6, frames=25, phases={"RH": 0.86, "LH": 0.0, "LF": 0.16, "RF": 0.35},
+          duty=0.24, step_height=0.16, crouch=0.05, bob=0.025, bob_per_stride=1, bob_low=0.15,
+          pitch=7.0, pitch_down=0.35, nod=10.0, nod_per_stride=1, nod_down=0.4, steady_head=False,
+          spine_flex=14.0, spine_arched=0.0, carpus_flex=100.0, hock_flex=55.0, hock_load=12.0,
+          fetlock_sink=12.0, digit_flex=60.0, breakover=35.0, tail_lift=20.0, tail_swing=15.0),
+)}
+
+GAIT_SPECS: dict[str, dict[str, GaitSpec]] = {"horse": HORSE_GAITS, "dog": DOG_GAITS}
+
+# Touchdown-order templates for synth_core.metrics.footfall_order (groups that land together).
+FOOTFALL_TEMPLATES: dict[str, dict[str, list[list[str]]]] = {
+    "horse": {
+        "walk": [["LH"], ["LF"], ["RH"], ["RF"]],
+        "trot": [["LH", "RF"], ["RH", "LF"]],
+        "canter": [["LH", "RF"], ["LF"], ["RH"]],
+        "gallop": [["LH"], ["RF"], ["LF"], ["RH"]],
+    },
+    "dog": {
+        "walk": [["LH"], ["LF"], ["RH"], ["RF"]],
+        "trot": [["LH", "RF"], ["RH", "LF"]],
+        "canter": [["LH", "RF"], ["LF"], ["RH"]],
+        "gallop": [["LH"], ["LF"], ["RF"], ["RH"]],
+    },
+}

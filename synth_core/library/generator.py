@@ -1,0 +1,343 @@
+"""Generate gait clips by planning foot paths and solving the legs (issue 3).
+
+One event-based generator serves cyclic gaits, the idle and the transitions. Every gait parameter
+is a per-frame array (a transition blends two gaits' parameters over time), and:
+
+1. the root advances at the speed, and a stride clock runs at the stride frequency;
+2. each foot's phase is the clock minus its footfall offset; it is planted while the phase's
+   fraction is below the duty factor. Each plant sits at the foot's neutral place under the body
+   at the root's mid-stance position (or, for a plant open at the clip's start or end, at the
+   root's position there, so standing is square);
+3. a swinging foot travels from one plant to the next on a minimum-jerk path, lifted by the
+   step height;
+4. the trunk bobs, pitches and flexes, the neck nods (or holds the head steady), the tail follows;
+5. the legs are solved in the sagittal plane (:mod:`synth_core.library.limbs`) with the carpus
+   and hock flexing in swing, the fetlock sinking under load and the hoof breaking over the toe.
+
+Cyclic clips are generated with two strides of padding on each side and cut, so they loop
+exactly; transitions are cut from a timeline padded with the gaits they join.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, fields, replace
+
+import numpy as np
+from numpy.typing import NDArray
+
+from synth_core import FOOT_NAMES, quat
+from synth_core.contacts import runs
+from synth_core.library.gaits import GaitSpec
+from synth_core.library.limbs import Limb, angle_of, limbs_of, solve_leg
+from synth_core.motion import Motion
+from synth_core.skeleton import Skeleton, forward_kinematics
+
+Floats = NDArray[np.float64]
+FPS = 60.0
+_X = np.array([1.0, 0.0, 0.0])
+_Y = np.array([0.0, 1.0, 0.0])
+
+
+def static_spec(like: GaitSpec) -> GaitSpec:
+    """Standing still: every foot planted, nothing oscillating; the stride clock keeps ``like``'s."""
+    still: dict[str, object] = {f.name: 0.0 for f in fields(GaitSpec) if f.type == "float"}
+    still.update(duty=1.0, name="static", steady_head=False)
+    return replace(like, **still)  # type: ignore[arg-type]
+
+
+# --- parameter tracks ------------------------------------------------------------------------
+
+_NUMERIC = [f.name for f in fields(GaitSpec) if f.type in ("float", "int") and f.name != "frames"]
+
+
+@dataclass(frozen=True)
+class Track:
+    """Per-frame gait parameters: ``values[name] (T,)``, stride ``frequency (T,)`` Hz, ``phases (T, 4)``."""
+
+    values: dict[str, Floats]
+    frequency: Floats
+    phases: Floats
+    steady_head: Floats  # (T,) weight of the steady-head behaviour
+
+    @property
+    def length(self) -> int:
+        return len(self.frequency)
+
+
+def constant_track(spec: GaitSpec, length: int) -> Track:
+    return blend_track(spec, spec, np.zeros(length))
+
+
+def blend_track(a: GaitSpec, b: GaitSpec, weight: Floats) -> Track:
+    """Parameters blended from ``a`` (weight 0) to ``b`` (weight 1); phases take the shorter way."""
+    w = np.asarray(weight, dtype=np.float64)
+    values = {n: (1 - w) * float(getattr(a, n)) + w * float(getattr(b, n)) for n in _NUMERIC}
+    freq = (1 - w) * FPS / a.frames + w * FPS / b.frames
+    pa = np.array([a.phases[f] for f in FOOT_NAMES])
+    pb = np.array([b.phases[f] for f in FOOT_NAMES])
+    pb = pa + ((pb - pa + 0.5) % 1.0 - 0.5)  # continuous footfall order: nearest equivalent phase
+    phases = (1 - w)[:, None] * pa + w[:, None] * pb
+    steady = (1 - w) * float(a.steady_head) + w * float(b.steady_head)
+    return Track(values, freq, phases, steady)
+
+
+def concat(*tracks: Track) -> Track:
+    return Track({n: np.concatenate([t.values[n] for t in tracks]) for n in tracks[0].values},
+                 np.concatenate([t.frequency for t in tracks]),
+                 np.concatenate([t.phases for t in tracks]),
+                 np.concatenate([t.steady_head for t in tracks]))
+
+
+def smoothstep(x: Floats) -> Floats:
+    x = np.clip(x, 0.0, 1.0)
+    return x * x * (3 - 2 * x)
+
+
+def min_jerk(s: Floats) -> Floats:
+    s = np.clip(s, 0.0, 1.0)
+    return s**3 * (10 - 15 * s + 6 * s * s)
+
+
+# --- feet ------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class FootPlan:
+    planted: NDArray[np.bool_]  # (T,)
+    z: Floats  # (T,) world forward position of the toe
+    y: Floats  # (T,) toe height
+    stance_w: Floats  # (T,) progress through the current stance (0..1), NaN in swing
+    swing_s: Floats  # (T,) progress through the current swing (0..1), NaN in stance
+
+
+def plan_foot(planted: NDArray[np.bool_], root_z: Floats, neutral_z: float, lift: Floats) -> FootPlan:
+    """Plants at the root's mid-stance place (square when open-ended) and swings between them."""
+    T = len(planted)
+    stance = runs(planted)
+    if len(stance) == 0:
+        raise ValueError("a foot never touches the ground in this clip")
+    start, stop = stance[:, 0], stance[:, 1]
+    mid = 0.5 * (root_z[start] + root_z[stop - 1])
+    mid = np.where(start == 0, root_z[0], mid)  # open at the clip start: standing there
+    mid = np.where(stop == T, root_z[-1], mid)  # open at the end: standing there
+    plant_z = mid + neutral_z
+    t = np.arange(T)
+    # Index of the stance run at or before each frame (-1 before the first).
+    prev = np.searchsorted(start, t, side="right") - 1
+    in_stance = planted
+    prev_c = np.clip(prev, 0, len(stance) - 1)
+    nxt = np.clip(prev + 1, 0, len(stance) - 1)
+    lo = stop[prev_c]  # first swing frame after the previous plant
+    td = start[nxt]
+    span = np.maximum(td - lo + 1, 1)
+    s = np.clip((t - lo + 1) / span, 0.0, 1.0)
+    before_first, after_last = prev < 0, prev >= len(stance) - 1
+    z_swing = plant_z[prev_c] + (plant_z[nxt] - plant_z[prev_c]) * min_jerk(s)
+    z_swing = np.where(before_first, plant_z[0], np.where(after_last, plant_z[-1], z_swing))
+    bump = np.sin(np.pi * np.clip(s, 0, 1) ** 0.8)  # lifts early, lands gently
+    y_swing = np.where(before_first | after_last, 0.0, lift * bump)
+    z = np.where(in_stance, plant_z[prev_c], z_swing)
+    y = np.where(in_stance, 0.0, y_swing)
+    w = (t - start[prev_c] + 0.5) / (stop[prev_c] - start[prev_c])
+    return FootPlan(planted, z, y, np.where(in_stance, w, np.nan), np.where(in_stance, np.nan, s))
+
+
+# --- the whole body --------------------------------------------------------------------------
+
+
+def rest_root_height(skeleton: Skeleton) -> float:
+    pos, _ = forward_kinematics(skeleton, np.zeros(3), quat.identity((skeleton.n_joints,)))
+    return float(-pos[skeleton.foot_joints, 1].min())
+
+
+def _joints(skeleton: Skeleton, prefix: str) -> list[int]:
+    return [j for j, n in enumerate(skeleton.names) if n.startswith(prefix) and not skeleton.end_site[j]]
+
+
+def _rot_x(angle: Floats) -> NDArray[np.floating]:
+    return quat.from_axis_angle(_X, angle)
+
+
+def _wave(clock: Floats, per_stride: Floats | float, at: Floats | float) -> Floats:
+    """cos wave that peaks (= 1) when the stride clock is at phase ``at``."""
+    return np.cos(2 * np.pi * np.asarray(per_stride) * (clock - at))
+
+
+def synthesize(skeleton: Skeleton, track: Track, name: str, gait: str | None) -> tuple[Motion, Floats]:
+    """Generate a motion from a parameter track; also returns each frame's largest foot miss (m)."""
+    T = track.length
+    v = track.values
+    root_z = np.concatenate([[0.0], np.cumsum(v["speed"][1:]) / FPS])
+    # Strides. Rounded so that touchdowns falling exactly on a frame (LF at 0.25 of an 80-frame
+    # stride) resolve the same way in every cycle despite the cumulative sum's rounding.
+    clock = np.round(np.concatenate([[0.0], np.cumsum(track.frequency[1:]) / FPS]), 9)
+    height = rest_root_height(skeleton)
+    leg_length = skeleton.leg_length()
+    rest_pos, _ = forward_kinematics(skeleton, np.array([0.0, height, 0.0]),
+                                     quat.identity((skeleton.n_joints,)))
+    rest_pos = rest_pos.astype(np.float64)
+
+    # Trunk: root bob and pitch, spine flexion, neck nod, steady head, tail.
+    angles = np.zeros((T, skeleton.n_joints))  # local rotation about +X per joint (rad)
+    root_y = height - v["crouch"] - v["bob"] * _wave(clock, v["bob_per_stride"], v["bob_low"])
+    pitch = np.radians(v["pitch"]) * _wave(clock, 1, v["pitch_down"])
+    spine = _joints(skeleton, "Spine")
+    flex = np.radians(v["spine_flex"]) * _wave(clock, 1, v["spine_arched"])
+    for j in spine:
+        angles[:, j] = flex / len(spine)
+    neck = _joints(skeleton, "Neck")
+    nod = np.radians(v["nod"]) * _wave(clock, v["nod_per_stride"], v["nod_down"])
+    for j in neck:
+        angles[:, j] = nod / len(neck)
+    head = skeleton.index("Head")
+    angles[:, head] = -track.steady_head * (pitch + flex + nod)  # head level in the world
+    tail = _joints(skeleton, "Tail")
+    for k, j in enumerate(tail):
+        lag = 0.12 * (k + 1)
+        angles[:, j] = np.radians(v["tail_lift"] / len(tail)
+                                  + v["tail_swing"] / len(tail) * _wave(clock, v["bob_per_stride"],
+                                                                        v["bob_low"] + lag))
+    # Global pitch of every trunk joint: sum of local X-rotations from the root (all about X).
+    global_pitch = np.zeros((T, skeleton.n_joints))
+    global_pitch[:, 0] = pitch
+    for j in range(1, skeleton.n_joints):
+        global_pitch[:, j] = global_pitch[:, skeleton.parents[j]] + angles[:, j]
+
+    rot = _rot_x(angles)
+    rot[:, 0] = _rot_x(pitch)
+    root_pos = np.stack([np.zeros(T), root_y, root_z], axis=1)
+    trunk_pos = forward_kinematics(skeleton, root_pos, rot)[0].astype(np.float64)
+
+    # Legs.
+    phases = np.round(clock[:, None] - track.phases, 9)  # strides since each foot's reference touchdown
+    planted = np.mod(phases, 1.0) < v["duty"][:, None] - 1e-9
+    contacts = np.zeros((T, 4), bool)
+    miss = np.zeros(T)
+    for k, limb in enumerate(limbs_of(skeleton)):
+        end = limb.chain[-1]
+        neutral = rest_pos[end, 2] - rest_pos[0, 2]
+        plan = plan_foot(planted[:, k], root_z, neutral, v["step_height"] * leg_length)
+        contacts[:, k] = plan.planted
+        rest_root = rest_pos[limb.chain[0], [2, 1]]
+        rest_protraction = float(angle_of(rest_pos[end, [2, 1]] - rest_root))
+        solution = _solve_limb(skeleton, limb, plan, trunk_pos, global_pitch, v, rest_protraction)
+        miss = np.maximum(miss, solution[1])
+        parent_pitch = global_pitch[:, skeleton.parents[limb.chain[0]]]
+        bone_global = limb.rest_angles[None] - solution[0]  # X-rotation of each chain joint
+        local = np.diff(np.concatenate([parent_pitch[:, None], bone_global], axis=1), axis=1)
+        rot[:, list(limb.chain[:-1])] = _rot_x(local)
+    motion = Motion(skeleton, root_pos.astype(np.float32), rot.astype(np.float32), FPS,
+                    contacts=contacts, name=name, gait=gait)
+    return motion, miss
+
+
+def _solve_limb(skeleton: Skeleton, limb: Limb, plan: FootPlan, trunk_pos: Floats,
+                global_pitch: Floats, v: dict[str, Floats], rest_protraction: float) -> tuple[Floats, Floats]:
+    in_stance = plan.planted
+    w = np.nan_to_num(plan.stance_w)
+    s = np.nan_to_num(plan.swing_s)
+    swing_bump = np.where(in_stance, 0.0, np.sin(np.pi * s**0.8))
+    load = np.where(in_stance, np.sin(np.pi * w), 0.0)
+    fore = limb.girdle is not None
+    distal = np.radians(np.where(fore, v["carpus_flex"], v["hock_flex"])) * swing_bump
+    if not fore:
+        distal = distal + np.radians(v["hock_load"]) * load
+    # Digits: the fetlock sinks under load; the hoof breaks over the toe; the digits fold in swing.
+    breakover = np.radians(v["breakover"]) * np.where(in_stance, smoothstep((w - 0.75) / 0.25),
+                                                      1.0 - smoothstep(s / 0.5))
+    digits = list(limb.digits)
+    digit_angles = limb.rest_angles[digits][None] - breakover[:, None] \
+        - np.radians(v["digit_flex"])[:, None] * swing_bump[:, None]
+    digit_angles[:, 0] += np.radians(v["fetlock_sink"]) * load
+    root = trunk_pos[:, limb.chain[0]][:, [2, 1]]
+    foot = np.stack([plan.z, plan.y], axis=1)
+    girdle = None
+    if fore:
+        # The scapula rides with the trunk's pitch and swings with the leg: about a third of the
+        # leg's protraction from standing (the shoulder blade's share of forelimb swing).
+        trunk = global_pitch[:, skeleton.parents[limb.chain[0]]]
+        girdle = limb.rest_angles[limb.girdle] - trunk + 0.35 * (angle_of(foot - root) - rest_protraction)
+    solution = solve_leg(limb, root, foot, girdle, distal, digit_angles)
+    return solution.angles, solution.miss
+
+
+# --- clips -----------------------------------------------------------------------------------
+
+
+def cyclic_clip(skeleton: Skeleton, spec: GaitSpec) -> tuple[Motion, Floats]:
+    """One stride of a gait that loops exactly (generated padded, then cut)."""
+    N = spec.frames
+    motion, miss = synthesize(skeleton, constant_track(spec, 5 * N), spec.name, spec.name)
+    cut = motion.slice(2 * N, 3 * N)
+    root = cut.root_pos.copy()
+    root[:, 2] -= root[0, 2]
+    return Motion(skeleton, root, cut.rotations, FPS, cut.contacts, spec.name, spec.name), miss[2 * N:3 * N]
+
+
+def transition_clip(skeleton: Skeleton, a: GaitSpec, b: GaitSpec, name: str,
+                    strides: float = 2.0) -> tuple[Motion, Floats]:
+    """One stride of ``a``, a blend over ``strides`` strides, one stride of ``b``.
+
+    The clip starts at stride phase 0 of ``a`` (matching its cyclic clip's first frame).
+    """
+    pad = 2 * max(a.frames, b.frames)
+    ramp = int(round(strides * 0.5 * (a.frames + b.frames)))
+    head = constant_track(a, pad + a.frames)
+    middle = blend_track(a, b, smoothstep(np.linspace(0.0, 1.0, ramp)))
+    tail = constant_track(b, b.frames + pad)
+    motion, miss = synthesize(skeleton, concat(head, middle, tail), name, None)
+    start, stop = pad, pad + a.frames + ramp + b.frames
+    cut = motion.slice(start, stop)
+    root = cut.root_pos.copy()
+    root[:, 2] -= root[0, 2]
+    return Motion(skeleton, root, cut.rotations, FPS, cut.contacts, name, None), miss[start:stop]
+
+
+def idle_clip(skeleton: Skeleton, seconds: float = 10.0) -> Motion:
+    """Standing: breathing, slow fore-aft weight shifts, the head looking about; feet planted.
+
+    Periodic over the clip (every oscillation completes whole cycles), so it loops. A resting
+    horse breathes 8-16 times a minute (Back & Clayton 2013); we use 12 (0.2 Hz).
+    """
+    T = int(round(seconds * FPS))
+    t = np.arange(T) / FPS
+    cycle = 2 * np.pi * t / seconds  # one weight shift per clip
+    breath = np.sin(2 * np.pi * 0.2 * t)
+    height = rest_root_height(skeleton)
+    leg_length = skeleton.leg_length()
+    root_pos = np.stack([np.zeros(T), height - 0.004 * leg_length * (1 + breath),
+                         0.012 * leg_length * np.sin(cycle)], axis=1)
+    angles = np.zeros((T, skeleton.n_joints))
+    spine = _joints(skeleton, "Spine")
+    for j in spine:
+        angles[:, j] = np.radians(0.4) * breath / len(spine)
+    neck = _joints(skeleton, "Neck")
+    for j in neck:  # lower and raise the head slowly
+        angles[:, j] = np.radians(6.0) * np.sin(2 * cycle + 0.5) / len(neck)
+    tail = _joints(skeleton, "Tail")
+    for k, j in enumerate(tail):
+        angles[:, j] = np.radians(3.0) * np.sin(3 * cycle - 0.6 * k) / len(tail)
+    rot = _rot_x(angles)
+    head = skeleton.index("Head")
+    yaw = quat.from_axis_angle(_Y, np.radians(12.0) * np.sin(cycle + 1.0))  # looks left and right
+    rot[:, head] = quat.mul(yaw, rot[:, head])
+    global_pitch = np.zeros((T, skeleton.n_joints))
+    for j in range(1, skeleton.n_joints):
+        global_pitch[:, j] = global_pitch[:, skeleton.parents[j]] + angles[:, j]
+    trunk_pos, _ = forward_kinematics(skeleton, root_pos, rot)
+    rest_pos, _ = forward_kinematics(skeleton, np.array([0.0, height, 0.0]),
+                                     quat.identity((skeleton.n_joints,)))
+    v = {n: np.zeros(T) for n in _NUMERIC}  # standing: no flexion, sink or breakover
+    for limb in limbs_of(skeleton):
+        end = limb.chain[-1]
+        foot_z = np.full(T, float(rest_pos[end, 2]))
+        plan = FootPlan(np.ones(T, bool), foot_z, np.zeros(T), np.full(T, 0.5), np.full(T, np.nan))
+        rest_protraction = float(angle_of(rest_pos[end, [2, 1]] - rest_pos[limb.chain[0], [2, 1]]))
+        bone_angles, _ = _solve_limb(skeleton, limb, plan, trunk_pos.astype(np.float64), global_pitch,
+                                     v, rest_protraction)
+        parent_pitch = global_pitch[:, skeleton.parents[limb.chain[0]]]
+        local = np.diff(np.concatenate([parent_pitch[:, None], limb.rest_angles[None] - bone_angles],
+                                       axis=1), axis=1)
+        rot[:, list(limb.chain[:-1])] = _rot_x(local)
+    return Motion(skeleton, root_pos.astype(np.float32), rot.astype(np.float32), FPS,
+                  contacts=np.ones((T, 4), bool), name="idle", gait="static")
