@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import sys
 from collections.abc import Sequence
+from pathlib import Path
 
 
 def _serve(args: argparse.Namespace, extra: list[str]) -> int:
@@ -27,6 +28,14 @@ def _preview(args: argparse.Namespace, extra: list[str]) -> int:
     return 0
 
 
+def _library_export(args: argparse.Namespace, extra: list[str]) -> int:
+    from synth_core.library.clips import export_clips
+
+    written = export_clips(args.animal, Path(args.out))
+    print(f"wrote {len(written)} files to {args.out}")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="quadsynth", description=__doc__)
     sub = parser.add_subparsers(dest="command", required=True)
@@ -45,6 +54,13 @@ def build_parser() -> argparse.ArgumentParser:
     preview.add_argument("--panels", type=int, default=8, help="poses on a PNG contact sheet")
     preview.add_argument("--gif-fps", type=int, default=30, help="GIF frame rate")
     preview.set_defaults(func=_preview, passthrough=False)
+
+    library = sub.add_parser("library", help="the built-in animals")
+    library_sub = library.add_subparsers(dest="library_command", required=True)
+    export = library_sub.add_parser("export", help="write every clip as BVH (cm) + contacts.json")
+    export.add_argument("--animal", required=True, choices=["horse", "dog"])
+    export.add_argument("--out", required=True, help="output directory (created if missing)")
+    export.set_defaults(func=_library_export, passthrough=False)
     return parser
 
 

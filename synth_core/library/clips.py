@@ -40,6 +40,6 @@ def export_clips(animal: str, out: Path) -> list[Path]:
         path = out / f"{name}.bvh"
         bvh.write(motion, path)
         sidecar = out / f"{name}.contacts.json"
-        sidecar.write_text(json.dumps(contacts_json(motion.contacts, motion.fps), indent=1))
+        sidecar.write_text(json.dumps(contacts_json(motion.contacts, motion.fps)))
         written += [path, sidecar]
     return written

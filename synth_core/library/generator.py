@@ -38,9 +38,15 @@ _X = np.array([1.0, 0.0, 0.0])
 _Y = np.array([0.0, 1.0, 0.0])
 
 
+# Standing zeroes what moves the body and loads the legs; how a foot swings (lift, flexion,
+# breakover) stays ``like``'s, so the first and last steps of a start or stop are real steps.
+_STILL = ("speed", "crouch", "bob", "pitch", "nod", "spine_flex", "fetlock_sink", "hock_load",
+          "tail_lift", "tail_swing")
+
+
 def static_spec(like: GaitSpec) -> GaitSpec:
     """Standing still: every foot planted, nothing oscillating; the stride clock keeps ``like``'s."""
-    still: dict[str, object] = {f.name: 0.0 for f in fields(GaitSpec) if f.type == "float"}
+    still: dict[str, object] = {name: 0.0 for name in _STILL}
     still.update(duty=1.0, name="static", steady_head=False)
     return replace(like, **still)  # type: ignore[arg-type]
 
@@ -73,6 +79,13 @@ def blend_track(a: GaitSpec, b: GaitSpec, weight: Floats) -> Track:
     w = np.asarray(weight, dtype=np.float64)
     values = {n: (1 - w) * float(getattr(a, n)) + w * float(getattr(b, n)) for n in _NUMERIC}
     freq = (1 - w) * FPS / a.frames + w * FPS / b.frames
+    # Blend the stance length (the ground a planted foot sweeps), not the duty factor: speed,
+    # frequency and duty blended separately make mid-transition stances longer than either gait's
+    # and beyond the legs' reach. Near standstill the duty factor is blended as it is.
+    stance = (1 - w) * a.speed * a.duty / (FPS / a.frames) + w * b.speed * b.duty / (FPS / b.frames)
+    stride = values["speed"] / freq
+    moving = stride > 0.25 * max(a.speed / (FPS / a.frames), b.speed / (FPS / b.frames))
+    values["duty"] = np.where(moving, np.clip(stance / np.maximum(stride, 1e-9), 0.0, 1.0), values["duty"])
     pa = np.array([a.phases[f] for f in FOOT_NAMES])
     pb = np.array([b.phases[f] for f in FOOT_NAMES])
     pb = pa + ((pb - pa + 0.5) % 1.0 - 0.5)  # continuous footfall order: nearest equivalent phase
@@ -236,7 +249,8 @@ def _solve_limb(skeleton: Skeleton, limb: Limb, plan: FootPlan, trunk_pos: Float
     in_stance = plan.planted
     w = np.nan_to_num(plan.stance_w)
     s = np.nan_to_num(plan.swing_s)
-    swing_bump = np.where(in_stance, 0.0, np.sin(np.pi * s**0.8))
+    # Flexion rises from zero slope at lift-off (no pop) and peaks early in swing.
+    swing_bump = np.where(in_stance, 0.0, np.sin(np.pi * s**0.75) ** 2)
     load = np.where(in_stance, np.sin(np.pi * w), 0.0)
     fore = limb.girdle is not None
     distal = np.radians(np.where(fore, v["carpus_flex"], v["hock_flex"])) * swing_bump
@@ -257,7 +271,9 @@ def _solve_limb(skeleton: Skeleton, limb: Limb, plan: FootPlan, trunk_pos: Float
         # leg's protraction from standing (the shoulder blade's share of forelimb swing).
         trunk = global_pitch[:, skeleton.parents[limb.chain[0]]]
         girdle = limb.rest_angles[limb.girdle] - trunk + 0.35 * (angle_of(foot - root) - rest_protraction)
-    solution = solve_leg(limb, root, foot, girdle, distal, digit_angles)
+    # Reach adaptation: full in stance, fading out over the first and in over the last 30% of swing.
+    adapt = np.where(in_stance, 1.0, np.maximum(1.0 - smoothstep(s / 0.3), smoothstep((s - 0.7) / 0.3)))
+    solution = solve_leg(limb, root, foot, girdle, distal, digit_angles, adapt=adapt)
     return solution.angles, solution.miss
 
 
@@ -280,7 +296,7 @@ def transition_clip(skeleton: Skeleton, a: GaitSpec, b: GaitSpec, name: str,
 
     The clip starts at stride phase 0 of ``a`` (matching its cyclic clip's first frame).
     """
-    pad = 2 * max(a.frames, b.frames)
+    pad = a.frames * -(-2 * max(a.frames, b.frames) // a.frames)  # whole strides of a: starts at phase 0
     ramp = int(round(strides * 0.5 * (a.frames + b.frames)))
     head = constant_track(a, pad + a.frames)
     middle = blend_track(a, b, smoothstep(np.linspace(0.0, 1.0, ramp)))

@@ -96,7 +96,7 @@ class LegSolution:
 
 
 REACH_MARGIN = 0.97  # keep the elbow / stifle bent: use at most 97% of the two-link reach
-MIN_DISTAL_FLEX = {1.0: np.radians(-20.0), -1.0: 0.0}  # the hock may open 20 deg; the carpus no further
+MIN_DISTAL_FLEX = {1.0: np.radians(-30.0), -1.0: 0.0}  # the hock may open 30 deg; the carpus no further
 
 
 def _girdle_for_reach(root: Floats, fetlock: Floats, girdle: Floats, length: float,
@@ -133,14 +133,19 @@ def _distal_flex_for_reach(limb: Limb, distal_flex: Floats, needed: Floats) -> F
 
 
 def solve_leg(limb: Limb, root: Floats, foot: Floats, girdle_angle: Floats | None,
-              distal_flex: Floats, digit_angles: Floats) -> LegSolution:
+              distal_flex: Floats, digit_angles: Floats,
+              adapt: Floats | None = None) -> LegSolution:
     """Bone angles putting the end effector at ``foot``.
 
     ``root (F, 2)``: the limb root joint (scapula top, hip joint) in (z, y); ``foot (F, 2)``;
     ``girdle_angle (F,)`` for fore limbs (preferred; rotated further where the foot needs the
     reach); ``distal_flex (F,)`` radians (preferred; the hock opens where needed); ``digit_angles
-    (F, D)`` world angles of the digit bones, top first.
+    (F, D)`` world angles of the digit bones, top first. ``adapt (F,)`` in [0, 1]: how far the
+    girdle and distal joint give way for reach (1 in stance, where the foot must be on its plant;
+    fading out in swing, where the planned toe path is only a guide; a weight, not a switch, so
+    nothing pops). Default: 1 everywhere.
     """
+    adapt = np.ones(len(root)) if adapt is None else adapt
     F = len(root)
     angles = np.zeros((F, len(limb.lengths)))
     digits = list(limb.digits)
@@ -152,12 +157,14 @@ def solve_leg(limb: Limb, root: Floats, foot: Floats, girdle_angle: Floats | Non
         if girdle_angle is None:
             raise ValueError(f"{limb.foot}: a fore limb needs its girdle angle")
         l2, _ = effective_link(limb, distal_flex)
-        girdle = _girdle_for_reach(root, fetlock, girdle_angle, limb.lengths[limb.girdle],
-                                   REACH_MARGIN * (l1 + l2))
+        reached = _girdle_for_reach(root, fetlock, girdle_angle, limb.lengths[limb.girdle],
+                                    REACH_MARGIN * (l1 + l2))
+        girdle = girdle_angle + adapt * (reached - girdle_angle)
         angles[:, limb.girdle] = girdle
         start = root + bone_vector(girdle, limb.lengths[limb.girdle])
     d = np.linalg.norm(fetlock - start, axis=-1)
-    distal_flex = _distal_flex_for_reach(limb, distal_flex, d / REACH_MARGIN - l1)
+    distal_flex = distal_flex + adapt * (_distal_flex_for_reach(limb, distal_flex, d / REACH_MARGIN - l1)
+                                         - distal_flex)
     l2, delta = effective_link(limb, distal_flex)
     to_target = fetlock - start
     reach = np.clip(d, np.abs(l1 - l2) + 1e-9, l1 + l2 - 1e-9)

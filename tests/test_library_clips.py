@@ -1,0 +1,227 @@
+"""The built-in gait clips: feet, loops, footfalls, joint bend directions, speeds, export.
+
+Measured on the motions with synth_core.metrics; footfall templates are checked on contacts
+re-detected from the exported BVH, not on the generator's own parameters.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from quadsynth.cli import main
+from synth_core import FOOT_NAMES, bvh, quat
+from synth_core import contacts as C
+from synth_core import metrics as M
+from synth_core.library.clips import CLIP_NAMES, GAITS, TRANSITIONS, build_clips
+from synth_core.library.gaits import FOOTFALL_TEMPLATES, GAIT_SPECS
+from synth_core.motion import Motion
+
+ANIMALS = ("horse", "dog")
+SPEED_RANGES = {  # m/s; dog: the real dog (SOURCE.md); horse: the literature (issue 3)
+    "dog": {"walk": (0.7, 1.6), "trot": (1.5, 2.3), "canter": (2.7, 3.7), "gallop": (4.2, 5.2)},
+    "horse": {"walk": (1.2, 1.9), "trot": (3.0, 5.0), "canter": (5.0, 7.0), "gallop": (9.0, 14.0)},
+}
+TABLE_1_FRAMES = {"walk": 82, "trot": 56, "canter": 51, "gallop": 51}  # Sung 2011, horse
+
+
+@pytest.fixture(scope="module")
+def clips() -> dict[str, dict[str, Motion]]:
+    return {animal: build_clips(animal) for animal in ANIMALS}
+
+
+# Known gaps of issue 3, kept visible: strict, so each fails the suite once it is fixed and the
+# mark must go. Both come from reach: the dog's 8 cm scapula cannot give its fore limb the reach
+# its canter transitions ask for, and the reach adaptation swings the scapula fastest at the
+# cyclic clips' seam frame.
+REACH_GAP = pytest.mark.xfail(strict=True, reason="issue 3 open: dog fore-limb reach in canter "
+                                                  "transitions (planted paw 9-20 mm up)")
+SEAM_GAP = pytest.mark.xfail(strict=True, reason="issue 3 open: fastest scapula step falls on the "
+                                                 "loop seam (seam step up to 6% above the clip's max)")
+KNOWN_GAPS = {("planted", "dog", "canter2trot"): REACH_GAP, ("planted", "dog", "canter2gallop"): REACH_GAP,
+              ("seam", "horse", "gallop"): SEAM_GAP, ("seam", "dog", "trot"): SEAM_GAP,
+              ("seam", "dog", "gallop"): SEAM_GAP}
+
+
+def marked(check: str, pairs: list[tuple[str, str]]) -> list[object]:
+    return [pytest.param(a, c, marks=KNOWN_GAPS[(check, a, c)]) if (check, a, c) in KNOWN_GAPS
+            else (a, c) for a, c in pairs]
+
+
+def cases() -> list[tuple[str, str]]:
+    return [(a, c) for a in ANIMALS for c in CLIP_NAMES]
+
+
+def looped(motion: Motion, times: int) -> Motion:
+    """A cyclic clip repeated, the root carried forward one stride per copy."""
+    spec = GAIT_SPECS[motion.skeleton.name][motion.name]
+    advance = np.array([0.0, 0.0, spec.speed * motion.n_frames / motion.fps], np.float32)
+    root = np.concatenate([motion.root_pos + k * advance for k in range(times)])
+    return Motion(motion.skeleton, root, np.tile(motion.rotations, (times, 1, 1)), motion.fps,
+                  np.tile(motion.contacts, (times, 1)), motion.name, motion.gait)
+
+
+def test_every_named_clip_exists(clips: dict[str, dict[str, Motion]]) -> None:
+    for animal in ANIMALS:
+        assert tuple(clips[animal]) == CLIP_NAMES
+        assert all(m.fps == 60.0 for m in clips[animal].values())
+
+
+@pytest.mark.parametrize("animal, clip", marked("planted", cases()))
+def test_planted_feet_hold_and_nothing_goes_under_ground(clips: dict, animal: str, clip: str) -> None:
+    motion = clips[animal][clip]
+    feet = motion.foot_positions()
+    skate = M.foot_skate(feet, motion.contacts)
+    assert skate.mean_mm <= 0.5
+    assert M.penetration_mm(motion.positions()) <= 5.0
+    planted_height = feet[..., 1][motion.contacts]
+    assert np.abs(planted_height).max() < 0.005  # planted means on the ground
+
+
+@pytest.mark.parametrize("animal, clip", cases())
+def test_swing_feet_clear_the_ground(clips: dict, animal: str, clip: str) -> None:
+    motion = clips[animal][clip]
+    heights = motion.foot_positions()[..., 1]
+    clearance = 0.03 * motion.skeleton.leg_length()
+    for k in range(4):
+        for start, stop in C.runs(~motion.contacts[:, k]):
+            if start == 0 or stop == motion.n_frames or stop - start < 6:
+                continue  # swings cut by the clip's ends
+            middle = heights[start + (stop - start) // 4: stop - (stop - start) // 4, k]
+            assert middle.min() > clearance, f"{FOOT_NAMES[k]} drags in swing {start}-{stop}"
+
+
+@pytest.mark.parametrize("animal, gait", marked("seam", [(a, g) for a in ANIMALS for g in GAITS]))
+def test_cyclic_clips_loop_seamlessly(clips: dict, animal: str, gait: str) -> None:
+    motion = clips[animal][gait]
+    two = looped(motion, 2)
+    pos = two.positions().astype(np.float64)
+    steps = np.linalg.norm(np.diff(pos[: motion.n_frames], axis=0), axis=-1)  # within the clip
+    seam = np.linalg.norm(pos[motion.n_frames] - pos[motion.n_frames - 1], axis=-1)  # last -> first
+    assert np.all(seam <= steps.max(axis=0) + 1e-5), "a joint jumps at the loop seam"
+    q = motion.rotations.astype(np.float64)
+    inner = quat.angle(quat.mul(quat.inv(q[:-1]), q[1:]))
+    wrap = quat.angle(quat.mul(quat.inv(q[-1]), q[0]))
+    assert np.all(wrap <= inner.max(axis=0) + 1e-5)
+
+
+@pytest.mark.parametrize("animal, gait", [(a, g) for a in ANIMALS for g in GAITS])
+def test_footfall_order_of_exported_motion_matches_template(clips: dict, animal: str, gait: str,
+                                                            tmp_path: Path) -> None:
+    motion = clips[animal][gait]
+    path = tmp_path / f"{gait}.bvh"
+    bvh.write(looped(motion, 4), path)
+    reread = bvh.read(path)
+    detected = C.detect_contacts(reread)
+    sync = max(2, round(0.06 * motion.n_frames))
+    assert M.footfall_order(detected, FOOTFALL_TEMPLATES[animal][gait], sync_frames=sync) == 1.0
+    pattern = C.footfall_pattern(detected)
+    expected = {"walk": "walk", "trot": "trot", "canter": "canter"}.get(gait)
+    name = C.classify_gait(pattern)
+    if expected:
+        assert name.split("-")[0] == expected
+    else:
+        assert name == ("gallop-transverse" if animal == "horse" else "gallop-rotary")
+
+
+@pytest.mark.parametrize("animal, gait", [(a, g) for a in ANIMALS for g in GAITS])
+def test_speeds_in_range_and_horse_cycles_near_table_1(clips: dict, animal: str, gait: str) -> None:
+    motion = clips[animal][gait]
+    low, high = SPEED_RANGES[animal][gait]
+    assert low <= motion.speed_mps() <= high
+    if animal == "horse":
+        assert abs(motion.n_frames / TABLE_1_FRAMES[gait] - 1.0) <= 0.2
+
+
+def sagittal_angle(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Angle from straight down of the bone a -> b, positive when b is ahead (+Z)."""
+    d = b - a
+    return np.degrees(np.arctan2(d[..., 2], -d[..., 1]))
+
+
+def test_horse_carpus_and_hock_flex_in_opposite_directions(clips: dict) -> None:
+    motion = clips["horse"]["trot"]
+    p = dict(zip(motion.skeleton.names, np.moveaxis(motion.positions().astype(np.float64), 1, 0),
+                 strict=True))
+    swing_f = ~motion.contacts[:, FOOT_NAMES.index("LF")]
+    swing_h = ~motion.contacts[:, FOOT_NAMES.index("LH")]
+    carpus = sagittal_angle(p["L_Cannon"], p["L_Pastern"]) - sagittal_angle(p["L_Radius"], p["L_Cannon"])
+    hock = sagittal_angle(p["L_HindCannon"], p["L_HindPastern"]) - sagittal_angle(p["L_Tibia"],
+                                                                                p["L_HindCannon"])
+    # Carpus: straight when standing, the cannon folds back (negative) in swing.
+    assert carpus[~swing_f].max() < 5.0 and carpus[swing_f].min() < -45.0
+    # Hock: angled forward at rest (43 deg), folds further forward (positive) in swing.
+    assert hock[swing_h].max() > 43.0 + 25.0
+    assert np.sign(carpus[swing_f].min()) != np.sign(hock[swing_h].max() - 43.0)
+
+
+def test_horse_fetlocks_sink_under_load(clips: dict) -> None:
+    motion = clips["horse"]["trot"]
+    p = dict(zip(motion.skeleton.names, np.moveaxis(motion.positions().astype(np.float64), 1, 0),
+                 strict=True))
+    stance = C.runs(motion.contacts[:, FOOT_NAMES.index("LF")])[0]
+    mid = (stance[0] + stance[1]) // 2
+    fetlock_height = p["L_Pastern"][:, 1]
+    assert fetlock_height[mid] < fetlock_height[stance[0]] - 0.01  # sinks at mid-stance
+    pastern = sagittal_angle(p["L_Pastern"], p["L_Hoof"]) - sagittal_angle(p["L_Cannon"], p["L_Pastern"])
+    assert pastern[mid] > pastern[stance[0]] + 5.0  # the fetlock joint extends under load
+
+
+@pytest.mark.parametrize("animal, clip", [(a, t) for a in ANIMALS for t in TRANSITIONS])
+def test_transitions_keep_the_footfall_sequence_continuous(clips: dict, animal: str, clip: str) -> None:
+    """Played between its source and target cycles (as the motion graph will), a transition keeps
+    every foot stepping once per stride, and its footfalls go from one gait's order to the other's."""
+    motion = clips[animal][clip]
+    source, target = clip.split("2")
+    specs = GAIT_SPECS[animal]
+    before = clips[animal][source].contacts if source in specs else np.ones((30, 4), bool)
+    after = clips[animal][target].contacts if target in specs else np.ones((30, 4), bool)
+    played = np.concatenate([before, before, motion.contacts, after, after])
+    frames = [specs[g].frames for g in (source, target) if g in specs]
+    for k, foot in enumerate(FOOT_NAMES):
+        gaps = np.diff(C.touchdowns(played)[k])
+        assert np.all(gaps <= 1.5 * max(frames)), (foot, gaps)  # no skipped step
+        # No doubled step; starting and stopping may take one short squaring-up step.
+        short = gaps < 0.6 * min(frames)
+        assert short.sum() <= (1 if "static" in (source, target) else 0), (foot, gaps)
+    templates = FOOTFALL_TEMPLATES[animal]
+    sync = max(2, round(0.06 * min(frames)))
+    groups = [g for _, g in M.touchdown_groups(played, sync)]
+    starts = [i for i, g in enumerate(groups) if "LH" in g]
+    strides = [groups[a:b] for a, b in zip(starts[:-1], starts[1:], strict=False)]
+    if source in templates:
+        assert strides[0] == [frozenset(g) for g in templates[source]], "starts in the source gait"
+    if target in templates:
+        assert strides[-1] == [frozenset(g) for g in templates[target]], "ends in the target gait"
+    if source == "static":
+        assert motion.contacts[:10].all() and np.ptp(motion.root_pos[:10, 2]) < 0.01
+    if target == "static":
+        assert motion.contacts[-10:].all() and np.ptp(motion.root_pos[-10:, 2]) < 0.01
+
+
+def test_idle_stands_still_but_breathes_and_looks_around(clips: dict) -> None:
+    for animal in ANIMALS:
+        idle = clips[animal]["idle"]
+        assert idle.contacts.all()
+        pos = idle.positions()
+        head = idle.skeleton.index("Head_end")
+        assert np.ptp(pos[:, head], axis=0).max() > 0.03  # the head moves
+        assert 0.0 < np.ptp(idle.root_pos[:, 1]) < 0.02  # breathing, small
+        assert M.foot_skate(idle.foot_positions(), idle.contacts).p95_mm < 0.05
+
+
+@pytest.mark.parametrize("animal", ANIMALS)
+def test_export_writes_every_clip_and_round_trips(animal: str, tmp_path: Path,
+                                                  clips: dict) -> None:
+    assert main(["library", "export", "--animal", animal, "--out", str(tmp_path)]) == 0
+    for name in CLIP_NAMES:
+        motion = clips[animal][name]
+        again = bvh.read(tmp_path / f"{name}.bvh")
+        assert again.skeleton.names == motion.skeleton.names
+        error_mm = np.abs(again.positions() - motion.positions()).max() * 1000
+        assert error_mm < 0.1
+        document = json.loads((tmp_path / f"{name}.contacts.json").read_text())
+        assert np.array_equal(C.contacts_from_json(document, motion.n_frames), motion.contacts)
