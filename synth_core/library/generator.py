@@ -188,7 +188,7 @@ def synthesize(skeleton: Skeleton, track: Track, name: str, gait: str | None) ->
     leg_length = skeleton.leg_length()
     rest_pos, _ = forward_kinematics(skeleton, np.array([0.0, height, 0.0]),
                                      quat.identity((skeleton.n_joints,)))
-    rest_pos = rest_pos.astype(np.float64)
+    rest_pos = np.asarray(rest_pos, dtype=np.float64)
 
     # Trunk: root bob and pitch, spine flexion, neck nod, steady head, tail.
     angles = np.zeros((T, skeleton.n_joints))  # local rotation about +X per joint (rad)
@@ -231,17 +231,26 @@ def synthesize(skeleton: Skeleton, track: Track, name: str, gait: str | None) ->
         neutral = rest_pos[end, 2] - rest_pos[0, 2]
         plan = plan_foot(planted[:, k], root_z, neutral, v["step_height"] * leg_length)
         contacts[:, k] = plan.planted
-        rest_root = rest_pos[limb.chain[0], [2, 1]]
-        rest_protraction = float(angle_of(rest_pos[end, [2, 1]] - rest_root))
-        solution = _solve_limb(skeleton, limb, plan, trunk_pos, global_pitch, v, rest_protraction)
-        miss = np.maximum(miss, solution[1])
-        parent_pitch = global_pitch[:, skeleton.parents[limb.chain[0]]]
-        bone_global = limb.rest_angles[None] - solution[0]  # X-rotation of each chain joint
-        local = np.diff(np.concatenate([parent_pitch[:, None], bone_global], axis=1), axis=1)
-        rot[:, list(limb.chain[:-1])] = _rot_x(local)
+        bone_angles, leg_miss = _solve_limb(skeleton, limb, plan, trunk_pos, global_pitch, v,
+                                            _rest_protraction(limb, rest_pos))
+        miss = np.maximum(miss, leg_miss)
+        rot[:, list(limb.chain[:-1])] = _leg_rotations(skeleton, limb, bone_angles, global_pitch)
     motion = Motion(skeleton, root_pos.astype(np.float32), rot.astype(np.float32), FPS,
                     contacts=contacts, name=name, gait=gait)
     return motion, miss
+
+
+def _rest_protraction(limb: Limb, rest_pos: Floats) -> float:
+    """Standing angle (from straight down) of the line from the limb root to the toe."""
+    return float(angle_of(rest_pos[limb.chain[-1], [2, 1]] - rest_pos[limb.chain[0], [2, 1]]))
+
+
+def _leg_rotations(skeleton: Skeleton, limb: Limb, bone_angles: Floats,
+                   global_pitch: Floats) -> NDArray[np.floating]:
+    """Local rotations (F, B, 4) of a leg's chain joints from its bones' world sagittal angles."""
+    parent_pitch = global_pitch[:, skeleton.parents[limb.chain[0]]]
+    bone_global = limb.rest_angles[None] - bone_angles  # X-rotation of each chain joint in the world
+    return _rot_x(np.diff(np.concatenate([parent_pitch[:, None], bone_global], axis=1), axis=1))
 
 
 def _solve_limb(skeleton: Skeleton, limb: Limb, plan: FootPlan, trunk_pos: Floats,
@@ -345,15 +354,10 @@ def idle_clip(skeleton: Skeleton, seconds: float = 10.0) -> Motion:
                                      quat.identity((skeleton.n_joints,)))
     v = {n: np.zeros(T) for n in _NUMERIC}  # standing: no flexion, sink or breakover
     for limb in limbs_of(skeleton):
-        end = limb.chain[-1]
-        foot_z = np.full(T, float(rest_pos[end, 2]))
+        foot_z = np.full(T, float(rest_pos[limb.chain[-1], 2]))
         plan = FootPlan(np.ones(T, bool), foot_z, np.zeros(T), np.full(T, 0.5), np.full(T, np.nan))
-        rest_protraction = float(angle_of(rest_pos[end, [2, 1]] - rest_pos[limb.chain[0], [2, 1]]))
         bone_angles, _ = _solve_limb(skeleton, limb, plan, trunk_pos.astype(np.float64), global_pitch,
-                                     v, rest_protraction)
-        parent_pitch = global_pitch[:, skeleton.parents[limb.chain[0]]]
-        local = np.diff(np.concatenate([parent_pitch[:, None], limb.rest_angles[None] - bone_angles],
-                                       axis=1), axis=1)
-        rot[:, list(limb.chain[:-1])] = _rot_x(local)
+                                     v, _rest_protraction(limb, rest_pos.astype(np.float64)))
+        rot[:, list(limb.chain[:-1])] = _leg_rotations(skeleton, limb, bone_angles, global_pitch)
     return Motion(skeleton, root_pos.astype(np.float32), rot.astype(np.float32), FPS,
                   contacts=np.ones((T, 4), bool), name="idle", gait="static")

@@ -89,6 +89,14 @@ class _Builder:
             points.append((seg.joint, (side_x, y, z)))
         return self.chain(parent, list(reversed(points)), end)
 
+    def legs(self, parent: int, half_width: float, foot_z: float, segments: Sequence[Segment],
+             end_bone: str) -> None:
+        """A left (+X) and a right (-X) leg; joints prefixed L_ / R_, end sites <L|R>_<end_bone>_end."""
+        for side, x in (("L", 1.0), ("R", -1.0)):
+            self.limb(parent, x * half_width, foot_z,
+                      [Segment(f"{side}_{s.joint}", s.length, s.angle_deg) for s in segments],
+                      f"{side}_{end_bone}_end")
+
     def build(self, name: str) -> Skeleton:
         pos = np.stack(self.positions)
         parents = np.array(self.parents)
@@ -137,14 +145,8 @@ def horse_skeleton() -> Skeleton:
     b.chain(spine3, [("Neck1", (0.0, 1.30, 1.35)), ("Neck2", (0.0, 1.48, 1.58)),
                      ("Neck3", (0.0, 1.68, 1.78)), ("Head", (0.0, 1.80, 1.90)),
                      ("Head_end", (0.0, 1.38, 2.33))], "Head_end")
-    for side, x in (("L", 1.0), ("R", -1.0)):
-        b.limb(spine3, x * HORSE_HALF_WIDTH[0], HORSE_FORE_FOOT_Z,
-               [Segment(f"{side}_{s.joint}", s.length, s.angle_deg) for s in HORSE_FORE],
-               f"{side}_Hoof_end")
-    for side, x in (("L", 1.0), ("R", -1.0)):
-        b.limb(pelvis, x * HORSE_HALF_WIDTH[1], HORSE_HIND_FOOT_Z,
-               [Segment(f"{side}_{s.joint}", s.length, s.angle_deg) for s in HORSE_HIND],
-               f"{side}_HindHoof_end")
+    b.legs(spine3, HORSE_HALF_WIDTH[0], HORSE_FORE_FOOT_Z, HORSE_FORE, "Hoof")
+    b.legs(pelvis, HORSE_HALF_WIDTH[1], HORSE_HIND_FOOT_Z, HORSE_HIND, "HindHoof")
     b.chain(pelvis, [("Tail1", (0.0, 1.44, -0.45)), ("Tail2", (0.0, 1.34, -0.60)),
                      ("Tail3", (0.0, 1.19, -0.72)), ("Tail3_end", (0.0, 1.01, -0.80))], "Tail3_end")
     return b.build("horse").with_feet({"LF": "L_Hoof_end", "RF": "R_Hoof_end",
@@ -182,14 +184,8 @@ def dog_skeleton() -> Skeleton:
     spine2 = b.add("Spine2", spine1, (0.0, 0.46, 0.30))
     b.chain(spine2, [("Neck1", (0.0, 0.47, 0.38)), ("Neck2", (0.0, 0.52, 0.42)),
                      ("Head", (0.0, 0.57, 0.46)), ("Head_end", (0.0, 0.53, 0.62))], "Head_end")
-    for side, x in (("L", 1.0), ("R", -1.0)):
-        b.limb(spine2, x * DOG_HALF_WIDTH[0], DOG_FORE_FOOT_Z,
-               [Segment(f"{side}_{s.joint}", s.length, s.angle_deg) for s in DOG_FORE],
-               f"{side}_FrontToe_end")
-    for side, x in (("L", 1.0), ("R", -1.0)):
-        b.limb(pelvis, x * DOG_HALF_WIDTH[1], DOG_HIND_FOOT_Z,
-               [Segment(f"{side}_{s.joint}", s.length, s.angle_deg) for s in DOG_HIND],
-               f"{side}_HindToe_end")
+    b.legs(spine2, DOG_HALF_WIDTH[0], DOG_FORE_FOOT_Z, DOG_FORE, "FrontToe")
+    b.legs(pelvis, DOG_HALF_WIDTH[1], DOG_HIND_FOOT_Z, DOG_HIND, "HindToe")
     b.chain(pelvis, [("Tail1", (0.0, 0.45, -0.07)), ("Tail2", (0.0, 0.42, -0.15)),
                      ("Tail3", (0.0, 0.37, -0.22)), ("Tail3_end", (0.0, 0.31, -0.28))], "Tail3_end")
     return b.build("dog").with_feet({"LF": "L_FrontToe_end", "RF": "R_FrontToe_end",
