@@ -240,7 +240,7 @@ def synthesize(skeleton: Skeleton, track: Track, name: str, gait: str | None) ->
     return motion, miss
 
 
-def _rest_protraction(limb: Limb, rest_pos: Floats) -> float:
+def _rest_protraction(limb: Limb, rest_pos: NDArray[np.floating]) -> float:
     """Standing angle (from straight down) of the line from the limb root to the toe."""
     return float(angle_of(rest_pos[limb.chain[-1], [2, 1]] - rest_pos[limb.chain[0], [2, 1]]))
 
@@ -357,7 +357,7 @@ def idle_clip(skeleton: Skeleton, seconds: float = 10.0) -> Motion:
         foot_z = np.full(T, float(rest_pos[limb.chain[-1], 2]))
         plan = FootPlan(np.ones(T, bool), foot_z, np.zeros(T), np.full(T, 0.5), np.full(T, np.nan))
         bone_angles, _ = _solve_limb(skeleton, limb, plan, trunk_pos.astype(np.float64), global_pitch,
-                                     v, _rest_protraction(limb, rest_pos.astype(np.float64)))
+                                     v, _rest_protraction(limb, rest_pos))
         rot[:, list(limb.chain[:-1])] = _leg_rotations(skeleton, limb, bone_angles, global_pitch)
     return Motion(skeleton, root_pos.astype(np.float32), rot.astype(np.float32), FPS,
                   contacts=np.ones((T, 4), bool), name="idle", gait="static")
