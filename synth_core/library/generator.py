@@ -137,7 +137,6 @@ def plan_foot(planted: NDArray[np.bool_], root_z: Floats, neutral_z: float, lift
     t = np.arange(T)
     # Index of the stance run at or before each frame (-1 before the first).
     prev = np.searchsorted(start, t, side="right") - 1
-    in_stance = planted
     prev_c = np.clip(prev, 0, len(stance) - 1)
     nxt = np.clip(prev + 1, 0, len(stance) - 1)
     lo = stop[prev_c]  # first swing frame after the previous plant
@@ -149,10 +148,10 @@ def plan_foot(planted: NDArray[np.bool_], root_z: Floats, neutral_z: float, lift
     z_swing = np.where(before_first, plant_z[0], np.where(after_last, plant_z[-1], z_swing))
     bump = np.sin(np.pi * np.clip(s, 0, 1) ** 0.8)  # lifts early, lands gently
     y_swing = np.where(before_first | after_last, 0.0, lift * bump)
-    z = np.where(in_stance, plant_z[prev_c], z_swing)
-    y = np.where(in_stance, 0.0, y_swing)
+    z = np.where(planted, plant_z[prev_c], z_swing)
+    y = np.where(planted, 0.0, y_swing)
     w = (t - start[prev_c] + 0.5) / (stop[prev_c] - start[prev_c])
-    return FootPlan(planted, z, y, np.where(in_stance, w, np.nan), np.where(in_stance, np.nan, s))
+    return FootPlan(planted, z, y, np.where(planted, w, np.nan), np.where(planted, np.nan, s))
 
 
 # --- the whole body --------------------------------------------------------------------------
