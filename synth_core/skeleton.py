@@ -121,10 +121,6 @@ class Skeleton:
             feet.append(Foot(foot, end, self.limb_chain(end)))
         return Skeleton(self.names, self.parents, self.offsets, self.end_site, tuple(feet), self.name)
 
-    def scaled(self, factor: float) -> Skeleton:
-        return Skeleton(self.names, self.parents, self.offsets * np.float32(factor),
-                        self.end_site, self.feet, self.name)
-
     def bone_lengths(self) -> NDArray[np.float32]:
         """Length of the bone from each joint's parent to it, (J,); 0 for the root."""
         lengths = np.linalg.norm(self.offsets, axis=-1)

@@ -162,6 +162,22 @@ def rest_root_height(skeleton: Skeleton) -> float:
     return float(-pos[skeleton.foot_joints, 1].min())
 
 
+def rest_positions(skeleton: Skeleton) -> Floats:
+    """World joint positions (J, 3) of the standing rest pose, feet on the ground."""
+    pos, _ = forward_kinematics(skeleton, np.array([0.0, rest_root_height(skeleton), 0.0]),
+                                quat.identity((skeleton.n_joints,)))
+    return np.asarray(pos, dtype=np.float64)
+
+
+def _global_pitch(skeleton: Skeleton, local: Floats, root_pitch: Floats | float) -> Floats:
+    """World pitch (F, J) of every joint: local X-rotations summed from the root (all about X)."""
+    pitch = np.zeros_like(local)
+    pitch[:, 0] = root_pitch
+    for j in range(1, skeleton.n_joints):  # joints, in parent order
+        pitch[:, j] = pitch[:, skeleton.parents[j]] + local[:, j]
+    return pitch
+
+
 def _joints(skeleton: Skeleton, prefix: str) -> list[int]:
     return [j for j, n in enumerate(skeleton.names) if n.startswith(prefix) and not skeleton.end_site[j]]
 
@@ -185,9 +201,7 @@ def synthesize(skeleton: Skeleton, track: Track, name: str, gait: str | None) ->
     clock = np.round(np.concatenate([[0.0], np.cumsum(track.frequency[1:]) / FPS]), 9)
     height = rest_root_height(skeleton)
     leg_length = skeleton.leg_length()
-    rest_pos, _ = forward_kinematics(skeleton, np.array([0.0, height, 0.0]),
-                                     quat.identity((skeleton.n_joints,)))
-    rest_pos = np.asarray(rest_pos, dtype=np.float64)
+    rest_pos = rest_positions(skeleton)
 
     # Trunk: root bob and pitch, spine flexion, neck nod, steady head, tail.
     angles = np.zeros((T, skeleton.n_joints))  # local rotation about +X per joint (rad)
@@ -209,11 +223,7 @@ def synthesize(skeleton: Skeleton, track: Track, name: str, gait: str | None) ->
         angles[:, j] = np.radians(v["tail_lift"] / len(tail)
                                   + v["tail_swing"] / len(tail) * _wave(clock, v["bob_per_stride"],
                                                                         v["bob_low"] + lag))
-    # Global pitch of every trunk joint: sum of local X-rotations from the root (all about X).
-    global_pitch = np.zeros((T, skeleton.n_joints))
-    global_pitch[:, 0] = pitch
-    for j in range(1, skeleton.n_joints):
-        global_pitch[:, j] = global_pitch[:, skeleton.parents[j]] + angles[:, j]
+    global_pitch = _global_pitch(skeleton, angles, pitch)
 
     rot = _rot_x(angles)
     rot[:, 0] = _rot_x(pitch)
@@ -345,12 +355,9 @@ def idle_clip(skeleton: Skeleton, seconds: float = 10.0) -> Motion:
     head = skeleton.index("Head")
     yaw = quat.from_axis_angle(_Y, np.radians(12.0) * np.sin(cycle + 1.0))  # looks left and right
     rot[:, head] = quat.mul(yaw, rot[:, head])
-    global_pitch = np.zeros((T, skeleton.n_joints))
-    for j in range(1, skeleton.n_joints):
-        global_pitch[:, j] = global_pitch[:, skeleton.parents[j]] + angles[:, j]
+    global_pitch = _global_pitch(skeleton, angles, 0.0)
     trunk_pos, _ = forward_kinematics(skeleton, root_pos, rot)
-    rest_pos, _ = forward_kinematics(skeleton, np.array([0.0, height, 0.0]),
-                                     quat.identity((skeleton.n_joints,)))
+    rest_pos = rest_positions(skeleton)
     v = {n: np.zeros(T) for n in _NUMERIC}  # standing: no flexion, sink or breakover
     for limb in limbs_of(skeleton):
         foot_z = np.full(T, float(rest_pos[limb.chain[-1], 2]))
