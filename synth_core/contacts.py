@@ -70,12 +70,17 @@ def _short_runs(mask: NDArray[np.bool_], shorter_than: int, interior: bool) -> N
     return np.asarray(small[labels])
 
 
-def _fill_gaps_and_drop_short(mask: NDArray[np.bool_], max_gap: int, min_len: int) -> NDArray[np.bool_]:
-    """Per column of a (F, K) mask: fill interior gaps of <= max_gap frames, then drop runs < min_len.
+def fill_gaps(mask: NDArray[np.bool_], max_gap: int) -> NDArray[np.bool_]:
+    """Per column of a (F, K) mask: fill interior gaps of <= max_gap frames.
 
     A gap at the clip's start or end is not filled: nothing says the foot was planted outside.
     """
-    out = mask | _short_runs(~mask, max_gap + 1, interior=True)
+    return np.asarray(mask | _short_runs(~mask, max_gap + 1, interior=True))
+
+
+def _fill_gaps_and_drop_short(mask: NDArray[np.bool_], max_gap: int, min_len: int) -> NDArray[np.bool_]:
+    """Per column of a (F, K) mask: fill interior gaps of <= max_gap frames, then drop runs < min_len."""
+    out = fill_gaps(mask, max_gap)
     return out & ~_short_runs(out, min_len, interior=False)
 
 

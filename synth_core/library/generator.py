@@ -24,16 +24,22 @@ from dataclasses import dataclass, fields, replace
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy.ndimage import gaussian_filter1d, maximum_filter1d
 
 from synth_core import FOOT_NAMES, quat
-from synth_core.contacts import runs
+from synth_core.contacts import fill_gaps, runs
 from synth_core.library.gaits import GaitSpec
-from synth_core.library.limbs import Limb, angle_of, limbs_of, solve_leg
+from synth_core.library.limbs import MIN_DISTAL_FLEX, LegSolution, Limb, angle_of, limbs_of, solve_leg
 from synth_core.motion import Motion
 from synth_core.skeleton import Skeleton, forward_kinematics
 
 Floats = NDArray[np.float64]
 FPS = 60.0
+MIN_SWING_S = 0.05  # shorter swings are not taken (the foot stays planted)
+MAX_EARLY_LIFT_FRAMES = 3  # a foot out of reach at the end of its stance lifts up to this early
+REACH_TOLERANCE = 0.001  # m
+MAX_EXTENSION = 0.985  # of the two main links' reach, on a stance's last frame
+FULL_FLEX_SWING_S = 0.25  # swings at least this long flex the joints fully (every steady gait's do)
 _X = np.array([1.0, 0.0, 0.0])
 _Y = np.array([0.0, 1.0, 0.0])
 
@@ -121,6 +127,7 @@ class FootPlan:
     y: Floats  # (T,) toe height
     stance_w: Floats  # (T,) progress through the current stance (0..1), NaN in swing
     swing_s: Floats  # (T,) progress through the current swing (0..1), NaN in stance
+    swing_frames: Floats  # (T,) length of the current swing in frames, NaN in stance
 
 
 def plan_foot(planted: NDArray[np.bool_], root_z: Floats, neutral_z: float, lift: Floats) -> FootPlan:
@@ -144,14 +151,24 @@ def plan_foot(planted: NDArray[np.bool_], root_z: Floats, neutral_z: float, lift
     span = np.maximum(td - lo + 1, 1)
     s = np.clip((t - lo + 1) / span, 0.0, 1.0)
     before_first, after_last = prev < 0, prev >= len(stance) - 1
-    z_swing = plant_z[prev_c] + (plant_z[nxt] - plant_z[prev_c]) * min_jerk(s)
+    # The swing is planned relative to the body: the foot leaves from behind and is brought forward
+    # to its next plant, never further ahead than that plant (a path planned in the world would
+    # overtake the body mid-swing at a gallop, out of the leg's reach).
+    behind = plant_z[prev_c] - root_z[np.clip(lo - 1, 0, T - 1)]
+    ahead = plant_z[nxt] - root_z[np.clip(td, 0, T - 1)]
+    z_swing = root_z + behind + (ahead - behind) * min_jerk(s)
     z_swing = np.where(before_first, plant_z[0], np.where(after_last, plant_z[-1], z_swing))
-    bump = np.sin(np.pi * np.clip(s, 0, 1) ** 0.8)  # lifts early, lands gently
-    y_swing = np.where(before_first | after_last, 0.0, lift * bump)
+    # Lifts early and lands gently, leaving and meeting the ground with zero vertical speed; a short
+    # swing (the first steps of a start) lifts the foot less.
+    early = np.clip(s, 0, 1) ** 0.8
+    bump = 16 * early**2 * (1 - early) ** 2
+    short = np.clip((span - 1.0) / (FULL_FLEX_SWING_S * FPS), 0.0, 1.0)
+    y_swing = np.where(before_first | after_last, 0.0, lift * short * bump)
     z = np.where(planted, plant_z[prev_c], z_swing)
     y = np.where(planted, 0.0, y_swing)
     w = (t - start[prev_c] + 0.5) / (stop[prev_c] - start[prev_c])
-    return FootPlan(planted, z, y, np.where(planted, w, np.nan), np.where(planted, np.nan, s))
+    return FootPlan(planted, z, y, np.where(planted, w, np.nan), np.where(planted, np.nan, s),
+                    np.where(planted, np.nan, span - 1.0))
 
 
 # --- the whole body --------------------------------------------------------------------------
@@ -233,17 +250,30 @@ def synthesize(skeleton: Skeleton, track: Track, name: str, gait: str | None) ->
     # Legs.
     phases = np.round(clock[:, None] - track.phases, 9)  # strides since each foot's reference touchdown
     planted = np.mod(phases, 1.0) < v["duty"][:, None] - 1e-9
+    # Near standstill (a start or stop) the duty factor nears 1 and swings shrink to a frame or
+    # two: a foot cannot step in 30 ms, so such steps are skipped and the plant held.
+    planted = fill_gaps(planted, int(MIN_SWING_S * FPS))
     contacts = np.zeros((T, 4), bool)
     miss = np.zeros(T)
     for k, limb in enumerate(limbs_of(skeleton)):
         end = limb.chain[-1]
         neutral = rest_pos[end, 2] - rest_pos[0, 2]
-        plan = plan_foot(planted[:, k], root_z, neutral, v["step_height"] * leg_length)
+        foot_planted = planted[:, k]
+        for _ in range(MAX_EARLY_LIFT_FRAMES + 1):
+            plan = plan_foot(foot_planted, root_z, neutral, v["step_height"] * leg_length)
+            solution = _solve_limb(skeleton, limb, plan, trunk_pos, global_pitch, v,
+                                   _rest_protraction(limb, rest_pos))
+            # A foot left behind at (or beyond) the leg's full reach on its last stance frame lifts
+            # a frame early: a straight leg's knee angle changes fastest (a pop), and beyond reach
+            # the foot would hang in the air while called planted.
+            last = foot_planted & ~np.append(foot_planted[1:], True)
+            early = last & ((solution.miss > REACH_TOLERANCE) | (solution.extension > MAX_EXTENSION))
+            if not early.any():
+                break
+            foot_planted = foot_planted & ~early
         contacts[:, k] = plan.planted
-        bone_angles, leg_miss = _solve_limb(skeleton, limb, plan, trunk_pos, global_pitch, v,
-                                            _rest_protraction(limb, rest_pos))
-        miss = np.maximum(miss, leg_miss)
-        rot[:, list(limb.chain[:-1])] = _leg_rotations(skeleton, limb, bone_angles, global_pitch)
+        miss = np.maximum(miss, solution.miss)
+        rot[:, list(limb.chain[:-1])] = _leg_rotations(skeleton, limb, solution.angles, global_pitch)
     motion = Motion(skeleton, root_pos.astype(np.float32), rot.astype(np.float32), FPS,
                     contacts=contacts, name=name, gait=gait)
     return motion, miss
@@ -263,19 +293,21 @@ def _leg_rotations(skeleton: Skeleton, limb: Limb, bone_angles: Floats,
 
 
 def _solve_limb(skeleton: Skeleton, limb: Limb, plan: FootPlan, trunk_pos: Floats,
-                global_pitch: Floats, v: dict[str, Floats], rest_protraction: float) -> tuple[Floats, Floats]:
+                global_pitch: Floats, v: dict[str, Floats], rest_protraction: float) -> LegSolution:
     in_stance = plan.planted
     w = np.nan_to_num(plan.stance_w)
     s = np.nan_to_num(plan.swing_s)
-    # Flexion rises from zero slope at lift-off (no pop) and peaks early in swing.
-    swing_bump = np.where(in_stance, 0.0, np.sin(np.pi * s**0.75) ** 2)
+    # Flexion rises from zero slope at lift-off (no pop) and peaks early in swing; a short swing
+    # (the first steps of a start) flexes less, as a joint can only fold so fast.
+    short = np.clip(np.nan_to_num(plan.swing_frames) / (FULL_FLEX_SWING_S * FPS), 0.0, 1.0)
+    swing_bump = np.where(in_stance, 0.0, short * np.sin(np.pi * s**0.75) ** 2)
     load = np.where(in_stance, np.sin(np.pi * w), 0.0)
     fore = limb.girdle is not None
     distal = np.radians(np.where(fore, v["carpus_flex"], v["hock_flex"])) * swing_bump
     if not fore:
         distal = distal + np.radians(v["hock_load"]) * load
     # Digits: the fetlock sinks under load; the hoof breaks over the toe; the digits fold in swing.
-    breakover = np.radians(v["breakover"]) * np.where(in_stance, smoothstep((w - 0.75) / 0.25),
+    breakover = np.radians(v["breakover"]) * np.where(in_stance, smoothstep((w - 0.5) / 0.5),
                                                       1.0 - smoothstep(s / 0.5))
     digits = list(limb.digits)
     digit_angles = limb.rest_angles[digits][None] - breakover[:, None] \
@@ -291,40 +323,92 @@ def _solve_limb(skeleton: Skeleton, limb: Limb, plan: FootPlan, trunk_pos: Float
         girdle = limb.rest_angles[limb.girdle] - trunk + 0.35 * (angle_of(foot - root) - rest_protraction)
     # Reach adaptation: full in stance, fading out over the first and in over the last 30% of swing.
     adapt = np.where(in_stance, 1.0, np.maximum(1.0 - smoothstep(s / 0.3), smoothstep((s - 0.7) / 0.3)))
-    solution = solve_leg(limb, root, foot, girdle, distal, digit_angles, adapt=adapt)
-    return solution.angles, solution.miss
+    first = solve_leg(limb, root, foot, girdle, distal, digit_angles, adapt=adapt)
+    if girdle is not None:
+        girdle = girdle + _ease(first.angles[:, limb.girdle] - girdle)
+    # (Eased, the opening may reach frames whose own flexion is smaller: keep the joint's limit.)
+    distal = np.maximum(distal + _ease(first.distal_flex - distal),
+                        np.minimum(MIN_DISTAL_FLEX[limb.flex_sign], distal))
+    return solve_leg(limb, root, foot, girdle, distal, digit_angles, adapt=adapt)
+
+
+def _ease(correction: Floats, frames: int = 9) -> Floats:
+    """A reach correction spread out in time: at least as large where it was needed, no step.
+
+    Corrections found frame by frame switch on where the foot first runs out of reach, so the
+    girdle or hock would jump. A running maximum of each sign's magnitude, then a Gaussian, starts
+    them earlier and eases them in and out.
+    """
+    up = gaussian_filter1d(maximum_filter1d(np.maximum(correction, 0.0), frames, mode="nearest"),
+                           frames / 4, mode="nearest")
+    down = gaussian_filter1d(maximum_filter1d(np.maximum(-correction, 0.0), frames, mode="nearest"),
+                             frames / 4, mode="nearest")
+    return np.asarray(up - down)
 
 
 # --- clips -----------------------------------------------------------------------------------
 
 
-def cyclic_clip(skeleton: Skeleton, spec: GaitSpec) -> tuple[Motion, Floats]:
-    """One stride of a gait that loops exactly (generated padded, then cut)."""
-    N = spec.frames
-    motion, miss = synthesize(skeleton, constant_track(spec, 5 * N), spec.name, spec.name)
-    cut = motion.slice(2 * N, 3 * N)
-    root = cut.root_pos.copy()
+def _at_origin(motion: Motion, name: str, gait: str | None) -> Motion:
+    root = motion.root_pos.copy()
     root[:, 2] -= root[0, 2]
-    return Motion(skeleton, root, cut.rotations, FPS, cut.contacts, spec.name, spec.name), miss[2 * N:3 * N]
+    return Motion(motion.skeleton, root, motion.rotations, FPS, motion.contacts, name, gait)
+
+
+def loop_start(skeleton: Skeleton, spec: GaitSpec) -> int:
+    """Where in the stride a gait's loop should start: the frame whose seam step is the least extreme.
+
+    A loop of an exactly periodic motion is seamless wherever it is cut, but if the cut falls on a
+    joint's fastest step, the step from the last frame to the first is (by construction) the
+    largest, and a checker cannot tell it from a jump. So cut where, for every joint, the step into
+    the first frame is furthest below that joint's fastest step.
+    """
+    N = spec.frames
+    motion, _ = synthesize(skeleton, constant_track(spec, 5 * N), spec.name, spec.name)
+    period = motion.slice(2 * N, 3 * N + 1)
+    pos = period.positions().astype(np.float64)
+    q = period.rotations.astype(np.float64)
+    steps = np.concatenate([np.linalg.norm(np.diff(pos, axis=0), axis=-1),
+                            quat.angle(quat.mul(quat.inv(q[:-1]), q[1:]))], axis=1)  # (N, 2J)
+    # Each step against the fastest *other* step of its joint: the second fastest for the fastest.
+    top = np.sort(steps, axis=0)
+    others = np.where(steps == top[-1], top[-2], top[-1])
+    worst = (steps / np.maximum(others, 1e-9)).max(axis=1)  # (N,) if this step were the seam
+    return int((worst.argmin() + 1) % N)  # the loop starting at frame c has step c - 1 -> c on its seam
+
+
+def cyclic_clip(skeleton: Skeleton, spec: GaitSpec, start: int = 0) -> Motion:
+    """One stride of a gait that loops exactly (generated padded, then cut) from frame ``start``."""
+    N = spec.frames
+    motion, _ = synthesize(skeleton, constant_track(spec, 5 * N), spec.name, spec.name)
+    return _at_origin(motion.slice(2 * N + start, 3 * N + start), spec.name, spec.name)
 
 
 def transition_clip(skeleton: Skeleton, a: GaitSpec, b: GaitSpec, name: str,
-                    strides: float = 2.0) -> tuple[Motion, Floats]:
-    """One stride of ``a``, a blend over ``strides`` strides, one stride of ``b``.
+                    strides: float = 2.0, start: int = 0, end: int = 0) -> Motion:
+    """One stride of ``a``, a blend over ``strides`` strides, then ``b`` up to a whole stride.
 
-    The clip starts at stride phase 0 of ``a`` (matching its cyclic clip's first frame).
+    The clip starts ``start`` frames into a stride of ``a`` and ends one frame before ``end``
+    frames into a stride of ``b``: pass the cyclic clips' loop starts, and the transition plays
+    seamlessly after ``a``'s loop and before ``b``'s (the footfalls carry straight on).
     """
-    pad = a.frames * -(-2 * max(a.frames, b.frames) // a.frames)  # whole strides of a: starts at phase 0
+    pad = a.frames * -(-2 * max(a.frames, b.frames) // a.frames) + start  # whole strides of a, then start
     ramp = int(round(strides * 0.5 * (a.frames + b.frames)))
     head = constant_track(a, pad + a.frames)
     middle = blend_track(a, b, smoothstep(np.linspace(0.0, 1.0, ramp)))
-    tail = constant_track(b, b.frames + pad)
-    motion, miss = synthesize(skeleton, concat(head, middle, tail), name, None)
-    start, stop = pad, pad + a.frames + ramp + b.frames
-    cut = motion.slice(start, stop)
-    root = cut.root_pos.copy()
-    root[:, 2] -= root[0, 2]
-    return Motion(skeleton, root, cut.rotations, FPS, cut.contacts, name, None), miss[start:stop]
+    tail = constant_track(b, 2 * b.frames + pad)
+    track = concat(head, middle, tail)
+    # End where b's stride clock reads end / b.frames; the nearest frame is off by part of a frame,
+    # which a slightly faster or slower stride frequency over the ramp makes up exactly.
+    clock = np.concatenate([[0.0], np.cumsum(track.frequency[1:]) / FPS])
+    nominal = pad + a.frames + ramp + b.frames
+    later = np.arange(nominal, nominal + b.frames)
+    off = (clock[later] - end / b.frames + 0.5) % 1.0 - 0.5
+    stop = int(later[np.abs(off).argmin()])
+    ramp_frames = slice(pad + a.frames, pad + a.frames + ramp)
+    track.frequency[ramp_frames] -= off[stop - nominal] * FPS / ramp
+    motion, _ = synthesize(skeleton, track, name, None)
+    return _at_origin(motion.slice(pad, stop), name, None)
 
 
 def idle_clip(skeleton: Skeleton, seconds: float = 10.0) -> Motion:
@@ -361,9 +445,10 @@ def idle_clip(skeleton: Skeleton, seconds: float = 10.0) -> Motion:
     v = {n: np.zeros(T) for n in _NUMERIC}  # standing: no flexion, sink or breakover
     for limb in limbs_of(skeleton):
         foot_z = np.full(T, float(rest_pos[limb.chain[-1], 2]))
-        plan = FootPlan(np.ones(T, bool), foot_z, np.zeros(T), np.full(T, 0.5), np.full(T, np.nan))
-        bone_angles, _ = _solve_limb(skeleton, limb, plan, trunk_pos.astype(np.float64), global_pitch,
-                                     v, _rest_protraction(limb, rest_pos))
-        rot[:, list(limb.chain[:-1])] = _leg_rotations(skeleton, limb, bone_angles, global_pitch)
+        plan = FootPlan(np.ones(T, bool), foot_z, np.zeros(T), np.full(T, 0.5), np.full(T, np.nan),
+                        np.full(T, np.nan))
+        solution = _solve_limb(skeleton, limb, plan, trunk_pos.astype(np.float64), global_pitch,
+                               v, _rest_protraction(limb, rest_pos))
+        rot[:, list(limb.chain[:-1])] = _leg_rotations(skeleton, limb, solution.angles, global_pitch)
     return Motion(skeleton, root_pos.astype(np.float32), rot.astype(np.float32), FPS,
                   contacts=np.ones((T, 4), bool), name="idle", gait="static")

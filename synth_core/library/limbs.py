@@ -93,6 +93,8 @@ def effective_link(limb: Limb, distal_flex: Floats) -> tuple[Floats, Floats]:
 class LegSolution:
     angles: Floats  # (F, B) world sagittal angle of every bone
     miss: Floats  # (F,) distance (m) by which the foot misses its target (0 when reachable)
+    distal_flex: Floats  # (F,) the distal joint's flexion used (the prescribed one, opened for reach)
+    extension: Floats  # (F,) distance to the fetlock over the two main links' reach (1: straight)
 
 
 REACH_MARGIN = 0.97  # keep the elbow / stifle bent: use at most 97% of the two-link reach
@@ -128,7 +130,9 @@ def _distal_flex_for_reach(limb: Limb, distal_flex: Floats, needed: Floats) -> F
     rel_rest = limb.rest_angles[limb.meta] - limb.rest_angles[limb.lower]
     flex_needed = limb.flex_sign * (np.sign(rel_rest) * rel_needed - rel_rest)
     current, _ = effective_link(limb, distal_flex)
-    opened = np.maximum(np.minimum(distal_flex, flex_needed), MIN_DISTAL_FLEX[limb.flex_sign])
+    # Never below the joint's limit, but never flexed further than asked either.
+    opened = np.maximum(np.minimum(distal_flex, flex_needed),
+                        np.minimum(MIN_DISTAL_FLEX[limb.flex_sign], distal_flex))
     return np.where(current < needed, opened, distal_flex)
 
 
@@ -177,4 +181,4 @@ def solve_leg(limb: Limb, root: Floats, foot: Floats, girdle_angle: Floats | Non
     angles[:, limb.meta] = angles[:, limb.lower] + (limb.rest_angles[limb.meta] - limb.rest_angles[limb.lower]
                                                     + limb.flex_sign * distal_flex)
     reached = start + bone_vector(angles[:, limb.upper:], limb.lengths[limb.upper:]).sum(axis=1)
-    return LegSolution(angles, np.linalg.norm(reached - foot, axis=-1))
+    return LegSolution(angles, np.linalg.norm(reached - foot, axis=-1), distal_flex, d / (l1 + l2))
