@@ -37,7 +37,7 @@ from numpy.typing import NDArray
 from synth_core import UP_AXIS, quat
 from synth_core.skeleton import Skeleton, forward_kinematics
 
-Floats = NDArray[np.float64]
+Floats = NDArray[np.floating]
 
 HINGE_AXIS_MIN_SIN = np.sin(np.radians(5.0))  # thigh x shin shorter than this (unit vectors): fall back
 REACH_TOLERANCE = 1e-6  # m: closer than this counts as reached (no stretch for rounding)
