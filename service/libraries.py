@@ -1,47 +1,77 @@
 """Animal libraries held in memory by the service, loaded once at start-up.
 
-Today these are the built-in animals' skeletons (:mod:`synth_core.library`). Speed maps and the
-motion graph join them when the library artifact exists (issue 4); artifacts will then be read
-from the library directory (``QUADSYNTH_LIBRARY_DIR``, default ``./library``).
+Libraries are artifact files (:mod:`synth_core.artifact`) in the library directory
+(``QUADSYNTH_LIBRARY_DIR``, default ``./library``): every ``*.qslib.npz`` there is loaded. The
+built-in horse and dog are built into it first when missing (about a second each), so a fresh
+checkout serves out of the box. A file that fails validation is skipped with a logged reason;
+the others still load.
 """
 
 from __future__ import annotations
 
+import logging
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from api_schemas import LibrarySummary
-from synth_core.library import BUILTIN_ANIMALS, LIBRARY_FPS
-from synth_core.skeleton import Skeleton
+from synth_core.artifact import SUFFIX, Library, LibraryFileError, load_library, save_library
+from synth_core.library import BUILTIN_ANIMALS
 
 DEFAULT_LIBRARY_DIR = "library"
+log = logging.getLogger("quadsynth.libraries")
 
 
 def library_dir() -> Path:
     return Path(os.environ.get("QUADSYNTH_LIBRARY_DIR", DEFAULT_LIBRARY_DIR))
 
 
-def summarize(animal: str, skeleton: Skeleton) -> LibrarySummary:
+def ensure_builtin_libraries(directory: Path) -> list[Path]:
+    """Build and save the built-in animals' libraries that are missing; returns the new files."""
+    from synth_core.build import build_builtin
+
+    built = []
+    for animal in BUILTIN_ANIMALS:
+        path = directory / f"{animal}{SUFFIX}"
+        if not path.exists():
+            log.info("building the built-in %s library into %s", animal, path)
+            built.append(save_library(build_builtin(animal), path))
+    return built
+
+
+def summarize(library: Library, path: Path) -> LibrarySummary:
+    skeleton = library.skeleton
     return LibrarySummary(
-        animal=animal,
+        animal=library.animal,
         joints=skeleton.n_joints,
         feet={foot.name: skeleton.names[foot.end_effector] for foot in skeleton.feet},
-        fps=LIBRARY_FPS,
-        gaits=[],
-        source="built-in",
+        fps=library.fps,
+        gaits=list(library.maps),
+        source=str(path),
     )
 
 
 @dataclass
 class LibraryRegistry:
     directory: Path
-    skeletons: dict[str, Skeleton] = field(default_factory=dict)
+    libraries: dict[str, Library] = field(default_factory=dict)
     summaries: dict[str, LibrarySummary] = field(default_factory=dict)
+    errors: dict[str, str] = field(default_factory=dict)  # file -> why it was not loaded
     loaded: bool = False
 
     def load(self) -> None:
-        """Build the built-in animals' skeletons (milliseconds; no files needed)."""
-        self.skeletons = {animal: make() for animal, make in BUILTIN_ANIMALS.items()}
-        self.summaries = {animal: summarize(animal, skel) for animal, skel in self.skeletons.items()}
+        ensure_builtin_libraries(self.directory)
+        for path in sorted(self.directory.glob(f"*{SUFFIX}")):
+            try:
+                library = load_library(path)
+            except LibraryFileError as exc:
+                self.errors[str(path)] = str(exc)
+                log.error("library not loaded: %s", exc)
+                continue
+            if library.animal in self.libraries:
+                self.errors[str(path)] = f"a library named {library.animal!r} is already loaded"
+                log.error("library not loaded: %s: %s", path, self.errors[str(path)])
+                continue
+            self.libraries[library.animal] = library
+            self.summaries[library.animal] = summarize(library, path)
         self.loaded = True

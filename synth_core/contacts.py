@@ -95,16 +95,26 @@ def detect_contacts(motion: Motion, params: ContactParams = ContactParams(),
 
     ``ground``: the ground's height in metres; estimated from the feet when None.
     """
-    feet = motion.foot_positions().astype(np.float64)  # (F, 4, 3)
-    leg = motion.skeleton.leg_length()
+    return detect_contacts_at(motion.foot_positions(), motion.root_pos, motion.fps,
+                              motion.skeleton.leg_length(), params, ground)
+
+
+def detect_contacts_at(foot_pos: NDArray[np.floating], root_pos: NDArray[np.floating], fps: float,
+                       leg: float, params: ContactParams = ContactParams(),
+                       ground: float | None = None) -> NDArray[np.bool_]:
+    """:func:`detect_contacts` on positions: feet ``(F, 4, 3)``, root ``(F, 3)``, leg length (m).
+
+    For poses a Motion cannot hold, e.g. limbs stretched by IK.
+    """
+    feet = np.asarray(foot_pos, dtype=np.float64)  # (F, 4, 3)
     height = feet[..., UP_AXIS]
     height = height - (ground_height(height) if ground is None else ground)
     horiz = np.delete(feet, UP_AXIS, axis=-1)
     # Central differences (one-sided at the ends) so speed is centred on each frame.
-    foot_speed = np.linalg.norm(np.gradient(horiz, axis=0), axis=-1) * motion.fps
-    root = np.delete(motion.root_pos.astype(np.float64), UP_AXIS, axis=-1)
-    body_speed = np.linalg.norm(np.gradient(root, axis=0), axis=-1) * motion.fps
-    body_speed = ndimage.uniform_filter1d(body_speed, size=max(3, int(0.25 * motion.fps)))
+    foot_speed = np.linalg.norm(np.gradient(horiz, axis=0), axis=-1) * fps
+    root = np.delete(np.asarray(root_pos, dtype=np.float64), UP_AXIS, axis=-1)
+    body_speed = np.linalg.norm(np.gradient(root, axis=0), axis=-1) * fps
+    body_speed = ndimage.uniform_filter1d(body_speed, size=max(3, int(0.25 * fps)))
     speed_limit = params.speed * leg + params.speed_body * body_speed[:, None]
     strong = (height < params.height * leg) & (foot_speed < speed_limit)
     weak = (height < params.release * params.height * leg) & (foot_speed < params.release * speed_limit)
@@ -114,8 +124,8 @@ def detect_contacts(motion: Motion, params: ContactParams = ContactParams(),
     has_strong[labels[strong]] = True
     has_strong[0] = False
     planted = has_strong[labels]
-    return _fill_gaps_and_drop_short(planted, max_gap=int(round(params.max_gap_s * motion.fps)),
-                                     min_len=max(1, int(round(params.min_plant_s * motion.fps))))
+    return _fill_gaps_and_drop_short(planted, max_gap=int(round(params.max_gap_s * fps)),
+                                     min_len=max(1, int(round(params.min_plant_s * fps))))
 
 
 def ranges_to_contacts(ranges: FrameRanges, n_frames: int) -> NDArray[np.bool_]:

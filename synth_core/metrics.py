@@ -99,6 +99,20 @@ def touchdown_groups(contacts: NDArray[np.bool_], sync_frames: int) -> list[tupl
     return groups
 
 
+def footfall_template(contacts: NDArray[np.bool_], sync_frames: int) -> list[list[str]]:
+    """The touchdown groups of one stride of a cyclic clip, starting with LH's group.
+
+    A template for :func:`footfall_order`, taken from a clip's own contacts (a user's mocap has
+    no built-in template). Raises when the clip has no complete stride.
+    """
+    looped = np.tile(np.asarray(contacts, bool), (3, 1))
+    groups = [sorted(g) for _, g in touchdown_groups(looped, sync_frames)]
+    starts = [i for i, g in enumerate(groups) if "LH" in g]
+    if len(starts) < 2:
+        raise ValueError("contacts: no complete stride (LH must touch down)")
+    return groups[starts[0]:starts[1]]
+
+
 def footfall_order(contacts: NDArray[np.bool_], template: Sequence[Sequence[str]],
                    sync_frames: int = 3) -> float:
     """Share of strides whose touchdown order matches ``template``.

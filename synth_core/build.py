@@ -1,0 +1,87 @@
+"""Build a library (speed maps + motion graph + clips) for a built-in animal, and report on it."""
+
+from __future__ import annotations
+
+import time
+from typing import Any
+
+import numpy as np
+
+from synth_core import ik
+from synth_core import metrics as M
+from synth_core.artifact import Library
+from synth_core.contacts import detect_contacts_at
+from synth_core.skeleton import forward_kinematics
+from synth_core.speed_map import SpeedMap, SpeedRange, build_speed_map, default_ranges
+
+GAIT_ORDER = ("walk", "trot", "canter", "gallop")
+
+
+def build_builtin(animal: str, ranges: dict[str, SpeedRange] | None = None) -> Library:
+    """The built-in horse or dog: generated clips, then a speed map per gait."""
+    from synth_core.library.clips import GAITS, TRANSITIONS, build_clips
+
+    started = time.perf_counter()
+    clips = build_clips(animal)
+    ranges = ranges or default_ranges({g: clips[g].speed_mps() for g in GAITS})
+    maps = {g: build_speed_map(clips[g], ranges[g].speeds()) for g in GAITS}
+    return Library(animal, clips["walk"].skeleton, clips["walk"].fps, maps, clips["idle"],
+                   {name: clips[name] for name in TRANSITIONS}, frozenset(),
+                   source=f"built-in {animal} (synth_core.library: generated from gait biomechanics)",
+                   extra={"ranges": {g: [r.low, r.high, r.count] for g, r in ranges.items()},
+                          "build_seconds": round(time.perf_counter() - started, 3)})
+
+
+def map_positions(speed_map: SpeedMap) -> np.ndarray:
+    """World joint positions (N, F, J, 3) of every clip, limbs stretched as the IK asked."""
+    rigs = ik.limb_rigs(speed_map.skeleton)
+    offsets = ik.stretched_offsets(speed_map.skeleton, rigs, speed_map.stretch)
+    pos, _ = forward_kinematics(speed_map.skeleton, speed_map.root_pos, speed_map.rotations, offsets)
+    return np.asarray(pos)
+
+
+def footfall_preserved(speed_map: SpeedMap, positions: np.ndarray) -> float:
+    """Share of clips whose re-detected contacts keep the source's touchdown order."""
+    F = speed_map.n_frames
+    sync = max(2, round(0.06 * F))
+    template = M.footfall_template(speed_map.contacts, sync)
+    feet = positions[:, :, speed_map.skeleton.foot_joints]
+    leg = speed_map.skeleton.leg_length()
+    ground = float(feet[..., 1].min())
+    kept = 0
+    for c in range(speed_map.n_clips):  # per clip: contact detection is per character
+        # Three loops back to back (the root carried on) so every stride is whole.
+        advance = speed_map.root_pos[c, -1] - speed_map.root_pos[c, 0]
+        advance = advance * F / max(F - 1, 1)
+        advance[1] = 0.0
+        looped_feet = np.concatenate([feet[c] + k * advance for k in range(3)])
+        looped_root = np.concatenate([speed_map.root_pos[c] + k * advance for k in range(3)])
+        detected = detect_contacts_at(looped_feet, looped_root, speed_map.fps, leg, ground=ground)
+        kept += M.footfall_order(detected, template, sync) == 1.0
+    return kept / speed_map.n_clips
+
+
+def report(library: Library) -> dict[str, Any]:
+    """The figures of ``quadsynth report``: per gait, then the graph."""
+    gaits: dict[str, Any] = {}
+    for gait, m in library.maps.items():
+        pos = map_positions(m)
+        feet = pos[:, :, m.skeleton.foot_joints]
+        skate = M.foot_skate(feet, np.broadcast_to(m.contacts, feet.shape[:-1]))
+        measured = np.array([m.clip(i).speed_mps() for i in range(m.n_clips)])
+        gaits[gait] = {
+            "clips": m.n_clips, "frames": m.n_frames,
+            "speed_min": round(float(m.speeds[0]), 4), "speed_max": round(float(m.speeds[-1]), 4),
+            "skate_mm_mean": round(skate.mean_mm, 4), "skate_mm_p95": round(skate.p95_mm, 4),
+            "footfall_preserved": footfall_preserved(m, pos),
+            "max_limb_stretch_pct": round(float(m.stretch.max() - 1.0) * 100, 3),
+            "speed_error_pct_max": round(float(np.abs(measured / m.speeds - 1).max() * 100), 4),
+            "source_speed": round(m.source_speed, 4),
+        }
+    graph = library.graph
+    return {"animal": library.animal, "source": library.source, "gaits": gaits,
+            "graph": {"nodes": graph.nodes, "edges": graph.n_edges,
+                      "transitions": sorted(graph.transitions),
+                      "generated_transitions": sorted(library.generated),
+                      "static_to_gallop": graph.connected("static", "gallop")
+                      and graph.connected("gallop", "static")}}
