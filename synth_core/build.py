@@ -7,6 +7,7 @@ from typing import Any
 
 import numpy as np
 
+from synth_core import contacts as C
 from synth_core import ik
 from synth_core import metrics as M
 from synth_core.artifact import Library
@@ -41,23 +42,32 @@ def map_positions(speed_map: SpeedMap) -> np.ndarray:
 
 
 def footfall_preserved(speed_map: SpeedMap, positions: np.ndarray) -> float:
-    """Share of clips whose re-detected contacts keep the source's touchdown order."""
+    """Share of clips whose re-detected contacts keep the source's touchdown order.
+
+    Compared pairwise on touchdown phases (relative to LH): every two feet that land more than
+    a sync window (6% of the stride, at least 2 frames) apart in the source must land in the
+    same order in the clip. Feet landing together in the source may land either way round.
+    """
     F = speed_map.n_frames
-    sync = max(2, round(0.06 * F))
-    template = M.footfall_template(speed_map.contacts, sync)
+    sync = max(2, round(0.06 * F)) / F
+    want = C.footfall_pattern(speed_map.contacts, cyclic=True).mean_phases
     feet = positions[:, :, speed_map.skeleton.foot_joints]
     leg = speed_map.skeleton.leg_length()
     ground = float(feet[..., 1].min())
+    gap = (want[:, None] - want[None, :] + 0.5) % 1.0 - 0.5  # (4, 4) signed phase gaps
+    apart = np.abs(gap) > sync
     kept = 0
     for c in range(speed_map.n_clips):  # per clip: contact detection is per character
-        # Three loops back to back (the root carried on) so every stride is whole.
+        # Three loops back to back (the root carried on); the middle one is judged.
         advance = speed_map.root_pos[c, -1] - speed_map.root_pos[c, 0]
         advance = advance * F / max(F - 1, 1)
         advance[1] = 0.0
         looped_feet = np.concatenate([feet[c] + k * advance for k in range(3)])
         looped_root = np.concatenate([speed_map.root_pos[c] + k * advance for k in range(3)])
         detected = detect_contacts_at(looped_feet, looped_root, speed_map.fps, leg, ground=ground)
-        kept += M.footfall_order(detected, template, sync) == 1.0
+        got = C.footfall_pattern(detected[F:2 * F], cyclic=True).mean_phases
+        got_gap = (got[:, None] - got[None, :] + 0.5) % 1.0 - 0.5
+        kept += bool(np.all(np.isfinite(got)) and np.all(np.sign(got_gap[apart]) == np.sign(gap[apart])))
     return kept / speed_map.n_clips
 
 

@@ -147,19 +147,25 @@ def _tile(x: Floats, shift: Floats, copies: int = 3) -> Floats:
 
 
 def foot_targets(source_feet: NDArray[np.floating], source_root: NDArray[np.floating],
-                 new_root: Floats, contacts: NDArray[np.bool_]) -> Floats:
-    """Steps 2 and the swing rule: toe targets (N, F, 4, 3) for every frame of every speed."""
+                 new_root: Floats, contacts: NDArray[np.bool_], cyclic: bool = True) -> Floats:
+    """Steps 2 and the swing rule: toe targets (N, F, 4, 3) for every frame of every speed.
+
+    ``cyclic=False`` treats the clip as one piece (plants at its ends are cut there): with
+    ``new_root`` the source root, that pins each plant at its average place (a foot lock).
+    """
     feet = np.asarray(source_feet, dtype=np.float64)
     root = np.asarray(source_root, dtype=np.float64)
     N, F = new_root.shape[:2]
-    D = cycle_displacement(root)
-    D_new = np.stack([cycle_displacement(r) for r in new_root])  # (N, 3)
+    copies = 3 if cyclic else 1
+    D = cycle_displacement(root) if cyclic else np.zeros(3)
+    D_new = np.stack([cycle_displacement(r) for r in new_root]) if cyclic else np.zeros((N, 3))
     # Three loops back to back: plants over the clip's ends are whole, neighbours exist.
-    feet3 = _tile(np.broadcast_to(feet, (N, *feet.shape)), np.broadcast_to(D, (N, 3)))  # (N, 3F, 4, 3)
-    shift3 = _tile(new_root, D_new) - _tile(np.broadcast_to(root, (N, F, 3)), np.broadcast_to(D, (N, 3)))
-    contacts3 = np.tile(contacts, (3, 1))
+    feet3 = _tile(np.broadcast_to(feet, (N, *feet.shape)), np.broadcast_to(D, (N, 3)), copies)
+    shift3 = _tile(new_root, D_new, copies) - _tile(np.broadcast_to(root, (N, F, 3)),
+                                                    np.broadcast_to(D, (N, 3)), copies)
+    contacts3 = np.tile(contacts, (copies, 1))
     targets = feet3.copy()
-    t = np.arange(3 * F)
+    t = np.arange(copies * F)
     for k in range(contacts.shape[1]):
         plants = runs(contacts3[:, k])
         if len(plants) == 0:
@@ -191,7 +197,8 @@ def foot_targets(source_feet: NDArray[np.floating], source_root: NDArray[np.floa
         blend = (1 - u)[None, :, None] * plant_shift[:, prev] + u[None, :, None] * plant_shift[:, nxt]
         swing = feet3[:, :, k] + blend
         targets[:, :, k] = np.where(inside[None, :, None], plant[:, prev], swing)
-    return np.asarray(targets[:, F:2 * F])
+    first = F * (copies // 2)
+    return np.asarray(targets[:, first:first + F])
 
 
 def build_speed_map(source: Motion, speeds: Sequence[float] | Floats,

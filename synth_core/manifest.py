@@ -1,0 +1,325 @@
+"""Build a library from a user's own BVH mocap, described by a TOML manifest.
+
+::
+
+    animal = "mann_dog"                 # the library's name
+    mocap_dir = "path/to/bvh"           # optional; relative to this file (default: its folder)
+    unit = "cm"                         # the BVH files' unit: m, cm, mm, in, ft
+    root_offset = "ignore"              # or "add" (see synth_core.bvh)
+
+    [feet]                              # end-effector joints (an End Site is "<parent>_end")
+    LF = "LeftHand_end"
+    RF = "RightHand_end"
+    LH = "LeftFoot_end"
+    RH = "RightFoot_end"
+
+    [gaits.walk]                        # walk, trot, canter, gallop: one clean cycle each
+    file = "walk.bvh"
+    frames = [208, 245]                 # [first, stop): one stride, LH touchdown to the next
+    # frames = "auto"; search = [7, 54] # or: the most loop-closed stride inside `search`
+
+    [idle]                              # optional standing clip (default: a still frame)
+    file = "stand.bvh"
+    frames = [0, 147]
+
+    [transitions.walk2trot]             # optional; static2walk ... gallop2canter
+    file = "speed_up.bvh"
+    frames = [330, 420]
+
+    [contacts.walk]                     # optional manual planted ranges, frames of the clip
+    LF = [[0, 20], [30, 37]]
+
+    [speeds.walk]                       # optional speed-map range (m/s); default: see speed_map
+    low = 0.5
+    high = 1.2
+    count = 60
+
+A missing transition between two gaits is **generated**: the two gaits' speed-map clips at a
+speed both ranges cover are cross-faded over a stride, the second time-shifted so its footfalls
+agree best with the first's, and the feet are pinned to their plants with the same IK; the graph
+marks it ``generated``. A missing ``static2walk``/``walk2static`` is made the same way from the
+idle clip. Errors name the manifest field.
+"""
+
+from __future__ import annotations
+
+import time
+import tomllib
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from synth_core import FOOT_NAMES, UP_AXIS, bvh, ik, quat
+from synth_core import contacts as C
+from synth_core.artifact import Library
+from synth_core.motion import Motion
+from synth_core.motion_graph import HUBS, transition_name
+from synth_core.speed_map import SpeedMap, SpeedRange, build_speed_map, default_ranges, foot_targets
+
+GAITS = HUBS[1:]
+TRANSITIONS = [transition_name(a, b) for a, b in zip(HUBS[:-1], HUBS[1:], strict=True)] + \
+              [transition_name(b, a) for a, b in zip(HUBS[:-1], HUBS[1:], strict=True)]
+UNITS = ("m", "cm", "mm", "in", "ft")
+
+
+class ManifestError(ValueError):
+    """A manifest that cannot be built; the message names the field."""
+
+
+def _field(doc: Mapping[str, Any], key: str, where: str, kind: type | tuple[type, ...]) -> Any:
+    if key not in doc:
+        raise ManifestError(f"{where}{key}: missing")
+    value = doc[key]
+    if not isinstance(value, kind):
+        raise ManifestError(f"{where}{key}: expected {getattr(kind, '__name__', kind)}, got {value!r}")
+    return value
+
+
+class _Files:
+    """BVH files read once each, with the manifest's unit and feet."""
+
+    def __init__(self, folder: Path, unit: str, feet: dict[str, str], root_offset: str) -> None:
+        self.folder, self.unit, self.feet, self.root_offset = folder, unit, feet, root_offset
+        self.cache: dict[str, Motion] = {}
+
+    def read(self, name: str, where: str) -> Motion:
+        if name not in self.cache:
+            path = self.folder / name
+            if not path.is_file():
+                raise ManifestError(f"{where}file: {path} not found")
+            try:
+                motion = bvh.read(path, unit=self.unit, feet=None, root_offset=self.root_offset)
+                for foot, joint in self.feet.items():
+                    if joint not in motion.skeleton.names:
+                        raise ManifestError(f"feet.{foot}: no joint {joint!r} in {path.name} "
+                                            f"(joints: {', '.join(motion.skeleton.names)})")
+                skeleton = motion.skeleton.with_feet(self.feet)
+            except bvh.BVHError as exc:
+                raise ManifestError(f"{where}file: {exc}") from None
+            motion = Motion(skeleton, motion.root_pos, motion.rotations, motion.fps, name=name)
+            self.cache[name] = motion.with_contacts(C.detect_contacts(motion))
+        return self.cache[name]
+
+
+def _range(entry: Mapping[str, Any], where: str, motion: Motion) -> tuple[int, int]:
+    frames = _field(entry, "frames", where, (list, str))
+    if isinstance(frames, str):
+        if frames != "auto":
+            raise ManifestError(f'{where}frames: expected [first, stop] or "auto", got {frames!r}')
+        search = entry.get("search", [0, motion.n_frames])
+        first, stop = _pair(search, f"{where}search", motion.n_frames)
+        return auto_cycle(motion, first, stop, f"{where}frames")
+    return _pair(frames, f"{where}frames", motion.n_frames)
+
+
+def _pair(value: Any, where: str, n_frames: int) -> tuple[int, int]:
+    if not (isinstance(value, list) and len(value) == 2 and all(isinstance(v, int) for v in value)):
+        raise ManifestError(f"{where}: expected [first, stop] (integers), got {value!r}")
+    first, stop = value
+    if not 0 <= first < stop <= n_frames:
+        raise ManifestError(f"{where}: [{first}, {stop}] is out of bounds: the file has {n_frames} frames "
+                            f"(0 <= first < stop <= {n_frames})")
+    return first, stop
+
+
+def auto_cycle(motion: Motion, first: int, stop: int, where: str) -> tuple[int, int]:
+    """The stride (LH touchdown to the next) within [first, stop] that loops best."""
+    downs = C.touchdowns(motion.contacts)[FOOT_NAMES.index("LH")]
+    downs = downs[(downs >= first) & (downs <= stop)]
+    if len(downs) < 2:
+        raise ManifestError(f"{where}: no whole stride (two LH touchdowns) in frames [{first}, {stop}]")
+    pos = motion.positions().astype(np.float64)
+    body = pos - pos[:, :1]
+    error = [np.linalg.norm(body[b] - body[a], axis=-1).mean() for a, b in zip(downs[:-1], downs[1:],
+                                                                             strict=True)]
+    k = int(np.argmin(error))
+    return int(downs[k]), int(downs[k + 1])
+
+
+def _clip(files: _Files, entry: Any, where: str, name: str, contacts: Mapping[str, Any] | None) -> Motion:
+    if not isinstance(entry, Mapping):
+        raise ManifestError(f"{where[:-1]}: expected a table with file and frames")
+    motion = files.read(_field(entry, "file", where, str), where)
+    first, stop = _range(entry, where, motion)
+    clip = motion.slice(first, stop)
+    clip = Motion(clip.skeleton, clip.root_pos, clip.rotations, clip.fps, clip.contacts, name,
+                  name if name in GAITS else None)
+    if contacts:
+        try:
+            clip = clip.with_contacts(C.apply_annotation(clip.contacts, contacts))
+        except ValueError as exc:
+            raise ManifestError(f"contacts.{name}: {exc}") from None
+    return clip
+
+
+def build_from_manifest(path: Path) -> Library:
+    started = time.perf_counter()
+    try:
+        doc = tomllib.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise ManifestError(f"{path}: no such manifest") from None
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+        raise ManifestError(f"{path}: not valid TOML: {exc}") from None
+    animal = _field(doc, "animal", "", str)
+    unit = doc.get("unit", "cm")
+    if unit not in UNITS:
+        raise ManifestError(f"unit: expected one of {list(UNITS)}, got {unit!r}")
+    feet = _field(doc, "feet", "", dict)
+    missing = [f for f in FOOT_NAMES if f not in feet]
+    if missing:
+        raise ManifestError(f"feet: missing {missing}; "
+                            f"name the end-effector joint of all of {list(FOOT_NAMES)}")
+    folder = (path.parent / doc.get("mocap_dir", ".")).resolve()
+    files = _Files(folder, unit, {f: str(feet[f]) for f in FOOT_NAMES}, doc.get("root_offset", "ignore"))
+    gaits_doc = _field(doc, "gaits", "", dict)
+    missing = [g for g in GAITS if g not in gaits_doc]
+    if missing:
+        raise ManifestError(f"gaits: missing {missing}; "
+                            f"the motion graph needs a cycle of each of {list(GAITS)}")
+    unknown = [g for g in gaits_doc if g not in GAITS]
+    if unknown:
+        raise ManifestError(f"gaits: unknown {unknown}; gaits are {list(GAITS)}")
+    manual = doc.get("contacts", {})
+    cycles = {g: _clip(files, gaits_doc[g], f"gaits.{g}.", g, manual.get(g)) for g in GAITS}
+    sources = {g: c.speed_mps() for g, c in cycles.items()}
+    ranges = default_ranges(sources)
+    for g, spec in doc.get("speeds", {}).items():
+        if g not in GAITS:
+            raise ManifestError(f"speeds.{g}: unknown gait")
+        try:
+            ranges[g] = SpeedRange(float(spec.get("low", ranges[g].low)),
+                                   float(spec.get("high", ranges[g].high)),
+                                   int(spec.get("count", ranges[g].count)))
+        except (ValueError, TypeError, AttributeError) as exc:
+            raise ManifestError(f"speeds.{g}: {exc}") from None
+    maps = {}
+    for g in GAITS:
+        try:
+            maps[g] = build_speed_map(cycles[g], ranges[g].speeds())
+        except ValueError as exc:
+            raise ManifestError(f"gaits.{g}: {exc}") from None
+    idle = (_clip(files, doc["idle"], "idle.", "idle", manual.get("idle")) if "idle" in doc
+            else still_clip(cycles["walk"]))
+    idle = Motion(idle.skeleton, idle.root_pos, idle.rotations, idle.fps, np.ones_like(idle.contacts),
+                  "idle", "static")
+    given = doc.get("transitions", {})
+    unknown = [t for t in given if t not in TRANSITIONS]
+    if unknown:
+        raise ManifestError(f"transitions: unknown {unknown}; transitions are {TRANSITIONS}")
+    transitions, generated = {}, set()
+    for name in TRANSITIONS:
+        if name in given:
+            transitions[name] = _clip(files, given[name], f"transitions.{name}.", name, manual.get(name))
+        else:
+            source, target = name.split("2")
+            transitions[name] = generate_transition(maps.get(source), maps.get(target), idle, name)
+            generated.add(name)
+    return Library(animal, cycles["walk"].skeleton, cycles["walk"].fps, maps, idle, transitions,
+                   frozenset(generated), source=str(path),
+                   extra={"ranges": {g: [r.low, r.high, r.count] for g, r in ranges.items()},
+                          "build_seconds": round(time.perf_counter() - started, 3)})
+
+
+def still_clip(like: Motion, seconds: float = 2.0) -> Motion:
+    """Standing still: the cycle's frame with the most feet down (ties: the lowest feet), held."""
+    feet_y = like.foot_positions()[..., UP_AXIS]
+    score = like.contacts.sum(axis=1) - feet_y.sum(axis=1)
+    f = int(np.argmax(score))
+    n = int(round(seconds * like.fps))
+    root = np.repeat(like.root_pos[f:f + 1], n, axis=0)
+    return Motion(like.skeleton, root, np.repeat(like.rotations[f:f + 1], n, axis=0), like.fps,
+                  np.ones((n, 4), bool), "idle", "static")
+
+
+def _heading(motion: Motion) -> float:
+    travel = motion.root_pos[-1] - motion.root_pos[0]
+    return float(np.arctan2(travel[0], travel[2])) if np.hypot(travel[0], travel[2]) > 1e-6 else 0.0
+
+
+def _turned(motion: Motion, yaw: float, start: np.ndarray) -> Motion:
+    """The motion turned by ``yaw`` about +Y around its first root position, moved to ``start``."""
+    q = quat.from_axis_angle(np.array([0.0, 1.0, 0.0]), yaw)
+    root = quat.rotate(q, motion.root_pos - motion.root_pos[0]) + start
+    rotations = motion.rotations.copy()
+    rotations[:, 0] = quat.mul(q, rotations[:, 0])
+    return Motion(motion.skeleton, root, rotations, motion.fps, motion.contacts, motion.name, motion.gait)
+
+
+def _loops(clip: Motion, times: int) -> Motion:
+    advance = (clip.root_pos[-1] - clip.root_pos[0]) * clip.n_frames / max(clip.n_frames - 1, 1)
+    advance[UP_AXIS] = 0.0
+    root = np.concatenate([clip.root_pos + k * advance for k in range(times)])
+    return Motion(clip.skeleton, root, np.tile(clip.rotations, (times, 1, 1)), clip.fps,
+                  np.tile(clip.contacts, (times, 1)), clip.name, clip.gait)
+
+
+def _nearest(speed_map: SpeedMap, speed: float) -> Motion:
+    return speed_map.clip(int(np.abs(speed_map.speeds - speed).argmin()))
+
+
+def generate_transition(a: SpeedMap | None, b: SpeedMap | None, idle: Motion, name: str) -> Motion:
+    """A transition the data lacks: a's clip cross-faded into b's at a speed both can do."""
+    if a is not None and b is not None:
+        low = max(a.speeds[0], b.speeds[0])
+        high = min(a.speeds[-1], b.speeds[-1])
+        speed = 0.5 * (low + high) if low <= high else 0.5 * (a.speeds[-1] + b.speeds[0])
+        first, second = _loops(_nearest(a, speed), 2), _loops(_nearest(b, speed), 2)
+    elif a is not None:  # gait -> static: slow to the slowest clip, then stand
+        first, second = _loops(a.clip(0), 2), idle
+    elif b is not None:  # static -> gait
+        first, second = idle, _loops(b.clip(0), 2)
+    else:
+        raise ValueError(f"{name}: neither side has clips")
+    second = _turned(second, _heading(first) - _heading(second) if second.speed_mps() > 0.01 else 0.0,
+                     first.root_pos[-1])
+    return _crossfade(first, second, name)
+
+
+def _crossfade(first: Motion, second: Motion, name: str) -> Motion:
+    """first, then second, blended over the frames where they overlap; feet pinned by IK.
+
+    ``second`` is time-shifted (cyclically, by up to its own length) so that its contacts agree
+    best with ``first``'s across the blend: footfalls carry on instead of doubling a step.
+    """
+    Fa, Fb = first.n_frames, second.n_frames
+    W = min(Fa, Fb) // 2
+    # Cyclic shift of second whose first W frames best match first's last W frames' contacts.
+    shifts = np.arange(Fb)
+    tail = first.contacts[-W:]
+    agree = [(np.roll(second.contacts, -s, axis=0)[:W] == tail).sum() for s in shifts]
+    s = int(shifts[int(np.argmax(agree))])
+    rot_b = np.roll(second.rotations, -s, axis=0)
+    con_b = np.roll(second.contacts, -s, axis=0)
+    step_b = np.diff(np.roll(second.root_pos, -s, axis=0), axis=0, prepend=second.root_pos[:1])
+    step_b[0] = step_b[1]
+    T = Fa + Fb - W
+    w = np.zeros(T)
+    w[Fa - W:Fa] = np.linspace(0.0, 1.0, W)
+    w[Fa:] = 1.0
+    w = w * w * (3 - 2 * w)
+    rot_a = np.concatenate([first.rotations, np.repeat(first.rotations[-1:], Fb - W, axis=0)])
+    rot_bb = np.concatenate([np.repeat(rot_b[:1], Fa - W, axis=0), rot_b])
+    rotations = quat.slerp(rot_a, rot_bb, w[:, None])
+    step_a = np.diff(first.root_pos, axis=0, prepend=first.root_pos[:1])
+    step_a[0] = step_a[1]
+    steps = (1 - w)[:, None] * np.concatenate([step_a, np.repeat(step_a[-1:], Fb - W, axis=0)]) \
+        + w[:, None] * np.concatenate([np.repeat(step_b[:1], Fa - W, axis=0), step_b])
+    root = first.root_pos[0] + np.cumsum(steps, axis=0) - steps[0]
+    height_a = np.concatenate([first.root_pos[:, UP_AXIS], np.full(Fb - W, first.root_pos[-1, UP_AXIS])])
+    height_b = np.concatenate([np.full(Fa - W, second.root_pos[0, UP_AXIS]),
+                               np.roll(second.root_pos, -s, axis=0)[:, UP_AXIS]])
+    heights = (1 - w) * height_a + w * height_b
+    root[:, UP_AXIS] = heights
+    contacts = np.where((w < 0.5)[:, None],
+                        np.concatenate([first.contacts, np.repeat(first.contacts[-1:], Fb - W, axis=0)]),
+                        np.concatenate([np.repeat(con_b[:1], Fa - W, axis=0), con_b]))
+    blended = Motion(first.skeleton, root, rotations, first.fps, contacts, name, None)
+    # Foot lock: every plant held at its average place, swings eased between (as in the speed map).
+    feet = blended.foot_positions()
+    targets = foot_targets(feet, blended.root_pos, blended.root_pos[None].astype(np.float64),
+                           blended.contacts, cyclic=False)[0]
+    solved = ik.solve(blended.skeleton, blended.root_pos, blended.rotations, targets,
+                      ground=float(feet[..., UP_AXIS].min()))
+    return Motion(blended.skeleton, blended.root_pos, solved.rotations, blended.fps, contacts, name, None)

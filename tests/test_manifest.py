@@ -1,0 +1,72 @@
+"""Building a library from a user's BVH mocap: the real dog manifest, generated transitions, errors."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from synth_core.build import report
+from synth_core.manifest import ManifestError, build_from_manifest
+from tests.conftest import MANN_DIR
+
+FIXTURE = Path(__file__).parent / "fixtures" / "mann_dog.toml"
+needs_mann = pytest.mark.skipif(not MANN_DIR.is_dir(), reason="real dog mocap not found beside the repo")
+
+
+@pytest.fixture(scope="module")
+def mann_figures() -> dict:
+    return report(build_from_manifest(FIXTURE))
+
+
+@needs_mann
+def test_the_real_dog_builds_with_generated_transitions_where_data_lacks_them(mann_figures: dict) -> None:
+    graph = mann_figures["graph"]
+    assert graph["nodes"] == ["static", "walk", "trot", "canter", "gallop"]
+    assert graph["generated_transitions"] == ["canter2gallop", "canter2trot", "trot2canter"]
+    assert len(graph["transitions"]) == 8 and graph["static_to_gallop"]
+    for gait, f in mann_figures["gaits"].items():
+        assert f["clips"] >= 55, gait
+        assert f["skate_mm_mean"] <= 0.5, gait
+        assert f["speed_error_pct_max"] <= 1.0, gait
+
+
+def write(tmp_path: Path, text: str) -> Path:
+    path = tmp_path / "m.toml"
+    path.write_text(f'mocap_dir = "{MANN_DIR}"\n' + text)
+    return path
+
+
+GOOD = FIXTURE.read_text().replace('mocap_dir = "../../../shared/mocap/mann_dog"\n', "")
+
+
+@needs_mann
+@pytest.mark.parametrize("edit, message", [
+    (("D1_009_KAN01_002.bvh", "no_such_file.bvh"), r"gaits\.trot\.file: .*no_such_file\.bvh not found"),
+    (("frames = [296, 326]", "frames = [296, 99999]"),
+     r"gaits\.trot\.frames: \[296, 99999\] is out of bounds"),
+    (('LF = "LeftHand_end"', 'LF = "LeftPaw"'), r"feet\.LF: no joint 'LeftPaw'"),
+    (("[gaits.canter]", "[gaits.lope]"), r"gaits: missing \['canter'\]"),
+    (('frames = "auto"', 'frames = "sometimes"'),
+     r'gaits\.gallop\.frames: expected \[first, stop\] or "auto"'),
+    (('unit = "cm"', 'unit = "furlong"'), r"unit: expected one of"),
+    (("[transitions.trot2walk]", "[transitions.trot2gallop]"), r"transitions: unknown \['trot2gallop'\]"),
+])
+def test_bad_manifests_name_the_field(tmp_path: Path, edit: tuple[str, str], message: str) -> None:
+    old, new = edit
+    assert old in GOOD
+    with pytest.raises(ManifestError, match=message):
+        build_from_manifest(write(tmp_path, GOOD.replace(old, new, 1)))
+
+
+def test_unreadable_and_missing_manifests(tmp_path: Path) -> None:
+    with pytest.raises(ManifestError, match="no such manifest"):
+        build_from_manifest(tmp_path / "absent.toml")
+    bad = tmp_path / "bad.toml"
+    bad.write_text("animal = [unclosed")
+    with pytest.raises(ManifestError, match="not valid TOML"):
+        build_from_manifest(bad)
+    empty = tmp_path / "empty.toml"
+    empty.write_text('animal = "x"\n')
+    with pytest.raises(ManifestError, match="feet: missing"):
+        build_from_manifest(empty)
