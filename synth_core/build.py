@@ -13,7 +13,7 @@ from synth_core import metrics as M
 from synth_core.artifact import Library
 from synth_core.contacts import detect_contacts_at
 from synth_core.skeleton import forward_kinematics
-from synth_core.speed_map import SpeedMap, SpeedRange, build_speed_map, default_ranges
+from synth_core.speed_map import SpeedMap, SpeedRange, build_speed_map, cycle_displacement, default_ranges
 
 GAIT_ORDER = ("walk", "trot", "canter", "gallop")
 
@@ -59,9 +59,7 @@ def footfall_preserved(speed_map: SpeedMap, positions: np.ndarray) -> float:
     kept = 0
     for c in range(speed_map.n_clips):  # per clip: contact detection is per character
         # Three loops back to back (the root carried on); the middle one is judged.
-        advance = speed_map.root_pos[c, -1] - speed_map.root_pos[c, 0]
-        advance = advance * F / max(F - 1, 1)
-        advance[1] = 0.0
+        advance = cycle_displacement(speed_map.root_pos[c])
         looped_feet = np.concatenate([feet[c] + k * advance for k in range(3)])
         looped_root = np.concatenate([speed_map.root_pos[c] + k * advance for k in range(3)])
         detected = detect_contacts_at(looped_feet, looped_root, speed_map.fps, leg, ground=ground)

@@ -56,7 +56,14 @@ from synth_core import contacts as C
 from synth_core.artifact import Library
 from synth_core.motion import Motion
 from synth_core.motion_graph import HUBS, transition_name
-from synth_core.speed_map import SpeedMap, SpeedRange, build_speed_map, default_ranges, foot_targets
+from synth_core.speed_map import (
+    SpeedMap,
+    SpeedRange,
+    build_speed_map,
+    cycle_displacement,
+    default_ranges,
+    foot_targets,
+)
 
 GAITS = HUBS[1:]
 TRANSITIONS = [transition_name(a, b) for a, b in zip(HUBS[:-1], HUBS[1:], strict=True)] + \
@@ -248,8 +255,7 @@ def _turned(motion: Motion, yaw: float, start: np.ndarray) -> Motion:
 
 
 def _loops(clip: Motion, times: int) -> Motion:
-    advance = (clip.root_pos[-1] - clip.root_pos[0]) * clip.n_frames / max(clip.n_frames - 1, 1)
-    advance[UP_AXIS] = 0.0
+    advance = cycle_displacement(clip.root_pos)
     root = np.concatenate([clip.root_pos + k * advance for k in range(times)])
     return Motion(clip.skeleton, root, np.tile(clip.rotations, (times, 1, 1)), clip.fps,
                   np.tile(clip.contacts, (times, 1)), clip.name, clip.gait)

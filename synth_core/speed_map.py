@@ -118,11 +118,13 @@ class SpeedMap:
 
 
 def cycle_displacement(root_pos: NDArray[np.floating]) -> Floats:
-    """Horizontal root advance over one loop of a cyclic clip: its mean step times its frames."""
+    """Horizontal root advance over one loop of a cyclic clip, ``(..., F, 3) -> (..., 3)``: its
+    mean step times its frames."""
     root = np.asarray(root_pos, dtype=np.float64)
-    step = (root[-1] - root[0]) / max(len(root) - 1, 1)
-    step[UP_AXIS] = 0.0
-    return np.asarray(step * len(root))
+    F = root.shape[-2]
+    step = (root[..., -1, :] - root[..., 0, :]) / max(F - 1, 1)
+    step[..., UP_AXIS] = 0.0
+    return np.asarray(step * F)
 
 
 def relocate_root(root_pos: NDArray[np.floating], ratio: Floats) -> Floats:
@@ -158,7 +160,7 @@ def foot_targets(source_feet: NDArray[np.floating], source_root: NDArray[np.floa
     N, F = new_root.shape[:2]
     copies = 3 if cyclic else 1
     D = cycle_displacement(root) if cyclic else np.zeros(3)
-    D_new = np.stack([cycle_displacement(r) for r in new_root]) if cyclic else np.zeros((N, 3))
+    D_new = cycle_displacement(new_root) if cyclic else np.zeros((N, 3))
     # Three loops back to back: plants over the clip's ends are whole, neighbours exist.
     feet3 = _tile(np.broadcast_to(feet, (N, *feet.shape)), np.broadcast_to(D, (N, 3)), copies)
     shift3 = _tile(new_root, D_new, copies) - _tile(np.broadcast_to(root, (N, F, 3)),

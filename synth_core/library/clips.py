@@ -8,7 +8,7 @@ from pathlib import Path
 from synth_core import bvh
 from synth_core.contacts import contacts_json
 from synth_core.library.gaits import GAIT_SPECS
-from synth_core.library.generator import cyclic_clip, idle_clip, loop_start, static_spec, transition_clip
+from synth_core.library.generator import cyclic_clip, idle_clip, static_spec, transition_clip
 from synth_core.library.skeletons import build_skeleton
 from synth_core.motion import Motion
 
@@ -23,10 +23,10 @@ def build_clips(animal: str) -> dict[str, Motion]:
     skeleton = build_skeleton(animal)
     specs = dict(GAIT_SPECS[animal])
     specs["static"] = static_spec(specs["walk"])
-    starts = {gait: loop_start(skeleton, specs[gait]) for gait in GAITS}
     clips = {"idle": idle_clip(skeleton)}
+    starts = {}
     for gait in GAITS:
-        clips[gait] = cyclic_clip(skeleton, specs[gait], starts[gait])
+        clips[gait], starts[gait] = cyclic_clip(skeleton, specs[gait])
     for name in TRANSITIONS:
         source, target = name.split("2")
         clips[name] = transition_clip(skeleton, specs[source], specs[target], name,

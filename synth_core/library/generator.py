@@ -208,8 +208,8 @@ def _wave(clock: Floats, per_stride: Floats | float, at: Floats | float) -> Floa
     return np.cos(2 * np.pi * np.asarray(per_stride) * (clock - at))
 
 
-def synthesize(skeleton: Skeleton, track: Track, name: str, gait: str | None) -> tuple[Motion, Floats]:
-    """Generate a motion from a parameter track; also returns each frame's largest foot miss (m)."""
+def synthesize(skeleton: Skeleton, track: Track, name: str, gait: str | None) -> Motion:
+    """Generate a motion from a parameter track."""
     T = track.length
     v = track.values
     root_z = np.concatenate([[0.0], np.cumsum(v["speed"][1:]) / FPS])
@@ -254,7 +254,6 @@ def synthesize(skeleton: Skeleton, track: Track, name: str, gait: str | None) ->
     # two: a foot cannot step in 30 ms, so such steps are skipped and the plant held.
     planted = fill_gaps(planted, int(MIN_SWING_S * FPS))
     contacts = np.zeros((T, 4), bool)
-    miss = np.zeros(T)
     for k, limb in enumerate(limbs_of(skeleton)):
         end = limb.chain[-1]
         neutral = rest_pos[end, 2] - rest_pos[0, 2]
@@ -272,11 +271,10 @@ def synthesize(skeleton: Skeleton, track: Track, name: str, gait: str | None) ->
                 break
             foot_planted = foot_planted & ~early
         contacts[:, k] = plan.planted
-        miss = np.maximum(miss, solution.miss)
         rot[:, list(limb.chain[:-1])] = _leg_rotations(skeleton, limb, solution.angles, global_pitch)
     motion = Motion(skeleton, root_pos.astype(np.float32), rot.astype(np.float32), FPS,
                     contacts=contacts, name=name, gait=gait)
-    return motion, miss
+    return motion
 
 
 def _rest_protraction(limb: Limb, rest_pos: NDArray[np.floating]) -> float:
@@ -355,17 +353,15 @@ def _at_origin(motion: Motion, name: str, gait: str | None) -> Motion:
     return Motion(motion.skeleton, root, motion.rotations, FPS, motion.contacts, name, gait)
 
 
-def loop_start(skeleton: Skeleton, spec: GaitSpec) -> int:
-    """Where in the stride a gait's loop should start: the frame whose seam step is the least extreme.
+def loop_start(period: Motion) -> int:
+    """Where a loop should start in one stride (``period``: N + 1 frames of a periodic motion).
 
     A loop of an exactly periodic motion is seamless wherever it is cut, but if the cut falls on a
     joint's fastest step, the step from the last frame to the first is (by construction) the
     largest, and a checker cannot tell it from a jump. So cut where, for every joint, the step into
     the first frame is furthest below that joint's fastest step.
     """
-    N = spec.frames
-    motion, _ = synthesize(skeleton, constant_track(spec, 5 * N), spec.name, spec.name)
-    period = motion.slice(2 * N, 3 * N + 1)
+    N = period.n_frames - 1
     pos = period.positions().astype(np.float64)
     q = period.rotations.astype(np.float64)
     steps = np.concatenate([np.linalg.norm(np.diff(pos, axis=0), axis=-1),
@@ -377,11 +373,13 @@ def loop_start(skeleton: Skeleton, spec: GaitSpec) -> int:
     return int((worst.argmin() + 1) % N)  # the loop starting at frame c has step c - 1 -> c on its seam
 
 
-def cyclic_clip(skeleton: Skeleton, spec: GaitSpec, start: int = 0) -> Motion:
-    """One stride of a gait that loops exactly (generated padded, then cut) from frame ``start``."""
+def cyclic_clip(skeleton: Skeleton, spec: GaitSpec) -> tuple[Motion, int]:
+    """One stride of a gait that loops exactly (generated padded, then cut), and the stride frame
+    it starts at (:func:`loop_start`; transitions from this gait start there too)."""
     N = spec.frames
-    motion, _ = synthesize(skeleton, constant_track(spec, 5 * N), spec.name, spec.name)
-    return _at_origin(motion.slice(2 * N + start, 3 * N + start), spec.name, spec.name)
+    motion = synthesize(skeleton, constant_track(spec, 5 * N), spec.name, spec.name)
+    start = loop_start(motion.slice(2 * N, 3 * N + 1))
+    return _at_origin(motion.slice(2 * N + start, 3 * N + start), spec.name, spec.name), start
 
 
 def transition_clip(skeleton: Skeleton, a: GaitSpec, b: GaitSpec, name: str,
@@ -407,7 +405,7 @@ def transition_clip(skeleton: Skeleton, a: GaitSpec, b: GaitSpec, name: str,
     stop = int(later[np.abs(off).argmin()])
     ramp_frames = slice(pad + a.frames, pad + a.frames + ramp)
     track.frequency[ramp_frames] -= off[stop - nominal] * FPS / ramp
-    motion, _ = synthesize(skeleton, track, name, None)
+    motion = synthesize(skeleton, track, name, None)
     return _at_origin(motion.slice(pad, stop), name, None)
 
 
