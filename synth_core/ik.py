@@ -104,6 +104,11 @@ def _hinge_axes(thigh: Floats, shin: Floats, toe: Floats, root_rot: Floats) -> F
     # The limb's dominant bend over the clip, in the body's frame, so a turning clip agrees too.
     local = quat.rotate(quat.inv(root_rot), primary)
     dominant = quat.rotate(root_rot, _unit(local.reshape(-1, 3).sum(axis=0)))
+    # Both axes point the dominant way: the hinge then only ever flexes. Thigh x shin on its
+    # own flips where the source's shin sub-chain (with a flexed carpus or hock) swings past the
+    # thigh line; a target needing more bend there would be reached by hyperextending the hinge
+    # on one frame and flexing it on the next (a horse's slow gallop popped 80 deg in a frame).
+    primary = primary * np.where(_dot(primary, dominant) < 0, -1.0, 1.0)[..., None]
     by_toe = by_toe * np.where(_dot(by_toe, dominant) < 0, -1.0, 1.0)[..., None]
     ok = np.linalg.norm(primary, axis=-1) >= HINGE_AXIS_MIN_SIN
     toe_ok = np.linalg.norm(by_toe, axis=-1) >= HINGE_AXIS_MIN_SIN
@@ -211,6 +216,45 @@ def solve(skeleton: Skeleton, root_pos: NDArray[np.floating], rotations: NDArray
         ankle_parent = quat.mul(swing, quat.mul(bend, rot[..., skeleton.parents[rig.ankle], :]))
         local[..., rig.ankle, :] = quat.mul(quat.inv(ankle_parent), ankle_rot)
     return IKResult(quat.normalize(local).astype(np.float32), stretch, miss)
+
+
+def _limb_geometry(skeleton: Skeleton, root_pos: NDArray[np.floating], rotations: NDArray[np.floating],
+                   rigs: tuple[LimbRig, ...]) -> tuple[Floats, Floats, Floats, Floats]:
+    """Per leg (..., 4, 3): limb root, ankle and toe positions; and (..., 4) the full reach."""
+    pos, _ = forward_kinematics(skeleton, np.asarray(root_pos, np.float64),
+                                np.asarray(rotations, np.float64))
+    pos = np.asarray(pos, np.float64)
+    upper, hinge, ankle, toe = (pos[..., [getattr(r, name) for r in rigs], :]
+                                for name in ("upper", "hinge", "ankle", "effector"))
+    reach = np.linalg.norm(hinge - upper, axis=-1) + np.linalg.norm(ankle - hinge, axis=-1)
+    return upper, ankle, toe, reach
+
+
+def extension(skeleton: Skeleton, root_pos: NDArray[np.floating], rotations: NDArray[np.floating],
+              rigs: tuple[LimbRig, ...] | None = None) -> Floats:
+    """How straight each leg is, (..., 4): limb root to ankle over the straightened limb's reach."""
+    rigs = limb_rigs(skeleton) if rigs is None else rigs
+    upper, ankle, _, reach = _limb_geometry(skeleton, root_pos, rotations, rigs)
+    return np.asarray(np.linalg.norm(ankle - upper, axis=-1) / np.maximum(reach, _EPS))
+
+
+def sink_to_reach(skeleton: Skeleton, root_pos: NDArray[np.floating], rotations: NDArray[np.floating],
+                  targets: NDArray[np.floating], limit: NDArray[np.floating],
+                  rigs: tuple[LimbRig, ...] | None = None) -> Floats:
+    """How far (...,) the root must sink for every toe target to need at most ``limit (4,)`` of
+    its leg's reach (see :func:`extension`), 0 where it already does.
+
+    A target ahead of or behind the hip is reached by lowering the hip, as a running animal
+    does at full stride; only a target further out horizontally than the reach stays short.
+    """
+    rigs = limb_rigs(skeleton) if rigs is None else rigs
+    upper, ankle, toe, reach = _limb_geometry(skeleton, root_pos, rotations, rigs)
+    to_ankle = np.asarray(targets, np.float64) - (toe - ankle) - upper
+    allowed = np.asarray(limit, np.float64) * reach
+    across = np.linalg.norm(np.delete(to_ankle, UP_AXIS, axis=-1), axis=-1)
+    below = -to_ankle[..., UP_AXIS]
+    sink = below - np.sqrt(np.maximum(allowed**2 - across**2, 0.0))
+    return np.asarray(np.maximum(sink, 0.0).max(axis=-1))
 
 
 def stretched_offsets(skeleton: Skeleton, rigs: tuple[LimbRig, ...],

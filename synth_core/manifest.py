@@ -50,6 +50,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 
 from synth_core import FOOT_NAMES, UP_AXIS, bvh, ik, quat
 from synth_core import contacts as C
@@ -218,7 +219,9 @@ def build_from_manifest(path: Path) -> Library:
     transitions, generated = {}, set()
     for name in TRANSITIONS:
         if name in given:
-            transitions[name] = _clip(files, given[name], f"transitions.{name}.", name, manual.get(name))
+            # Mocap feet roll and slide a little in every plant; the library's feet do not.
+            transitions[name] = lock_feet(_clip(files, given[name], f"transitions.{name}.", name,
+                                                manual.get(name)))
         else:
             source, target = name.split("2")
             transitions[name] = generate_transition(maps.get(source), maps.get(target), idle, name)
@@ -283,23 +286,46 @@ def generate_transition(a: SpeedMap | None, b: SpeedMap | None, idle: Motion, na
     return _crossfade(first, second, name)
 
 
-def _crossfade(first: Motion, second: Motion, name: str) -> Motion:
+def _best_shift(first: NDArray[np.bool_], second: NDArray[np.bool_], W: int, strides: int) -> int:
+    """The cyclic shift of ``second`` whose footfalls carry on best from ``first``'s.
+
+    Scored on the contacts the blend will have (first's, then second's from the blend's middle):
+    first by how many frames steps come too soon (a doubled step: shorter than 0.6 of the shorter
+    stride) or too late (a skipped one: longer than 1.5 of the longer stride), then by how well
+    the two agree over the blend. Between gaits of different footfall (a trot's diagonal pairs,
+    a canter's lead) one quick step may be unavoidable; this makes it the least quick.
+    """
+    Fa, Fb = len(first), len(second)
+    stride_a, stride_b = Fa / strides, Fb / strides
+    cut = Fa - W // 2  # where the blend's contacts switch over
+    best: tuple[float, int, int] | None = None
+    for s in range(Fb):  # offline, a few dozen candidates
+        rolled = np.roll(second, -s, axis=0)
+        played = np.concatenate([first[:cut], rolled[W - W // 2:]])
+        gaps = np.concatenate([np.diff(downs) for downs in C.touchdowns(played)])
+        odd = np.maximum(0.6 * min(stride_a, stride_b) - gaps, 0) + np.maximum(gaps - 1.5 * max(stride_a, stride_b), 0)
+        score = (float(odd.sum()), -int((rolled[:W] == first[-W:]).sum()), s)
+        best = score if best is None or score < best else best
+    assert best is not None
+    return best[2]
+
+
+def _crossfade(first: Motion, second: Motion, name: str, strides: int = 2) -> Motion:
     """first, then second, blended over the frames where they overlap; feet pinned by IK.
 
-    ``second`` is time-shifted (cyclically, by up to its own length) so that its contacts agree
-    best with ``first``'s across the blend: footfalls carry on instead of doubling a step.
+    Both hold ``strides`` strides (a still clip: any length). ``second`` is time-shifted
+    (cyclically, by up to its own length) so that footfalls carry on across the blend instead of
+    doubling or skipping a step (:func:`_best_shift`).
     """
     Fa, Fb = first.n_frames, second.n_frames
     W = min(Fa, Fb) // 2
-    # Cyclic shift of second whose first W frames best match first's last W frames' contacts.
-    shifts = np.arange(Fb)
-    tail = first.contacts[-W:]
-    agree = [(np.roll(second.contacts, -s, axis=0)[:W] == tail).sum() for s in shifts]
-    s = int(shifts[int(np.argmax(agree))])
+    s = _best_shift(first.contacts, second.contacts, W, strides)
     rot_b = np.roll(second.rotations, -s, axis=0)
     con_b = np.roll(second.contacts, -s, axis=0)
-    step_b = np.diff(np.roll(second.root_pos, -s, axis=0), axis=0, prepend=second.root_pos[:1])
-    step_b[0] = step_b[1]
+    # Steps into each frame, the loop's own seam step included, then shifted: rolling positions
+    # instead would put the whole loop's advance, backwards, into one step.
+    seam = second.root_pos[-1:] - cycle_displacement(second.root_pos)
+    step_b = np.roll(np.diff(second.root_pos, axis=0, prepend=seam), -s, axis=0)
     T = Fa + Fb - W
     w = np.zeros(T)
     w[Fa - W:Fa] = np.linspace(0.0, 1.0, W)
@@ -321,11 +347,15 @@ def _crossfade(first: Motion, second: Motion, name: str) -> Motion:
     contacts = np.where((w < 0.5)[:, None],
                         np.concatenate([first.contacts, np.repeat(first.contacts[-1:], Fb - W, axis=0)]),
                         np.concatenate([np.repeat(con_b[:1], Fa - W, axis=0), con_b]))
-    blended = Motion(first.skeleton, root, rotations, first.fps, contacts, name, None)
-    # Foot lock: every plant held at its average place, swings eased between (as in the speed map).
-    feet = blended.foot_positions()
-    targets = foot_targets(feet, blended.root_pos, blended.root_pos[None].astype(np.float64),
-                           blended.contacts, cyclic=False)[0]
-    solved = ik.solve(blended.skeleton, blended.root_pos, blended.rotations, targets,
+    return lock_feet(Motion(first.skeleton, root, rotations, first.fps, contacts, name, None))
+
+
+def lock_feet(motion: Motion) -> Motion:
+    """Every plant held at its average place, swings eased between (as in the speed map), by IK."""
+    feet = motion.foot_positions()
+    root = np.asarray(motion.root_pos, np.float64)
+    targets = foot_targets(feet, root, root[None], motion.contacts, cyclic=False)[0]
+    solved = ik.solve(motion.skeleton, motion.root_pos, motion.rotations, targets,
                       ground=float(feet[..., UP_AXIS].min()))
-    return Motion(blended.skeleton, blended.root_pos, solved.rotations, blended.fps, contacts, name, None)
+    return Motion(motion.skeleton, motion.root_pos, solved.rotations, motion.fps, motion.contacts,
+                  motion.name, motion.gait)

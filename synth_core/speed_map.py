@@ -19,8 +19,12 @@ For each target speed ``s' = s + k * delta`` the source clip is changed in the p
    foot follows its source path plus a correction blended (smoothstep) from the previous
    plant's shift to the next one's - the paper is silent on swings.
 
-Speeds are in m/s here (the paper's ``s = l / n`` is per frame). Where a sped-up stride needs
-more reach than the leg has, the IK stretches the limb and the map records by how much.
+Speeds are in m/s here (the paper's ``s = l / n`` is per frame).
+
+Beyond the paper: where a sped-up stride would straighten a leg past 98% of its reach (or past
+the source's own straightest), the root sinks just enough, eased in and out over a quarter
+cycle, as running animals do at full stride. Legs then never lock straight (where no hinge axis
+is defined) and stretch only if a target is out of reach horizontally; the map records that.
 """
 
 from __future__ import annotations
@@ -30,6 +34,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy.ndimage import gaussian_filter1d, maximum_filter1d
 
 from synth_core import UP_AXIS, ik
 from synth_core.contacts import runs
@@ -188,19 +193,45 @@ def foot_targets(source_feet: NDArray[np.floating], source_root: NDArray[np.floa
         d_c = np.linalg.norm(root_shift[..., _HORIZONTAL], axis=-1)
         sense = np.sign(np.sum(root_shift * direction, axis=-1))
         plant = average + (sense * d_c)[..., None] * direction
-        plant_shift = plant - average  # (N, P, 3)
+        # The swing's correction runs from where the foot left its last plant to where it meets
+        # the next one, over the ground (a foot sliding in its source plant would otherwise jump
+        # at touchdown); heights are corrected by the plant's (a settling paw would otherwise
+        # make its approach skim the ground).
+        lift_off = plant - feet3[:, stop - 1, k]  # (N, P, 3)
+        touch_down = plant - feet3[:, start, k]
+        lift_off[..., UP_AXIS] = touch_down[..., UP_AXIS] = (plant - average)[..., UP_AXIS]
         # Per frame: the plant it is in, or the plants either side of its swing.
         prev = np.clip(np.searchsorted(start, t, side="right") - 1, 0, len(plants) - 1)
         nxt = np.clip(prev + 1, 0, len(plants) - 1)
         inside = (t >= start[prev]) & (t < stop[prev])
         lo, hi = stop[prev] - 1, start[nxt]
         u = np.clip((t - lo) / np.maximum(hi - lo, 1), 0.0, 1.0)
-        u = u * u * (3 - 2 * u)
-        blend = (1 - u)[None, :, None] * plant_shift[:, prev] + u[None, :, None] * plant_shift[:, nxt]
+        u = np.where(t < start[0], 1.0, u * u * (3 - 2 * u))  # before the first plant: heading for it
+        blend = (1 - u)[None, :, None] * lift_off[:, prev] + u[None, :, None] * touch_down[:, nxt]
         swing = feet3[:, :, k] + blend
         targets[:, :, k] = np.where(inside[None, :, None], plant[:, prev], swing)
     first = F * (copies // 2)
     return np.asarray(targets[:, first:first + F])
+
+
+REACH_EASE = 0.25  # of the cycle: a sink is spread over this much around where it is needed
+STRAIGHT = 0.98, 0.999  # legs may straighten to 98% of their reach (more if the source does), never 100%
+
+
+def _sink_for_reach(source: Motion, new_root: Floats, rotations: NDArray[np.floating], targets: Floats,
+                    rigs: tuple[ik.LimbRig, ...] | None) -> Floats:
+    """Lower the root where a relocated plant would straighten a leg beyond ``STRAIGHT`` (sped-up
+    strides reach further fore and aft), eased in and out around the loop: no leg stretches,
+    no leg locks fully straight (where the hinge axis is undefined), the body does not bob."""
+    source_max = ik.extension(source.skeleton, source.root_pos, source.rotations, rigs).max(axis=0)
+    limit = np.clip(source_max, *STRAIGHT)
+    sink = ik.sink_to_reach(source.skeleton, new_root, rotations, targets, limit, rigs)
+    frames = max(3, round(REACH_EASE * sink.shape[-1]))
+    sink = gaussian_filter1d(maximum_filter1d(sink, frames, axis=-1, mode="wrap"),
+                             frames / 6, axis=-1, mode="wrap")  # keeps >99% of a peak
+    lowered = new_root.copy()
+    lowered[..., UP_AXIS] -= sink
+    return lowered
 
 
 def build_speed_map(source: Motion, speeds: Sequence[float] | Floats,
@@ -216,6 +247,7 @@ def build_speed_map(source: Motion, speeds: Sequence[float] | Floats,
     targets = foot_targets(source.foot_positions(), source.root_pos, new_root, source.contacts)
     ground = float(source.foot_positions()[..., UP_AXIS].min())
     rotations = np.broadcast_to(source.rotations, (len(speeds), *source.rotations.shape))
+    new_root = _sink_for_reach(source, new_root, rotations, targets, rigs)
     result = ik.solve(source.skeleton, new_root, rotations, targets, rigs, ground=ground)
     return SpeedMap(source.gait or source.name, source.skeleton, source.fps, speeds,
                     new_root.astype(np.float32), result.rotations, source.contacts.copy(),

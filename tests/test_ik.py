@@ -151,3 +151,20 @@ def test_rigs_of_the_built_in_horse_and_the_real_dog() -> None:
     assert names["LF"] == ("LeftArm", "LeftForeArm") and names["LH"] == ("LeftUpLeg", "LeftLeg")
     with pytest.raises(ValueError, match=r"ik\.LF: 'Head' is not on the leg"):
         ik.limb_rigs(dog.skeleton, {"LF": "Head"})
+
+
+def test_sinking_the_root_by_the_reported_amount_brings_far_targets_into_reach(trot: Motion) -> None:
+    targets = trot.foot_positions().astype(np.float64) + np.array([0.0, 0.0, 0.25])  # far ahead
+    assert ik.solve(trot.skeleton, trot.root_pos, trot.rotations, targets).stretch.max() > 1.0
+    limit = np.full(4, 0.99)
+    sink = ik.sink_to_reach(trot.skeleton, trot.root_pos, trot.rotations, targets, limit)
+    assert sink.shape == (trot.n_frames,) and sink.max() > 0.0 and sink.min() >= 0.0
+    lowered = trot.root_pos - sink[:, None] * np.array([0.0, 1.0, 0.0])
+    result = ik.solve(trot.skeleton, lowered, trot.rotations, targets)
+    assert np.all(result.stretch == 1.0)
+    assert np.all(ik.extension(trot.skeleton, lowered, result.rotations) <= limit + 1e-6)
+    # Sinking further than needed is never asked for: 2 mm less and some leg is short again.
+    higher = lowered + np.array([0.0, 0.002, 0.0]) * (sink > 0)[:, None]
+    over = ik.extension(trot.skeleton, higher, ik.solve(trot.skeleton, higher, trot.rotations,
+                                                        targets).rotations)
+    assert np.any(over > limit + 1e-6)

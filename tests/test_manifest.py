@@ -6,6 +6,11 @@ from pathlib import Path
 
 import pytest
 
+import numpy as np
+
+from synth_core import contacts as C
+from synth_core import metrics as M
+from synth_core.artifact import Library
 from synth_core.build import report
 from synth_core.manifest import ManifestError, build_from_manifest
 from tests.conftest import MANN_DIR
@@ -15,8 +20,13 @@ needs_mann = pytest.mark.skipif(not MANN_DIR.is_dir(), reason="real dog mocap no
 
 
 @pytest.fixture(scope="module")
-def mann_figures() -> dict:
-    return report(build_from_manifest(FIXTURE))
+def mann() -> Library:
+    return build_from_manifest(FIXTURE)
+
+
+@pytest.fixture(scope="module")
+def mann_figures(mann: Library) -> dict:
+    return report(mann)
 
 
 @needs_mann
@@ -29,6 +39,24 @@ def test_the_real_dog_builds_with_generated_transitions_where_data_lacks_them(ma
         assert f["clips"] >= 55, gait
         assert f["skate_mm_mean"] <= 0.5, gait
         assert f["speed_error_pct_max"] <= 1.0, gait
+        # The issue asks the 3% stretch bound of the built-ins only; the real dog meets it too.
+        assert f["footfall_preserved"] == 1.0, gait
+        assert f["max_limb_stretch_pct"] <= 3.0, gait
+
+
+@needs_mann
+def test_every_transition_keeps_feet_planted_and_steps_on(mann: Library) -> None:
+    """Mocap transitions are foot-locked; generated ones also step on without skipping a step and
+    with at most one quick step per foot (changing lead between a trot and a canter needs one)."""
+    for name, motion in mann.transitions.items():
+        assert M.foot_skate(motion.foot_positions(), motion.contacts).mean_mm <= 0.5, name
+        if name not in mann.generated:
+            continue
+        strides = [mann.maps[g].n_frames for g in name.split("2") if g in mann.maps]
+        for k, downs in enumerate(C.touchdowns(motion.contacts)):
+            gaps = np.diff(downs)
+            assert np.all(gaps <= 1.5 * max(strides)), (name, k, gaps)
+            assert np.sum(gaps < 0.6 * min(strides)) <= 1, (name, k, gaps)
 
 
 def write(tmp_path: Path, text: str) -> Path:

@@ -5,10 +5,14 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from dataclasses import replace
+
+from synth_core import ik, quat
 from synth_core.artifact import Library
-from synth_core.build import build_builtin, map_positions, report
+from synth_core.build import build_builtin, footfall_gaps, map_positions, report, sync_frames
 from synth_core.motion_graph import HUBS, MotionGraph, Transition
-from synth_core.speed_map import SpeedRange, build_speed_map, default_ranges, relocate_root
+from synth_core.speed_map import FASTEST, STRAIGHT, SpeedRange, build_speed_map, default_ranges, relocate_root
+from tests.test_library_clips import PEAK_JOINT_SPEED
 
 ANIMALS = ("horse", "dog")
 
@@ -48,6 +52,46 @@ def test_clips_keep_the_source_frames_and_contacts_and_adjacent_ranges_overlap(
         assert lib.maps[slow].speeds[-1] > lib.maps[fast].speeds[0], (slow, fast)
 
 
+@pytest.mark.parametrize("animal", ANIMALS)
+def test_no_speed_map_clip_pops(libraries: dict[str, Library], animal: str) -> None:
+    """Seam included. A slow horse gallop once flipped its elbow 80 degrees in one frame where the
+    source's forearm-and-carpus swung past the upper arm's line."""
+    for gait, m in libraries[animal].maps.items():
+        q = quat.make_continuous(m.rotations.astype(np.float64), axis=1)
+        q = quat.make_continuous(np.concatenate([q, q[:, :1]], axis=1), axis=1)
+        speed = np.degrees(quat.angle(quat.mul(quat.inv(q[:, :-1]), q[:, 1:]))) * m.fps
+        assert speed.max() <= PEAK_JOINT_SPEED[animal], (gait, float(speed.max()))
+
+
+def test_footfall_measure_catches_a_clip_that_lands_out_of_order(libraries: dict[str, Library]) -> None:
+    """The motion's plants stay where they are; the annotation it is judged against says LF lands
+    a quarter stride later than it does."""
+    m = libraries["horse"].maps["trot"]
+    pos = map_positions(m)
+    assert footfall_gaps(m, pos).max() <= sync_frames(m.n_frames)
+    moved = m.contacts.copy()
+    moved[:, 0] = np.roll(moved[:, 0], m.n_frames // 4)
+    assert footfall_gaps(replace(m, contacts=moved), pos).min() > sync_frames(m.n_frames)
+
+
+@pytest.mark.parametrize("gait", ["walk", "gallop"])
+def test_fast_strides_lower_the_body_instead_of_stretching_legs(gait: str) -> None:
+    from synth_core.library.clips import build_clips
+
+    source = build_clips("horse")[gait]
+    sm = build_speed_map(source, source.speed_mps() * np.array([1.0, FASTEST]))
+    assert np.all(sm.stretch == 1.0)
+    limit = np.clip(ik.extension(source.skeleton, source.root_pos, source.rotations).max(axis=0), *STRAIGHT)
+    assert np.all(ik.extension(sm.skeleton, sm.root_pos[1], sm.rotations[1]) <= limit + 1e-4)
+    assert np.abs(sm.root_pos[0, :, 1] - source.root_pos[:, 1]).max() < 0.002  # own speed: ~no sink
+    sink = source.root_pos[:, 1] - sm.root_pos[1, :, 1]
+    assert 0.005 < sink.max() < 0.03 * source.skeleton.leg_length() and sink.min() >= 0.0
+    # Eased around the loop: it moves the body no faster than the gait's own bob (+2 mm/frame).
+    bob = np.abs(np.diff(source.root_pos[:, 1])).max()
+    assert np.abs(np.diff(np.append(sink, sink[0]))).max() < bob + 0.002
+    assert sm.clip(1).speed_mps() == pytest.approx(FASTEST * source.speed_mps(), rel=1e-3)
+
+
 def test_root_relocation_scales_ground_steps_keeps_heights_and_the_first_frame() -> None:
     rng = np.random.default_rng(0)
     root = np.cumsum(rng.uniform(0.0, 0.02, (40, 3)), axis=0)
@@ -66,7 +110,7 @@ def test_plants_move_along_the_stride_by_the_root_shift(libraries: dict[str, Lib
     trot = build_clips("horse")["trot"]
     sm = build_speed_map(trot, [2.0, 3.0, 4.0])
     assert np.allclose(sm.rotations[1], trot.rotations, atol=2e-4)  # own speed: (almost) unchanged
-    feet = map_positions(sm)[:, :, sm.skeleton.foot_joints]  # 4 m/s needs a stretched limb
+    feet = map_positions(sm)[:, :, sm.skeleton.foot_joints]
     assert not sm.contacts[[0, -1], 1].any()  # RF's plant lies inside the clip (no wrap)
     for i in (0, 2):
         planted = sm.contacts[:, 1]
