@@ -303,7 +303,8 @@ def _best_shift(first: NDArray[np.bool_], second: NDArray[np.bool_], W: int, str
         rolled = np.roll(second, -s, axis=0)
         played = np.concatenate([first[:cut], rolled[W - W // 2:]])
         gaps = np.concatenate([np.diff(downs) for downs in C.touchdowns(played)])
-        odd = np.maximum(0.6 * min(stride_a, stride_b) - gaps, 0) + np.maximum(gaps - 1.5 * max(stride_a, stride_b), 0)
+        short, long = 0.6 * min(stride_a, stride_b), 1.5 * max(stride_a, stride_b)
+        odd = np.maximum(short - gaps, 0) + np.maximum(gaps - long, 0)
         score = (float(odd.sum()), -int((rolled[:W] == first[-W:]).sum()), s)
         best = score if best is None or score < best else best
     assert best is not None

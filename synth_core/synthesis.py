@@ -1,0 +1,370 @@
+"""Run-time synthesis for crowds (Sung 2011, section 6): trajectories in, joint rotations out.
+
+For a batch of characters at once, all array operations over (characters, frames[, joints]);
+the only Python loops run over segments (a dozen) and gaits (four):
+
+1. **Schedule** (per segment, vectorized over characters). Every character starts standing and
+   moves through the motion graph one hub at a time. A segment's speed ``s / h`` (scale h) picks
+   the gait: the current one while its range covers the speed (hysteresis), else one of the
+   gaits covering it -- at random, from the seeded generator, where ranges overlap -- reached
+   one transition per step. A transition starts when the stride reaches the phase the clip
+   starts from (``Bank`` entry), and the next gait picks up at the phase the clip ends in: the
+   footfall sequence carries on across it.
+2. **Clip interpolation.** Within a gait every speed-map clip has the same frames and contacts,
+   so the stride phase just runs on (one clip frame per output frame) and the speed only moves
+   the pair of clips blended, ``M = (1 - a) M_i + a M_j`` with the paper's ``a``, a continuous
+   function of the speed interpolated between segment centres: no pop where segments meet.
+3. **Stitch.** Where a piece starts (transition in or out), the piece before it carries on and
+   fades out over ``margin`` frames (smoothstep).
+4. **Warp.** The root's ground position is the (smoothed) trajectory point of that frame plus
+   the clip's own in-stride surge along the heading -- so it keeps time with the trajectory and
+   never drifts from it -- and its heading follows the trajectory's tangent; its height is the
+   clip's times h. Sideways sway of the clips is dropped: the path is the caller's.
+5. **Foot lock** (:mod:`synth_core.footlock`) pins each planted foot where it lands.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from synth_core import UP_AXIS, quat
+from synth_core.bank import STATIC, Bank
+from synth_core.footlock import lock_feet
+from synth_core.trajectory import DEFAULT_SIGMA, Prepared, TrajectoryError, prepare
+
+Floats = NDArray[np.float64]
+MARGIN = 10  # frames over which a finished piece fades out where the next starts
+STAND_SHARE = 0.5  # below this share of the slowest clip's speed a character stands
+MIN_TURN_SPEED = 0.05  # m/s: slower than this the heading holds (a standing animal does not spin)
+MAX_RATE = 1.6  # a gait asked to go faster than its fastest clip plays its stride up to this fast
+
+
+@dataclass(frozen=True)
+class Options:
+    sigma: float = DEFAULT_SIGMA  # trajectory smoothing, frames
+    seed: int = 0
+    scale_range: tuple[float, float] = (1.0, 1.0)  # scales drawn for characters given none
+    margin: int = MARGIN
+    foot_lock: bool = True
+    skip_invalid: bool = False
+
+
+@dataclass(frozen=True, eq=False)
+class Result:
+    root_pos: NDArray[np.float32]  # (C, T, 3) world, metres
+    rotations: NDArray[np.float32]  # (C, T, J, 4) local, xyzw
+    gait: NDArray[np.int8]  # (C, T) hub index (static 0 ... gallop 4); a transition: the hub it
+    # leaves over its first half, the one it reaches over its second
+    contacts: NDArray[np.bool_]  # (C, T, 4) planted feet
+    stitches: NDArray[np.bool_]  # (C, T) frames where a new piece starts (transitions in/out)
+    scales: Floats  # (C,)
+    path: Floats  # (C, T, 3) the smoothed trajectory followed
+    resample_rate: float
+    kept: NDArray[np.int64]  # input characters synthesized
+    rejected: dict[int, str] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class _Kinds:
+    """Per piece kind (hubs 0-4, then transitions): table layout, as arrays for gathering."""
+
+    offset: NDArray[np.int64]
+    frames: NDArray[np.int64]
+    clips: NDArray[np.int64]
+    cyclic: NDArray[np.bool_]
+    source: NDArray[np.int64]  # hub left (a hub: itself)
+    target: NDArray[np.int64]  # hub reached (a hub: itself)
+    tr_kind: NDArray[np.int64]  # (5, 5) kind of the transition between two hubs, -1 none
+    entry: NDArray[np.int64]  # (5, 5)
+    exit: NDArray[np.int64]  # (5, 5)
+
+
+def _kinds(bank: Bank) -> _Kinds:
+    n_hubs = 5
+    pieces = [bank.gaits.get(h, bank.idle) if h else bank.idle for h in range(n_hubs)]
+    trs = sorted(bank.transitions.items())
+    pieces += [p for _, p in trs]
+    tr_kind = np.full((n_hubs, n_hubs), -1)
+    entry = np.zeros((n_hubs, n_hubs), np.int64)
+    exit_ = np.zeros((n_hubs, n_hubs), np.int64)
+    for k, ((a, b), p) in enumerate(trs):
+        tr_kind[a, b], entry[a, b], exit_[a, b] = n_hubs + k, p.entry, p.exit
+    return _Kinds(np.array([p.offset for p in pieces]), np.array([p.frames for p in pieces]),
+                  np.array([p.clips for p in pieces]),
+                  np.array([True] * n_hubs + [False] * len(trs)),
+                  np.array(list(range(n_hubs)) + [a for (a, _), _ in trs]),
+                  np.array(list(range(n_hubs)) + [b for (_, b), _ in trs]), tr_kind, entry, exit_)
+
+
+def _choose(bank: Bank, current: NDArray[np.int64], speed: Floats,
+            rng: np.random.Generator) -> NDArray[np.int64]:
+    """Next hub per character for a segment's speed: stay while covered, else one step toward a
+    covering gait (a random one where several cover it)."""
+    C = len(current)
+    covered = np.zeros((C, 5), bool)
+    low = np.full(5, np.inf)
+    high = np.full(5, -np.inf)
+    for h, s in bank.speeds.items():
+        low[h], high[h] = s[0], s[-1]
+    slowest = min(bank.speeds)
+    low[slowest] = STAND_SHARE * low[slowest]  # slower than the slowest clip: its slowest clip
+    covered[:, 1:] = (speed[:, None] >= low[None, 1:] - 1e-9) & (speed[:, None] <= high[None, 1:] + 1e-9)
+    covered[:, STATIC] = speed < low[slowest]
+    beyond = ~covered.any(axis=1)  # faster than the fastest gait (resampling makes that rare)
+    covered[beyond, max(bank.speeds)] = True
+    priority = np.where(covered, rng.random((C, 5)), -1.0)
+    target = np.where(covered[np.arange(C), current], current, priority.argmax(axis=1))
+    return np.asarray(current + np.sign(target - current))
+
+
+def distance_since(travelled: Floats, creep: float, begin: NDArray[np.int64]) -> Floats:
+    """(n, T) distance covered from frame ``begin`` (per row) on, plus the creep; < 0 before it."""
+    T = travelled.shape[1]
+    at = np.take_along_axis(travelled, np.clip(begin, 0, T - 1)[:, None], axis=1)
+    return np.asarray(travelled - at + creep * (np.arange(T)[None, :] - begin[:, None]))
+
+
+def stride_clocks(bank: Bank, kinds: _Kinds, speed: Floats) -> Floats:
+    """(kinds, C, T+1): per gait, the stride frames played before each frame.
+
+    One clip frame per output frame -- unless the character is asked for more speed than the
+    gait's fastest clip has (a transition still under way, a sprint): then the stride plays up to
+    MAX_RATE times faster, so the feet keep pace instead of sliding.
+    """
+    C, T = speed.shape
+    clocks = np.broadcast_to(np.arange(T + 1, dtype=np.float64), (len(kinds.frames), C, T + 1)).copy()
+    for hub, s in bank.speeds.items():
+        rate = np.clip(speed / s[-1], 1.0, MAX_RATE)
+        clocks[hub, :, 1:] = np.cumsum(rate, axis=1)
+    return clocks
+
+
+def schedule(bank: Bank, kinds: _Kinds, speed: Floats, m: int, travelled: Floats, clocks: Floats,
+             rng: np.random.Generator) -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.int64]]:
+    """Per character the pieces played: ``(start frame, kind, first clip frame)``, each (C, E).
+
+    Decisions every half segment, on the speed a segment ahead (``speed (C, T)``, m/s in the character's
+    unit). ``travelled (C, T)``: distance along the path from frame 0, same unit.
+    """
+    C, T = speed.shape
+    step = max(1, m // 2)
+    K = -(-T // step)
+    total = np.zeros(len(kinds.frames))
+    for (a, b), d in bank.progress.items():
+        total[kinds.tr_kind[a, b]] = d[-1]
+    E = 1 + 2 * K
+    never = np.iinfo(np.int64).max // 4
+    start = np.full((C, E), never, np.int64)
+    kind = np.zeros((C, E), np.int64)
+    first = np.zeros((C, E), np.int64)
+    start[:, 0] = 0  # standing: the idle from its first frame
+    count = np.ones(C, np.int64)
+    current = np.zeros(C, np.int64)
+    busy = np.zeros(C, np.int64)
+    for k in range(K):
+        a = k * step
+        # Decided on the speed a segment ahead: transitions take time, so start them early.
+        nxt = _choose(bank, current, speed[:, min(a + m, T - 1)], rng)
+        go = np.flatnonzero((busy <= a) & (nxt != current))
+        if len(go) == 0:
+            continue
+        cur, new, last = current[go], nxt[go], count[go] - 1
+        frames = kinds.frames[cur]
+        clock = clocks[cur, go]  # (n, T+1): the gait's stride clock of each of these characters
+        played = clock[:, a] - clock[np.arange(len(go)), start[go, last]]
+        phase = np.floor(first[go, last] + played + 0.5).astype(np.int64) % frames
+        wait = np.where(cur == STATIC, 0, (kinds.entry[cur, new] - phase) % frames)
+        tr = kinds.tr_kind[cur, new]
+        begin = a + wait
+        # Played by distance: it ends where the character has covered the clip's distance.
+        done = distance_since(travelled[go], bank.creep, begin) >= total[tr][:, None]
+        done &= np.arange(T)[None, :] > begin[:, None]
+        end = np.where(done.any(axis=1), done.argmax(axis=1), T + kinds.frames[tr])
+        start[go, last + 1], kind[go, last + 1], first[go, last + 1] = begin, tr, 0
+        resume = np.where(new == STATIC, 0, (kinds.exit[cur, new] + 1) % kinds.frames[new])
+        start[go, last + 2], kind[go, last + 2], first[go, last + 2] = end, new, resume
+        count[go] += 2
+        busy[go] = end
+        current[go] = new
+    return start, kind, first
+
+
+def _local(clocks: Floats, kind: NDArray[np.int64], first: NDArray[np.int64], start: NDArray[np.int64],
+           frame: NDArray[np.int64] | None = None) -> NDArray[np.int64]:
+    """Clip frame (whole, before wrapping) each piece is at: its first frame plus its clock since
+    it started. ``clocks (kinds, C, T+1)`` with ``kind (C, T)``; or, given ``frame``, flat (n,)."""
+    if frame is None:
+        C, T = kind.shape
+        c, t = np.arange(C)[:, None], np.arange(T)[None, :]
+        now = clocks[kind, c, t]
+        then = clocks[kind, c, np.clip(start, 0, T)]
+    else:
+        n = np.arange(len(kind))
+        now = clocks[kind, n, frame]
+        then = clocks[kind, n, np.clip(start, 0, clocks.shape[-1] - 1)]
+    return np.floor(first + now - then + 0.5).astype(np.int64)
+
+
+def _frame_speeds(speeds: Floats, m: int, T: int) -> Floats:
+    """(C, T): segment speeds interpolated linearly between segment centres."""
+    K = speeds.shape[1]
+    pos = (np.arange(T) - (m - 1) / 2) / m
+    k0 = np.clip(np.floor(pos).astype(np.int64), 0, K - 1)
+    k1 = np.minimum(k0 + 1, K - 1)
+    f = np.clip(pos - k0, 0.0, 1.0)
+    return np.asarray(speeds[:, k0] * (1 - f) + speeds[:, k1] * f)
+
+
+def _rows(bank: Bank, kinds: _Kinds, kind: NDArray[np.int64], local: NDArray[np.int64],
+          speed: Floats, walked: Floats | None = None) -> tuple[NDArray[np.int64], NDArray[np.int64],
+                                                               NDArray[np.float32]]:
+    """Table rows of the two clips blended and the second's weight, per (character, frame).
+
+    Gaits: the two speed-map clips around ``speed`` at the stride frame ``local``. Transitions:
+    the two clip frames around the one whose progress is ``walked`` (distance since it began;
+    None: past its end).
+    """
+    frames = kinds.frames[kind]
+    frame = np.where(kinds.cyclic[kind], local % frames, np.clip(local, 0, frames - 1))
+    clip0 = np.zeros(kind.shape, np.int64)
+    weight = np.zeros(kind.shape, np.float32)
+    for (a, b), d in bank.progress.items():
+        on = kind == kinds.tr_kind[a, b]
+        if walked is None or not on.any():
+            continue
+        f = np.interp(walked[on], d, np.arange(len(d), dtype=np.float64))
+        whole = np.minimum(np.floor(f).astype(np.int64), len(d) - 1)
+        frame[on] = whole
+        weight[on] = f - whole
+        clip0[on] = 0
+    for hub, s in bank.speeds.items():
+        on = kind == hub
+        u = np.interp(speed[on], s, np.arange(len(s), dtype=np.float64))
+        clip0[on] = np.minimum(np.floor(u).astype(np.int64), len(s) - 2) if len(s) > 1 else 0
+        weight[on] = u - clip0[on]
+    clip1 = np.minimum(clip0 + 1, kinds.clips[kind] - 1)
+    base = kinds.offset[kind] + frame
+    # A transition's "second clip" is its next frame.
+    step = np.where(kinds.cyclic[kind], clip1 * frames, np.minimum(frame + 1, frames - 1) - frame)
+    return base + clip0 * frames, base + step, weight
+
+
+def _blend(table: NDArray[np.floating], r0: NDArray[np.int64], r1: NDArray[np.int64],
+           w: NDArray[np.floating]) -> NDArray[np.float32]:
+    """Normalized lerp of quaternion rows (..., J, 4), the second turned to the first's side."""
+    a, b = table[r0], table[r1]
+    sign = np.where(np.sum(a * b, axis=-1, keepdims=True) < 0, -1.0, 1.0).astype(np.float32)
+    w = w[..., None, None].astype(np.float32)
+    q = a * (1 - w) + b * (w * sign)
+    return np.asarray(q / np.linalg.norm(q, axis=-1, keepdims=True), dtype=np.float32)
+
+
+def headings(path: Floats, fps: float) -> Floats:
+    """(C, T) yaw (about +Y, 0 = +Z) of the path's tangent, held where the character moves
+    slower than MIN_TURN_SPEED (a standing animal does not spin with its trajectory's jitter);
+    before it first moves, the heading it first moves in."""
+    d = np.gradient(path[..., [0, 2]], axis=1)
+    moving = np.linalg.norm(d, axis=-1) * fps >= MIN_TURN_SPEED
+    T = path.shape[1]
+    idx = np.maximum.accumulate(np.where(moving, np.arange(T), -1), axis=1)
+    first = np.where(moving.any(axis=1), moving.argmax(axis=1), 0)
+    idx = np.where(idx < 0, first[:, None], idx)
+    d = np.take_along_axis(d, idx[..., None], axis=1)
+    return np.asarray(np.arctan2(d[..., 0], d[..., 1]))
+
+
+def synthesize(bank: Bank, positions: ArrayLike, fps: float | None = None,
+               scales: ArrayLike | None = None, options: Options = Options(),
+               ids: list[str] | None = None) -> Result:
+    """Motion for every trajectory ``positions (C, F, 3)`` sampled at ``fps`` (default: the library's)."""
+    fps = bank.fps if fps is None else fps
+    rng = np.random.default_rng(options.seed)
+    n = np.shape(positions)[0] if np.ndim(positions) >= 1 else 0
+    h_min, h_max = options.scale_range
+    if not (0 < h_min <= h_max and np.isfinite(h_max)):
+        raise TrajectoryError(f"scale_range: need 0 < min <= max, got {options.scale_range}")
+    drawn = rng.uniform(h_min, h_max, n)
+    if scales is None:
+        all_scales = drawn
+    else:
+        given = np.asarray(scales, dtype=np.float64)
+        if given.shape != (n,):
+            raise TrajectoryError(f"scales: expected {n} values (one per character), got shape {given.shape}")
+        all_scales = np.where(np.isnan(given), drawn, given)  # NaN: "draw one for me"
+    if not (isinstance(options.margin, int) and 0 <= options.margin <= 60):
+        raise TrajectoryError(f"margin: must be an integer within [0, 60] frames, got {options.margin}")
+    prep: Prepared = prepare(positions, fps, bank.fps, bank.top_speed, bank.mean_cycle, all_scales,
+                             options.sigma, options.skip_invalid, ids)
+    h = all_scales[prep.kept]
+    path = prep.positions
+    C, T = path.shape[:2]
+    kinds = _kinds(bank)
+    m = prep.segment
+    speeds = prep.segment_speeds / h[:, None]  # the library motion's speed for each character
+    v = _frame_speeds(speeds, m, T)
+    clocks = stride_clocks(bank, kinds, v)
+    step = np.linalg.norm(np.diff(path[..., [0, 2]], axis=1), axis=-1)
+    travelled = np.concatenate([np.zeros((C, 1)), np.cumsum(step, axis=1)], axis=1) / h[:, None]
+    start, kind_e, first_e = schedule(bank, kinds, v, m, travelled, clocks, rng)
+
+    # Which piece plays at every frame: the last one started.
+    E = start.shape[1]
+    stride = T + 2
+    keys = (np.minimum(start, T + 1) + (np.arange(C) * stride)[:, None]).ravel()
+    query = (np.arange(T)[None, :] + (np.arange(C) * stride)[:, None]).ravel()
+    e = (np.searchsorted(keys, query, side="right") - 1).reshape(C, T) - (np.arange(C) * E)[:, None]
+    t = np.arange(T)[None, :]
+    c = np.arange(C)[:, None]
+    kind = kind_e[c, e]
+    local = _local(clocks, kind, first_e[c, e], start[c, e])
+    began = np.take_along_axis(travelled, np.clip(start[c, e], 0, T - 1), axis=1)
+    walked = travelled - began + bank.creep * local
+    r0, r1, w = _rows(bank, kinds, kind, local, v, walked)
+    rotations = _blend(bank.poses, r0, r1, w)
+    height = bank.height[r0] * (1 - w) + bank.height[r1] * w
+    surge = bank.surge[r0] * (1 - w) + bank.surge[r1] * w
+    contacts = bank.contacts[r0]
+
+    # Stitch: the piece before fades out over the margin after a new one starts.
+    since = t - start[c, e]
+    fading = (e >= 1) & (since < options.margin)
+    if fading.any():
+        fc, ft = np.nonzero(fading)
+        pe = e[fc, ft] - 1
+        p_kind = kind_e[fc, pe]
+        p_local = _local(clocks[:, fc], p_kind, first_e[fc, pe], start[fc, pe], ft)
+        # A finished transition stays at its end.
+        p_local = np.where(kinds.cyclic[p_kind], p_local, np.iinfo(np.int32).max)
+        p0, p1, pw = _rows(bank, kinds, p_kind, p_local, v[fc, ft])
+        before = _blend(bank.poses, p0, p1, pw)
+        u = (since[fc, ft] + 1) / (options.margin + 1)
+        keep = (1 - u * u * (3 - 2 * u)).astype(np.float32)  # weight of the piece before
+        now = rotations[fc, ft]
+        sign = np.where(np.sum(now * before, axis=-1, keepdims=True) < 0, -1.0, 1.0).astype(np.float32)
+        mixed = now * (1 - keep)[:, None, None] + before * (keep[:, None, None] * sign)
+        rotations[fc, ft] = mixed / np.linalg.norm(mixed, axis=-1, keepdims=True)
+        p_height = bank.height[p0] * (1 - pw) + bank.height[p1] * pw
+        p_surge = bank.surge[p0] * (1 - pw) + bank.surge[p1] * pw
+        height[fc, ft] = height[fc, ft] * (1 - keep) + p_height * keep
+        surge[fc, ft] = surge[fc, ft] * (1 - keep) + p_surge * keep
+
+    # Warp onto the path.
+    yaw = headings(path, bank.fps)
+    forward = np.stack([np.sin(yaw), np.zeros_like(yaw), np.cos(yaw)], axis=-1)
+    root = path + forward * (surge * h[:, None])[..., None]
+    root[..., UP_AXIS] = path[..., UP_AXIS] + height * h[:, None]
+    turn = quat.from_axis_angle(np.array([0.0, 1.0, 0.0]), yaw).astype(np.float32)
+    rotations[:, :, 0] = quat.mul(turn, rotations[:, :, 0])
+    out_root = root.astype(np.float32)
+    if options.foot_lock:
+        out_root, rotations = lock_feet(bank.skeleton, out_root, rotations, contacts, h,
+                                        ground=path[..., UP_AXIS])
+    stitches = np.zeros((C, T), bool)
+    stitches[:, 1:] = e[:, 1:] != e[:, :-1]
+    first_half = (r0 - kinds.offset[kind]) < kinds.frames[kind] // 2
+    gait = np.where(first_half, kinds.source[kind], kinds.target[kind]).astype(np.int8)
+    return Result(out_root, rotations, gait, contacts, stitches, h, path,
+                  prep.resample_rate, prep.kept, prep.rejected)

@@ -1,0 +1,170 @@
+"""Trajectory preprocessing (Sung 2011, section 5): validate, smooth, resample, segment.
+
+Input: one 3D root point per frame per character, ``(C, F, 3)`` metres, Y up, all characters
+the same frame count at one frame rate. Steps, in the paper's order:
+
+1. **Smooth** each path with a Gaussian low-pass (``sigma`` frames) so a simulator's jitter does
+   not become stride-by-stride speed changes.
+2. **Segment** into ``m``-frame pieces (``m``: the library's mean gait cycle) and measure each
+   piece's speed ``s = l / n`` (ground length over frames; reported in m/s).
+3. **Resample.** If any character (at its scale ``h``: a character of scale h runs the library's
+   motion at ``s / h``) is faster than the library's fastest clip, *every* trajectory is
+   resampled by ``r = s_max / top`` -- time-uniformly, so each path keeps its shape and length,
+   its point count grows by r, and the herd's formation is kept. Speeds beyond
+   ``MAX_RESAMPLE`` times the top speed are refused rather than resampled: they are teleports or
+   unit mistakes, not animals, and would multiply the output's length.
+
+Bad input raises :class:`TrajectoryError` naming the character and the problem, or, with
+``skip_invalid``, drops that character and reports why (nobody else's work is lost).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+from scipy.ndimage import gaussian_filter1d
+
+Floats = NDArray[np.float64]
+
+DEFAULT_SIGMA = 4.0  # frames of Gaussian smoothing at the library's frame rate
+TELEPORT_M = 5.0  # a jump longer than this between two frames is not locomotion
+MAX_RESAMPLE = 8.0  # refuse trajectories needing more than 8x the frames
+_GROUND = [0, 2]
+
+
+class TrajectoryError(ValueError):
+    """A trajectory the synthesis cannot use; ``character`` says whose (None: the whole batch)."""
+
+    def __init__(self, message: str, character: int | str | None = None) -> None:
+        super().__init__(message if character is None else f"character {character}: {message}")
+        self.character = character
+
+
+@dataclass(frozen=True)
+class Prepared:
+    """Trajectories ready for synthesis, at the library's frame rate."""
+
+    positions: Floats  # (C, F', 3) smoothed, resampled
+    raw: Floats  # (C, F', 3) resampled but not smoothed (what the caller asked for)
+    segment: int  # m, frames per segment
+    segment_speeds: Floats  # (C, K) m/s, per segment, before scale
+    resample_rate: float  # r >= 1 (1: not resampled)
+    kept: NDArray[np.int64]  # indices of the input characters kept
+    rejected: dict[int, str] = field(default_factory=dict)  # input index -> why it was skipped
+
+
+def check(positions: ArrayLike, fps: float, ids: list[str] | None = None) -> Floats:
+    """The batch as ``(C, F, 3)`` float64, or :class:`TrajectoryError` for the whole batch."""
+    if not (isinstance(fps, int | float) and np.isfinite(fps) and fps > 0):
+        raise TrajectoryError(f"fps: must be a positive number, got {fps!r}")
+    try:
+        arr = np.asarray(positions, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise TrajectoryError(f"positions: not an array of numbers ({exc})") from None
+    if arr.ndim != 3 or arr.shape[-1] != 3:
+        raise TrajectoryError(f"positions: expected shape (characters, frames, 3), got {arr.shape}")
+    if arr.shape[0] == 0:
+        raise TrajectoryError("positions: no characters")
+    if ids is not None and len(ids) != arr.shape[0]:
+        raise TrajectoryError(f"ids: {len(ids)} ids for {arr.shape[0]} trajectories")
+    return arr
+
+
+def problems(positions: Floats, fps: float) -> dict[int, str]:
+    """Per character index, what is wrong with its trajectory (none: absent)."""
+    found: dict[int, str] = {}
+    if positions.shape[1] < 2:
+        return {c: f"needs at least 2 points, got {positions.shape[1]}" for c in range(len(positions))}
+    finite = np.isfinite(positions).all(axis=(1, 2))
+    for c in np.flatnonzero(~finite):
+        frame = int(np.flatnonzero(~np.isfinite(positions[c]).all(axis=-1))[0])
+        found[int(c)] = f"positions: NaN or Inf at frame {frame}"
+    step = np.linalg.norm(np.diff(np.nan_to_num(positions), axis=1), axis=-1)
+    for c in np.flatnonzero(finite & (step.max(axis=1) > TELEPORT_M)):
+        frame = int(step[c].argmax())
+        found[int(c)] = (f"positions: jumps {step[c, frame]:.1f} m between frames {frame} and "
+                         f"{frame + 1} (limit {TELEPORT_M} m per frame: a teleport, not locomotion)")
+    return found
+
+
+def retime(positions: Floats, fps: float, target_fps: float) -> Floats:
+    """Time-uniform linear resampling from ``fps`` to ``target_fps`` (same duration)."""
+    if abs(fps - target_fps) < 1e-9:
+        return positions
+    F = positions.shape[1]
+    n = max(2, int(round((F - 1) * target_fps / fps)) + 1)
+    return resample(positions, n)
+
+
+def resample(positions: Floats, n: int) -> Floats:
+    """Every path resampled to ``n`` points, uniformly in time: same shape, same length."""
+    F = positions.shape[1]
+    t = np.linspace(0.0, F - 1, n)
+    i0 = np.clip(np.floor(t).astype(np.int64), 0, F - 2)
+    w = (t - i0)[None, :, None]
+    return np.asarray(positions[:, i0] * (1 - w) + positions[:, i0 + 1] * w)
+
+
+def smooth(positions: Floats, sigma: float) -> Floats:
+    """Gaussian low-pass along frames. The ends are extended by point reflection (a path going
+    on as it went), so a path at steady speed keeps its end points and its length."""
+    if sigma <= 0:
+        return positions
+    F = positions.shape[1]
+    pad = min(F - 1, int(np.ceil(4 * sigma)))
+    head = 2 * positions[:, :1] - positions[:, pad:0:-1]
+    tail = 2 * positions[:, -1:] - positions[:, -2:-2 - pad:-1]
+    longer = np.concatenate([head, positions, tail], axis=1)
+    out = gaussian_filter1d(longer, sigma, axis=1, mode="nearest")
+    return np.asarray(out[:, pad:pad + F])
+
+
+def segment_speeds(positions: Floats, m: int, fps: float) -> Floats:
+    """(C, K) ground speed of each m-frame segment, m/s (the last may be shorter)."""
+    step = np.linalg.norm(np.diff(positions[..., _GROUND], axis=1), axis=-1)  # (C, F-1)
+    F1 = step.shape[1]
+    K = max(1, -(-F1 // m))
+    padded = np.zeros((step.shape[0], K * m))
+    padded[:, :F1] = step
+    counts = np.minimum(m, F1 - np.arange(K) * m).clip(min=1)
+    return np.asarray(padded.reshape(-1, K, m).sum(axis=2) / counts * fps)
+
+
+def prepare(positions: ArrayLike, fps: float, library_fps: float, top_speed: float, segment: int,
+            scales: NDArray[np.floating], sigma: float = DEFAULT_SIGMA,
+            skip_invalid: bool = False, ids: list[str] | None = None) -> Prepared:
+    """Validate, bring to the library's frame rate, smooth, resample if needed, segment."""
+    arr = check(positions, fps, ids)
+    if not (np.isfinite(sigma) and 0 <= sigma <= 100):
+        raise TrajectoryError(f"sigma: must be within [0, 100] frames, got {sigma}")
+    scales = np.asarray(scales, dtype=np.float64)
+    names = ids or [str(c) for c in range(len(arr))]
+    bad = problems(arr, fps)
+    for i in np.flatnonzero(~(np.isfinite(scales) & (scales > 0))):
+        bad.setdefault(int(i), f"scale: must be a positive number, got {scales[i]}")
+    if bad and not skip_invalid:
+        worst = min(bad)
+        raise TrajectoryError(bad[worst], names[worst])
+    kept = np.array([c for c in range(len(arr)) if c not in bad], dtype=np.int64)
+    if len(kept) == 0:
+        raise TrajectoryError("every character was invalid: " +
+                              "; ".join(f"{names[c]}: {why}" for c, why in sorted(bad.items())))
+    arr = retime(arr[kept], fps, library_fps)
+    smoothed = smooth(arr, sigma)
+    speeds = segment_speeds(smoothed, segment, library_fps)
+    fastest = float((speeds / scales[kept, None]).max())
+    rate = max(1.0, fastest / top_speed)
+    if rate > MAX_RESAMPLE:
+        fast = int(kept[int((speeds / scales[kept, None]).max(axis=1).argmax())])
+        raise TrajectoryError(
+            f"positions: moves at {fastest:.1f} m/s for its scale, more than {MAX_RESAMPLE:g}x the "
+            f"library's fastest {top_speed:.2f} m/s (check the unit: metres, and the fps)", names[fast])
+    if rate > 1.0:
+        n = int(np.ceil((arr.shape[1] - 1) * rate)) + 1
+        rate = (n - 1) / (arr.shape[1] - 1)  # what it really is after rounding to whole frames
+        arr = resample(arr, n)
+        smoothed = smooth(arr, sigma)
+        speeds = segment_speeds(smoothed, segment, library_fps)
+    return Prepared(smoothed, arr, segment, speeds, float(rate), kept, bad)

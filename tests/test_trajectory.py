@@ -1,0 +1,93 @@
+"""Trajectory preprocessing (paper section 5): errors naming the character, smoothing, resampling."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from synth_core.trajectory import TELEPORT_M, TrajectoryError, prepare, segment_speeds, smooth
+
+
+def line(frames: int, speed: float, fps: float = 60.0, offset: float = 0.0) -> np.ndarray:
+    z = np.arange(frames) * speed / fps
+    return np.stack([np.full(frames, offset), np.zeros(frames), z], axis=-1)
+
+
+def test_segment_speeds_are_length_over_frames() -> None:
+    paths = np.stack([line(120, 2.0), line(120, 5.0)])
+    speeds = segment_speeds(paths, 40, 60.0)
+    assert speeds.shape == (2, 3)
+    assert np.allclose(speeds, [[2.0] * 3, [5.0] * 3])
+
+
+def test_resampling_keeps_every_path_length_and_the_formation() -> None:
+    t = np.arange(200) / 60.0
+    speed = 1.0 + 0.8 * np.sin(t)  # m/s, smooth
+    heading = 0.3 * t
+    step = np.stack([np.sin(heading), 0 * t, np.cos(heading)], axis=-1) * (speed / 60.0)[:, None]
+    base = np.cumsum(step, axis=0)[None]
+    herd = base + np.array([[0, 0, 0], [2, 0, 0], [0, 0, 3]])[:, None]  # three in formation
+    fast = prepare(herd, 60.0, 60.0, top_speed=1.0, segment=40, scales=np.ones(3), sigma=0.0)
+    assert fast.resample_rate == pytest.approx(segment_speeds(herd, 40, 60.0).max(), rel=0.01)
+    assert fast.resample_rate > 1.0
+    assert fast.positions.shape[1] == round(199 * fast.resample_rate) + 1
+    length = lambda p: np.linalg.norm(np.diff(p[..., [0, 2]], axis=1), axis=-1).sum(axis=1)  # noqa: E731
+    assert np.allclose(length(fast.positions), length(herd), rtol=0.02)
+    gap = fast.positions - fast.positions[:1]  # the formation: same offsets at every frame
+    assert np.allclose(gap[1], [2, 0, 0], atol=1e-9) and np.allclose(gap[2], [0, 0, 3], atol=1e-9)
+    assert segment_speeds(fast.positions, 40, 60.0).max() <= 1.02
+    slow = prepare(herd, 60.0, 60.0, top_speed=100.0, segment=40, scales=np.ones(3), sigma=0.0)
+    assert slow.resample_rate == 1.0 and slow.positions.shape == herd.shape
+
+
+def test_big_characters_are_judged_at_their_own_scale() -> None:
+    """A horse twice the size runs the library's motion at half the speed: no resampling."""
+    path = line(100, 6.0)[None]
+    assert prepare(path, 60.0, 60.0, 4.0, 40, np.array([1.0]), sigma=0.0).resample_rate > 1.4
+    assert prepare(path, 60.0, 60.0, 4.0, 40, np.array([2.0]), sigma=0.0).resample_rate == 1.0
+
+
+def test_other_frame_rates_are_brought_to_the_librarys() -> None:
+    out = prepare(line(31, 2.0, fps=30.0)[None], 30.0, 60.0, 10.0, 40, np.ones(1), sigma=0.0)
+    assert out.positions.shape[1] == 61
+    assert np.allclose(segment_speeds(out.positions, 40, 60.0), 2.0)
+
+
+def test_smoothing_removes_jitter_but_keeps_the_ends() -> None:
+    rng = np.random.default_rng(1)
+    path = line(200, 2.0)[None] + rng.normal(0, 0.02, (1, 200, 3)) * [1, 0, 1]
+    out = smooth(path, 4.0)
+    assert np.abs(np.diff(out[0, :, 0], 2)).max() < np.abs(np.diff(path[0, :, 0], 2)).max() / 5
+    assert np.allclose(out[0, [0, -1], 2], path[0, [0, -1], 2], atol=0.05)
+
+
+@pytest.mark.parametrize("edit, message", [
+    (lambda p: p.__setitem__((1, 5, 0), np.nan), r"character b: positions: NaN or Inf at frame 5"),
+    (lambda p: p.__setitem__((2, slice(50, None), 2), 100.0),
+     r"character c: positions: jumps .* m between frames 49 and 50"),
+])
+def test_bad_characters_are_named_or_skipped(edit, message: str) -> None:
+    paths = np.stack([line(100, 2.0, offset=k) for k in range(3)])
+    edit(paths)
+    with pytest.raises(TrajectoryError, match=message):
+        prepare(paths, 60.0, 60.0, 10.0, 40, np.ones(3), ids=["a", "b", "c"])
+    kept = prepare(paths, 60.0, 60.0, 10.0, 40, np.ones(3), skip_invalid=True, ids=["a", "b", "c"])
+    assert kept.kept.tolist() == [0] + [k for k in (1, 2) if k not in kept.rejected]
+    assert len(kept.rejected) == 1 and kept.positions.shape[0] == 2
+    assert np.allclose(kept.positions[0], smooth(paths[:1], 4.0)[0])  # the others' work is intact
+
+
+def test_whole_batch_errors() -> None:
+    ones = np.ones(1)
+    with pytest.raises(TrajectoryError, match=r"positions: expected shape \(characters, frames, 3\)"):
+        prepare(np.zeros((4, 3)), 60.0, 60.0, 10.0, 40, ones)
+    with pytest.raises(TrajectoryError, match="needs at least 2 points"):
+        prepare(np.zeros((1, 1, 3)), 60.0, 60.0, 10.0, 40, ones)
+    with pytest.raises(TrajectoryError, match="fps: must be a positive number"):
+        prepare(line(10, 1.0)[None], 0.0, 60.0, 10.0, 40, ones)
+    with pytest.raises(TrajectoryError, match="scale: must be a positive number, got -1"):
+        prepare(line(10, 1.0)[None], 60.0, 60.0, 10.0, 40, -ones)
+    with pytest.raises(TrajectoryError, match=r"more than 8x the library's fastest"):
+        prepare(line(100, 0.9 * TELEPORT_M * 60)[None], 60.0, 60.0, 10.0, 40, ones)
+    with pytest.raises(TrajectoryError, match="every character was invalid"):
+        prepare(np.full((2, 10, 3), np.inf), 60.0, 60.0, 10.0, 40, np.ones(2), skip_invalid=True)
