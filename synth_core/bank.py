@@ -68,11 +68,6 @@ class Bank:
         return float(max(s[-1] for s in self.speeds.values()))
 
     @property
-    def low_speed(self) -> float:
-        """The slowest moving clip: below about half of it a character stands."""
-        return float(min(s[0] for s in self.speeds.values()))
-
-    @property
     def mean_cycle(self) -> int:
         """m, the paper's segment length: the gaits' mean cycle in frames."""
         return int(round(np.mean([p.frames for p in self.gaits.values()])))
@@ -130,8 +125,10 @@ def build_bank(library: Library) -> Bank:
     offset = 0
     gaits: dict[int, Piece] = {}
     speeds: dict[int, Floats] = {}
+    middle: dict[int, int] = {}  # hub -> rows index of its middle clip (transitions join there)
     for gait, m in library.maps.items():
         hub = HUBS.index(gait)
+        middle[hub] = len(rows) + m.n_clips // 2
         for i in range(m.n_clips):
             yaw = float(np.arctan2(*cycle_displacement(m.root_pos[i])[[0, 2]]))
             rows.append((*_canonical(m.root_pos[i], m.rotations[i], yaw, cyclic=True), m.contacts))
@@ -161,21 +158,14 @@ def build_bank(library: Library) -> Bank:
     for name, clip in library.transitions.items():
         source, target = (HUBS.index(h) for h in name.split("2"))
         piece = add(clip)
-        table = np.concatenate([r[0] for r in rows])
-        last = piece.offset + piece.frames - 1
+        rot, contacts = rows[-1][0], rows[-1][3]
         entry = exit_ = 0
-        if source in gaits:
-            g = gaits[source]
-            middle = g.offset + (g.clips // 2) * g.frames
-            contacts = np.concatenate([r[3] for r in rows])
-            entry = _match(table[middle:middle + g.frames], contacts[middle:middle + g.frames],
-                           table[piece.offset], contacts[piece.offset])
-        if target in gaits:
-            g = gaits[target]
-            middle = g.offset + (g.clips // 2) * g.frames
-            contacts = np.concatenate([r[3] for r in rows])
-            exit_ = _match(table[middle:middle + g.frames], contacts[middle:middle + g.frames],
-                           table[last], contacts[last])
+        if source in middle:
+            gait_rot, gait_contacts = rows[middle[source]][0], rows[middle[source]][3]
+            entry = _match(gait_rot, gait_contacts, rot[0], contacts[0])
+        if target in middle:
+            gait_rot, gait_contacts = rows[middle[target]][0], rows[middle[target]][3]
+            exit_ = _match(gait_rot, gait_contacts, rot[-1], contacts[-1])
         transitions[(source, target)] = Piece(piece.offset, piece.frames, 1, entry, exit_)
         distance[(source, target)] = progress[-1] + creep * np.arange(clip.n_frames)
     poses = quat.normalize(np.concatenate([r[0] for r in rows])).astype(np.float32)

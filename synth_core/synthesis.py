@@ -239,7 +239,6 @@ def _rows(bank: Bank, kinds: _Kinds, kind: NDArray[np.int64], local: NDArray[np.
         whole = np.minimum(np.floor(f).astype(np.int64), len(d) - 1)
         frame[on] = whole
         weight[on] = f - whole
-        clip0[on] = 0
     for hub, s in bank.speeds.items():
         on = kind == hub
         u = np.interp(speed[on], s, np.arange(len(s), dtype=np.float64))
