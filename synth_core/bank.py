@@ -24,7 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from synth_core import UP_AXIS, quat
+from synth_core import UP_AXIS, ik, quat
 from synth_core.artifact import Library
 from synth_core.motion import Motion
 from synth_core.motion_graph import HUBS
@@ -62,6 +62,7 @@ class Bank:
     transitions: dict[tuple[int, int], Piece]  # (from hub, to hub) -> clip
     progress: dict[tuple[int, int], Floats]  # transition -> its frames' "distance" (see creep)
     creep: float  # m/frame added to distance on both sides so standing clip frames still play
+    bends: Floats  # (4, 3) each leg's dominant bend axis in the root's frame (foot lock's IK)
 
     @property
     def top_speed(self) -> float:
@@ -169,10 +170,12 @@ def build_bank(library: Library) -> Bank:
         transitions[(source, target)] = Piece(piece.offset, piece.frames, 1, entry, exit_)
         distance[(source, target)] = progress[-1] + creep * np.arange(clip.n_frames)
     poses = quat.normalize(np.concatenate([r[0] for r in rows])).astype(np.float32)
+    gait_rows = sum(p.clips * p.frames for p in gaits.values())
     ground = min(float(m.clip(0).foot_positions()[..., UP_AXIS].min()) for m in library.maps.values())
     return Bank(library.skeleton, library.fps, poses,
                 (np.concatenate([r[1] for r in rows]) - ground).astype(np.float32),
                 np.concatenate([r[2] for r in rows]).astype(np.float32),
                 np.concatenate([r[3] for r in rows]).astype(bool),
                 tuple(h for h in HUBS if h == "static" or h in library.maps),
-                gaits, speeds, idle, transitions, distance, creep)
+                gaits, speeds, idle, transitions, distance, creep,
+                np.asarray(ik.bend_axes(library.skeleton, poses[:gait_rows]), np.float64))

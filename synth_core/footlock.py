@@ -83,9 +83,12 @@ def ease_sink(sink: Floats, limit: float) -> Floats:
 
 def lock_feet(skeleton: Skeleton, root_pos: NDArray[np.floating], rotations: NDArray[np.floating],
               contacts: NDArray[np.bool_], scales: NDArray[np.floating],
-              ground: NDArray[np.floating] | None = None, rigs: tuple[ik.LimbRig, ...] | None = None
-              ) -> tuple[NDArray[np.float32], NDArray[np.float32]]:
-    """Root ``(C, T, 3)`` and local rotations ``(C, T, J, 4)`` with planted feet pinned."""
+              ground: NDArray[np.floating] | None = None, rigs: tuple[ik.LimbRig, ...] | None = None,
+              bends: NDArray[np.floating] | None = None) -> tuple[NDArray[np.float32], NDArray[np.float32]]:
+    """Root ``(C, T, 3)`` and local rotations ``(C, T, J, 4)`` with planted feet pinned.
+
+    ``ground (C, T)``: the height planted feet stand at (default: as they are); ``bends (4, 3)``:
+    the legs' bend axes (:func:`synth_core.ik.bend_axes`; default: over this motion)."""
     rigs = ik.limb_rigs(skeleton) if rigs is None else rigs
     h = np.asarray(scales, np.float64)[:, None, None]
     unit_root = np.asarray(root_pos, np.float64) / h
@@ -98,5 +101,5 @@ def lock_feet(skeleton: Skeleton, root_pos: NDArray[np.floating], rotations: NDA
     sink = ik.sink_to_reach(skeleton, unit_root, rotations, targets, np.full(4, REACH), rigs)
     sink = ease_sink(np.asarray(sink, np.float64), MAX_SINK * skeleton.leg_length())
     unit_root[..., UP_AXIS] -= sink
-    solved = ik.solve(skeleton, unit_root, rotations, targets, rigs, ground=None)
+    solved = ik.solve(skeleton, unit_root, rotations, targets, rigs, ground=None, bends=bends)
     return (unit_root * h).astype(np.float32), solved.rotations

@@ -97,13 +97,33 @@ def _dot(a: Floats, b: Floats) -> Floats:
     return np.asarray(np.sum(a * b, axis=-1))
 
 
-def _hinge_axes(thigh: Floats, shin: Floats, toe: Floats, root_rot: Floats) -> Floats:
-    """Step 1's axis, (..., 3) world, unit (see the module docstring)."""
+def bend_axis(thigh: Floats, shin: Floats, root_rot: Floats) -> Floats:
+    """A limb's dominant bend axis (3,), unit, in the root's frame: thigh x shin summed over
+    every pose given (``(..., 3)`` world vectors, ``root_rot (..., 4)``)."""
+    local = quat.rotate(quat.inv(root_rot), np.cross(_unit(thigh), _unit(shin)))
+    return _unit(local.reshape(-1, 3).sum(axis=0))
+
+
+def bend_axes(skeleton: Skeleton, rotations: NDArray[np.floating],
+              rigs: tuple[LimbRig, ...] | None = None) -> Floats:
+    """Each leg's dominant bend axis (4, 3) in the root's frame over poses ``(..., J, 4)``."""
+    rigs = limb_rigs(skeleton) if rigs is None else rigs
+    rotations = np.asarray(rotations, np.float64)
+    pos, rot = forward_kinematics(skeleton, np.zeros((*rotations.shape[:-2], 3)), rotations)
+    pos, root_rot = np.asarray(pos, np.float64), np.asarray(rot, np.float64)[..., 0, :]
+    return np.stack([bend_axis(pos[..., r.hinge, :] - pos[..., r.upper, :],
+                               pos[..., r.ankle, :] - pos[..., r.hinge, :], root_rot) for r in rigs])
+
+
+def _hinge_axes(thigh: Floats, shin: Floats, toe: Floats, root_rot: Floats,
+                bend: Floats | None = None) -> Floats:
+    """Step 1's axis, (..., 3) world, unit (see the module docstring). ``bend (3,)``: the limb's
+    dominant bend in the root's frame (default: over the poses given)."""
     primary = np.cross(_unit(thigh), _unit(shin))
     by_toe = np.cross(_unit(thigh), _unit(toe))
     # The limb's dominant bend over the clip, in the body's frame, so a turning clip agrees too.
-    local = quat.rotate(quat.inv(root_rot), primary)
-    dominant = quat.rotate(root_rot, _unit(local.reshape(-1, 3).sum(axis=0)))
+    bend = bend_axis(thigh, shin, root_rot) if bend is None else np.asarray(bend, np.float64)
+    dominant = quat.rotate(root_rot, bend)
     # Both axes point the dominant way: the hinge then only ever flexes. Thigh x shin on its
     # own flips where the source's shin sub-chain (with a flexed carpus or hock) swings past the
     # thigh line; a target needing more bend there would be reached by hyperextending the hinge
@@ -159,12 +179,15 @@ def _keep_above_ground(toe_target: Floats, ankle_to_toe: Floats, ground: float) 
 
 def solve(skeleton: Skeleton, root_pos: NDArray[np.floating], rotations: NDArray[np.floating],
           targets: NDArray[np.floating], rigs: tuple[LimbRig, ...] | None = None,
-          ground: float | None = 0.0, offsets: NDArray[np.floating] | None = None) -> IKResult:
+          ground: float | None = 0.0, offsets: NDArray[np.floating] | None = None,
+          bends: NDArray[np.floating] | None = None) -> IKResult:
     """Put each foot's toe on its target: ``targets (..., 4, 3)`` world, FOOT_NAMES order.
 
     ``root_pos (..., 3)`` and local ``rotations (..., J, 4)`` are the pose to adjust (leading
     axes: frames, clips, ...). ``ground``: height no toe or ankle goes below (None: no ground).
     Rotations of the upper joint, the hinge and the ankle change; nothing else does.
+    ``bends (4, 3)``: each leg's dominant bend axis in the root's frame (:func:`bend_axes`;
+    default: over the poses given).
     """
     rigs = limb_rigs(skeleton) if rigs is None else rigs
     root_pos = np.asarray(root_pos, dtype=np.float64)
@@ -195,7 +218,7 @@ def solve(skeleton: Skeleton, root_pos: NDArray[np.floating], rotations: NDArray
         ankle_target = target - ankle_to_toe
         # Step 1: the hinge.
         thigh, shin = p_hinge - p_root, p_ankle - p_hinge
-        axis = _hinge_axes(thigh, shin, p_toe - p_hinge, rot[..., 0, :])
+        axis = _hinge_axes(thigh, shin, p_toe - p_hinge, rot[..., 0, :], None if bends is None else bends[k])
         distance = np.linalg.norm(ankle_target - p_root, axis=-1)
         bend = quat.from_axis_angle(axis, _turn_to_distance(thigh, shin, axis, distance))
         shin = quat.rotate(bend, shin)

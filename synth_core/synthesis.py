@@ -30,13 +30,14 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from synth_core import UP_AXIS, quat
+from synth_core import UP_AXIS, kernels, quat
 from synth_core.bank import STATIC, Bank
 from synth_core.footlock import lock_feet
 from synth_core.trajectory import DEFAULT_SIGMA, Prepared, TrajectoryError, prepare
 
 Floats = NDArray[np.float64]
 MARGIN = 10  # frames over which a finished piece fades out where the next starts
+BACKENDS = ("auto", "numba", "numpy")
 STAND_SHARE = 0.5  # below this share of the slowest clip's speed a character stands
 MIN_TURN_SPEED = 0.05  # m/s: slower than this the heading holds (a standing animal does not spin)
 MAX_RATE = 1.6  # a gait asked to go faster than its fastest clip plays its stride up to this fast
@@ -50,6 +51,7 @@ class Options:
     margin: int = MARGIN
     foot_lock: bool = True
     skip_invalid: bool = False
+    backend: str = "auto"  # "numba" (compiled kernels), "numpy" (the reference), "auto": numba if installed
 
 
 @dataclass(frozen=True, eq=False)
@@ -193,18 +195,18 @@ def schedule(bank: Bank, kinds: _Kinds, speed: Floats, m: int, travelled: Floats
 
 
 def _local(clocks: Floats, kind: NDArray[np.int64], first: NDArray[np.int64], start: NDArray[np.int64],
-           frame: NDArray[np.int64] | None = None) -> NDArray[np.int64]:
+           at: tuple[NDArray[np.int64], NDArray[np.int64]] | None = None) -> NDArray[np.int64]:
     """Clip frame (whole, before wrapping) each piece is at: its first frame plus its clock since
-    it started. ``clocks (kinds, C, T+1)`` with ``kind (C, T)``; or, given ``frame``, flat (n,)."""
-    if frame is None:
+    it started. ``clocks (kinds, C, T+1)`` with ``kind (C, T)``; or, given ``at`` (characters,
+    frames), flat (n,)."""
+    if at is None:
         C, T = kind.shape
         c, t = np.arange(C)[:, None], np.arange(T)[None, :]
         now = clocks[kind, c, t]
         then = clocks[kind, c, np.clip(start, 0, T)]
     else:
-        n = np.arange(len(kind))
-        now = clocks[kind, n, frame]
-        then = clocks[kind, n, np.clip(start, 0, clocks.shape[-1] - 1)]
+        now = clocks[kind, at[0], at[1]]
+        then = clocks[kind, at[0], np.clip(start, 0, clocks.shape[-1] - 1)]
     return np.floor(first + now - then + 0.5).astype(np.int64)
 
 
@@ -251,16 +253,6 @@ def _rows(bank: Bank, kinds: _Kinds, kind: NDArray[np.int64], local: NDArray[np.
     return base + clip0 * frames, base + step, weight
 
 
-def _blend(table: NDArray[np.floating], r0: NDArray[np.int64], r1: NDArray[np.int64],
-           w: NDArray[np.floating]) -> NDArray[np.float32]:
-    """Normalized lerp of quaternion rows (..., J, 4), the second turned to the first's side."""
-    a, b = table[r0], table[r1]
-    sign = np.where(np.sum(a * b, axis=-1, keepdims=True) < 0, -1.0, 1.0).astype(np.float32)
-    w = w[..., None, None].astype(np.float32)
-    q = a * (1 - w) + b * (w * sign)
-    return np.asarray(q / np.linalg.norm(q, axis=-1, keepdims=True), dtype=np.float32)
-
-
 def headings(path: Floats, fps: float) -> Floats:
     """(C, T) yaw (about +Y, 0 = +Z) of the path's tangent, held where the character moves
     slower than MIN_TURN_SPEED (a standing animal does not spin with its trajectory's jitter);
@@ -275,29 +267,29 @@ def headings(path: Floats, fps: float) -> Floats:
     return np.asarray(np.arctan2(d[..., 0], d[..., 1]))
 
 
-def synthesize(bank: Bank, positions: ArrayLike, fps: float | None = None,
-               scales: ArrayLike | None = None, options: Options = Options(),
-               ids: list[str] | None = None) -> Result:
-    """Motion for every trajectory ``positions (C, F, 3)`` sampled at ``fps`` (default: the library's)."""
-    fps = bank.fps if fps is None else fps
-    rng = np.random.default_rng(options.seed)
-    n = np.shape(positions)[0] if np.ndim(positions) >= 1 else 0
-    h_min, h_max = options.scale_range
-    if not (0 < h_min <= h_max and np.isfinite(h_max)):
-        raise TrajectoryError(f"scale_range: need 0 < min <= max, got {options.scale_range}")
-    drawn = rng.uniform(h_min, h_max, n)
-    if scales is None:
-        all_scales = drawn
-    else:
-        given = np.asarray(scales, dtype=np.float64)
-        if given.shape != (n,):
-            raise TrajectoryError(f"scales: expected {n} values (one per character), got shape {given.shape}")
-        all_scales = np.where(np.isnan(given), drawn, given)  # NaN: "draw one for me"
-    if not (isinstance(options.margin, int) and 0 <= options.margin <= 60):
-        raise TrajectoryError(f"margin: must be an integer within [0, 60] frames, got {options.margin}")
-    prep: Prepared = prepare(positions, fps, bank.fps, bank.top_speed, bank.mean_cycle, all_scales,
-                             options.sigma, options.skip_invalid, ids)
-    h = all_scales[prep.kept]
+@dataclass(frozen=True, eq=False)
+class Plan:
+    """What every (character, frame) shows, before any pose is built: table rows and weights.
+
+    ``rows (C, T, 4)``: the two clip rows blended of the piece playing, then the two of the piece
+    fading out (the same rows where none is); ``weights (C, T, 3)``: the second row's weight of
+    each pair, then the fading piece's share (0: no fade). The pose is
+    ``blend(blend(r0, r1, w), blend(p0, p1, pw), keep)`` -- nlerps -- turned to ``yaw`` and put on
+    ``path``; :func:`render` builds it (numpy) and :mod:`synth_core.kernels` (numba) too.
+    """
+
+    rows: NDArray[np.int32]
+    weights: NDArray[np.float32]
+    yaw: Floats  # (C, T) heading, radians about +Y, 0 = +Z
+    path: Floats  # (C, T, 3) smoothed trajectory
+    scales: Floats  # (C,)
+    contacts: NDArray[np.bool_]  # (C, T, 4)
+    stitches: NDArray[np.bool_]  # (C, T)
+    gait: NDArray[np.int8]  # (C, T)
+
+
+def plan(bank: Bank, prep: Prepared, h: Floats, rng: np.random.Generator, margin: int = MARGIN) -> Plan:
+    """Schedule every character's pieces and find the rows each frame blends (see the module doc)."""
     path = prep.positions
     C, T = path.shape[:2]
     kinds = _kinds(bank)
@@ -322,48 +314,98 @@ def synthesize(bank: Bank, positions: ArrayLike, fps: float | None = None,
     began = np.take_along_axis(travelled, np.clip(start[c, e], 0, T - 1), axis=1)
     walked = travelled - began + bank.creep * local
     r0, r1, w = _rows(bank, kinds, kind, local, v, walked)
-    rotations = _blend(bank.poses, r0, r1, w)
-    height = bank.height[r0] * (1 - w) + bank.height[r1] * w
-    surge = bank.surge[r0] * (1 - w) + bank.surge[r1] * w
-    contacts = bank.contacts[r0]
+    rows = np.empty((C, T, 4), np.int32)
+    weights = np.zeros((C, T, 3), np.float32)
+    rows[..., 0], rows[..., 1], weights[..., 0] = r0, r1, w
+    rows[..., 2], rows[..., 3], weights[..., 1] = r0, r1, w
 
     # Stitch: the piece before fades out over the margin after a new one starts.
     since = t - start[c, e]
-    fading = (e >= 1) & (since < options.margin)
+    fading = (e >= 1) & (since < margin)
     if fading.any():
         fc, ft = np.nonzero(fading)
         pe = e[fc, ft] - 1
         p_kind = kind_e[fc, pe]
-        p_local = _local(clocks[:, fc], p_kind, first_e[fc, pe], start[fc, pe], ft)
+        p_local = _local(clocks, p_kind, first_e[fc, pe], start[fc, pe], (fc, ft))
         # A finished transition stays at its end.
         p_local = np.where(kinds.cyclic[p_kind], p_local, np.iinfo(np.int32).max)
         p0, p1, pw = _rows(bank, kinds, p_kind, p_local, v[fc, ft])
-        before = _blend(bank.poses, p0, p1, pw)
-        u = (since[fc, ft] + 1) / (options.margin + 1)
-        keep = (1 - u * u * (3 - 2 * u)).astype(np.float32)  # weight of the piece before
-        now = rotations[fc, ft]
-        sign = np.where(np.sum(now * before, axis=-1, keepdims=True) < 0, -1.0, 1.0).astype(np.float32)
-        mixed = now * (1 - keep)[:, None, None] + before * (keep[:, None, None] * sign)
-        rotations[fc, ft] = mixed / np.linalg.norm(mixed, axis=-1, keepdims=True)
-        p_height = bank.height[p0] * (1 - pw) + bank.height[p1] * pw
-        p_surge = bank.surge[p0] * (1 - pw) + bank.surge[p1] * pw
-        height[fc, ft] = height[fc, ft] * (1 - keep) + p_height * keep
-        surge[fc, ft] = surge[fc, ft] * (1 - keep) + p_surge * keep
-
-    # Warp onto the path.
-    yaw = headings(path, bank.fps)
-    forward = np.stack([np.sin(yaw), np.zeros_like(yaw), np.cos(yaw)], axis=-1)
-    root = path + forward * (surge * h[:, None])[..., None]
-    root[..., UP_AXIS] = path[..., UP_AXIS] + height * h[:, None]
-    turn = quat.from_axis_angle(np.array([0.0, 1.0, 0.0]), yaw).astype(np.float32)
-    rotations[:, :, 0] = quat.mul(turn, rotations[:, :, 0])
-    out_root = root.astype(np.float32)
-    if options.foot_lock:
-        out_root, rotations = lock_feet(bank.skeleton, out_root, rotations, contacts, h,
-                                        ground=path[..., UP_AXIS])
+        u = (since[fc, ft] + 1) / (margin + 1)
+        rows[fc, ft, 2], rows[fc, ft, 3], weights[fc, ft, 1] = p0, p1, pw
+        weights[fc, ft, 2] = 1 - u * u * (3 - 2 * u)  # smoothstep out
     stitches = np.zeros((C, T), bool)
     stitches[:, 1:] = e[:, 1:] != e[:, :-1]
     first_half = (r0 - kinds.offset[kind]) < kinds.frames[kind] // 2
     gait = np.where(first_half, kinds.source[kind], kinds.target[kind]).astype(np.int8)
-    return Result(out_root, rotations, gait, contacts, stitches, h, path,
+    return Plan(rows, weights, headings(path, bank.fps), path, h, bank.contacts[r0], stitches, gait)
+
+
+def _nlerp(a: NDArray[np.float32], b: NDArray[np.float32], w: NDArray[np.float32]) -> NDArray[np.float32]:
+    """Normalized lerp of quaternions (..., J, 4) by ``w (...)``, b turned to a's side."""
+    sign = np.where(np.sum(a * b, axis=-1, keepdims=True) < 0, -1.0, 1.0).astype(np.float32)
+    w = w[..., None, None]
+    q = a * (1 - w) + b * (w * sign)
+    return np.asarray(q / np.linalg.norm(q, axis=-1, keepdims=True), dtype=np.float32)
+
+
+def render(bank: Bank, p: Plan, foot_lock: bool = True) -> tuple[NDArray[np.float32], NDArray[np.float32]]:
+    """Root ``(C, T, 3)`` and local rotations ``(C, T, J, 4)`` of a plan: the numpy reference of
+    :func:`synth_core.kernels.render`."""
+    r, wt = p.rows, p.weights
+    rotations = _nlerp(bank.poses[r[..., 0]], bank.poses[r[..., 1]], wt[..., 0])
+    height = bank.height[r[..., 0]] * (1 - wt[..., 0]) + bank.height[r[..., 1]] * wt[..., 0]
+    surge = bank.surge[r[..., 0]] * (1 - wt[..., 0]) + bank.surge[r[..., 1]] * wt[..., 0]
+    fading = wt[..., 2] > 0
+    if fading.any():
+        fr, fw = r[fading], wt[fading]
+        before = _nlerp(bank.poses[fr[:, 2]], bank.poses[fr[:, 3]], fw[:, 1])
+        rotations[fading] = _nlerp(rotations[fading], before, fw[:, 2])
+        p_height = bank.height[fr[:, 2]] * (1 - fw[:, 1]) + bank.height[fr[:, 3]] * fw[:, 1]
+        p_surge = bank.surge[fr[:, 2]] * (1 - fw[:, 1]) + bank.surge[fr[:, 3]] * fw[:, 1]
+        height[fading] = height[fading] * (1 - fw[:, 2]) + p_height * fw[:, 2]
+        surge[fading] = surge[fading] * (1 - fw[:, 2]) + p_surge * fw[:, 2]
+    # Warp onto the path.
+    h = p.scales[:, None]
+    forward = np.stack([np.sin(p.yaw), np.zeros_like(p.yaw), np.cos(p.yaw)], axis=-1)
+    root = p.path + forward * (surge * h)[..., None]
+    root[..., UP_AXIS] = p.path[..., UP_AXIS] + height * h
+    turn = quat.from_axis_angle(np.array([0.0, 1.0, 0.0]), p.yaw).astype(np.float32)
+    rotations[:, :, 0] = quat.mul(turn, rotations[:, :, 0])
+    if not foot_lock:
+        return root.astype(np.float32), rotations
+    return lock_feet(bank.skeleton, root, rotations, p.contacts, p.scales, ground=p.path[..., UP_AXIS],
+                     bends=bank.bends)
+
+
+def synthesize(bank: Bank, positions: ArrayLike, fps: float | None = None,
+               scales: ArrayLike | None = None, options: Options = Options(),
+               ids: list[str] | None = None) -> Result:
+    """Motion for every trajectory ``positions (C, F, 3)`` sampled at ``fps`` (default: the library's)."""
+    fps = bank.fps if fps is None else fps
+    rng = np.random.default_rng(options.seed)
+    n = np.shape(positions)[0] if np.ndim(positions) >= 1 else 0
+    h_min, h_max = options.scale_range
+    if not (0 < h_min <= h_max and np.isfinite(h_max)):
+        raise TrajectoryError(f"scale_range: need 0 < min <= max, got {options.scale_range}")
+    drawn = rng.uniform(h_min, h_max, n)
+    if scales is None:
+        all_scales = drawn
+    else:
+        given = np.asarray(scales, dtype=np.float64)
+        if given.shape != (n,):
+            raise TrajectoryError(f"scales: expected {n} values (one per character), got shape {given.shape}")
+        all_scales = np.where(np.isnan(given), drawn, given)  # NaN: "draw one for me"
+    if not (isinstance(options.margin, int) and 0 <= options.margin <= 60):
+        raise TrajectoryError(f"margin: must be an integer within [0, 60] frames, got {options.margin}")
+    if options.backend not in BACKENDS:
+        raise TrajectoryError(f"backend: must be one of {BACKENDS}, got {options.backend!r}")
+    prep: Prepared = prepare(positions, fps, bank.fps, bank.top_speed, bank.mean_cycle, all_scales,
+                             options.sigma, options.skip_invalid, ids)
+    h = all_scales[prep.kept]
+    p = plan(bank, prep, h, rng, options.margin)
+    if options.backend == "numpy" or (options.backend == "auto" and not kernels.AVAILABLE):
+        root, rotations = render(bank, p, options.foot_lock)
+    else:
+        root, rotations = kernels.render(bank, p, options.foot_lock)
+    return Result(root, rotations, p.gait, p.contacts, p.stitches, h, p.path,
                   prep.resample_rate, prep.kept, prep.rejected)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from synth_core import crowd
+from synth_core import crowd, kernels
 from synth_core import metrics as M
 from synth_core.bank import Bank, build_bank
 from synth_core.build import build_builtin
@@ -108,6 +108,30 @@ def test_foot_lock_pins_planted_feet(bank: Bank, herd: np.ndarray, result: Resul
     before = M.foot_skate(feet_of(bank, unlocked), unlocked.contacts)
     after = M.foot_skate(feet_of(bank, result), result.contacts)
     assert after.p95_mm < before.p95_mm / 2 and after.mean_mm < before.mean_mm / 2
+
+
+@pytest.mark.parametrize("foot_lock", [False, True])
+def test_numba_kernels_match_the_numpy_reference(bank: Bank, herd: np.ndarray, foot_lock: bool) -> None:
+    if not kernels.AVAILABLE:
+        pytest.skip("numba is not installed: only the numpy reference runs")
+    opts = dict(scale_range=(0.7, 1.3), seed=3, foot_lock=foot_lock)
+    ref = synthesize(bank, herd[:, :400], options=Options(backend="numpy", **opts))  # type: ignore[arg-type]
+    fast = synthesize(bank, herd[:, :400], options=Options(backend="numba", **opts))  # type: ignore[arg-type]
+    angle = 2 * np.degrees(np.arccos(np.clip(np.abs(np.sum(ref.rotations * fast.rotations, axis=-1)), 0, 1)))
+    assert angle.max() < 0.1  # degrees; float32 tables, float64 in the kernel
+    assert np.abs(ref.root_pos - fast.root_pos).max() < 1e-5  # metres
+    assert np.array_equal(ref.contacts, fast.contacts) and np.array_equal(ref.gait, fast.gait)
+    if foot_lock:  # the lock did something, and both did the same
+        free_opts = {**opts, "foot_lock": False}
+        free = synthesize(bank, herd[:, :400], options=Options(backend="numba", **free_opts))  # type: ignore[arg-type]
+        turn = np.abs(np.sum(free.rotations * fast.rotations, axis=-1))
+        moved = 2 * np.degrees(np.arccos(np.clip(turn, 0, 1)))
+        assert moved.max() > 1.0
+
+
+def test_unknown_backend_is_refused(bank: Bank, herd: np.ndarray) -> None:
+    with pytest.raises(TrajectoryError, match="backend"):
+        synthesize(bank, herd[:1, :50], options=Options(backend="gpu"))
 
 
 @pytest.mark.xfail(strict=True, reason="issue 5 figures not reached yet: skate mean ~1.0 mm / p95 ~6 mm "

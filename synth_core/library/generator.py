@@ -382,14 +382,22 @@ def cyclic_clip(skeleton: Skeleton, spec: GaitSpec) -> tuple[Motion, int]:
     return _at_origin(motion.slice(2 * N + start, 3 * N + start), spec.name, spec.name), start
 
 
+STILL_FRAMES = 12  # standing kept at either end of a start or stop, 0.2 s
+
+
 def transition_clip(skeleton: Skeleton, a: GaitSpec, b: GaitSpec, name: str,
                     strides: float = 2.0, start: int = 0, end: int = 0) -> Motion:
-    """One stride of ``a``, a blend over ``strides`` strides, then ``b`` up to a whole stride.
+    """A blend from ``a`` to ``b`` over ``strides`` strides, then ``b`` up to a whole stride.
 
-    The clip starts ``start`` frames into a stride of ``a`` and ends one frame before ``end``
-    frames into a stride of ``b``: pass the cyclic clips' loop starts, and the transition plays
-    seamlessly after ``a``'s loop and before ``b``'s (the footfalls carry straight on).
+    Short, as an animal changes gait within a stride or so, and as synthesis wants: a character
+    in a transition cannot follow its trajectory's speed until the transition ends. The clip
+    starts ``start`` frames into a stride of ``a`` and ends one frame before ``end`` frames into
+    a stride of ``b``: pass the cyclic clips' loop starts, and the transition plays seamlessly
+    after ``a``'s loop and before ``b``'s (the footfalls carry straight on). Starting or ending
+    to stand, it keeps ``STILL_FRAMES`` of standing, so it clearly begins or ends at rest.
     """
+    lead = STILL_FRAMES if a.name == "static" else 0  # standing has no phase to keep
+    settle = STILL_FRAMES if b.name == "static" else 0
     pad = a.frames * -(-2 * max(a.frames, b.frames) // a.frames) + start  # whole strides of a, then start
     ramp = int(round(strides * 0.5 * (a.frames + b.frames)))
     head = constant_track(a, pad + a.frames)
@@ -399,14 +407,14 @@ def transition_clip(skeleton: Skeleton, a: GaitSpec, b: GaitSpec, name: str,
     # End where b's stride clock reads end / b.frames; the nearest frame is off by part of a frame,
     # which a slightly faster or slower stride frequency over the ramp makes up exactly.
     clock = np.concatenate([[0.0], np.cumsum(track.frequency[1:]) / FPS])
-    nominal = pad + a.frames + ramp + b.frames
+    nominal = pad + a.frames + ramp + settle
     later = np.arange(nominal, nominal + b.frames)
     off = (clock[later] - end / b.frames + 0.5) % 1.0 - 0.5
     stop = int(later[np.abs(off).argmin()])
     ramp_frames = slice(pad + a.frames, pad + a.frames + ramp)
     track.frequency[ramp_frames] -= off[stop - nominal] * FPS / ramp
     motion = synthesize(skeleton, track, name, None)
-    return _at_origin(motion.slice(pad, stop), name, None)
+    return _at_origin(motion.slice(pad + a.frames - lead, stop), name, None)
 
 
 def idle_clip(skeleton: Skeleton, seconds: float = 10.0) -> Motion:

@@ -1,0 +1,455 @@
+"""Compiled (numba) kernels for the synthesis hot path: pose assembly, warp and foot lock.
+
+The numpy reference is :func:`synth_core.synthesis.render` with :func:`synth_core.footlock.lock_feet`;
+this module does the same work, character by character in parallel (``prange``), frame by frame
+in registers, so nothing the size of (characters, frames, joints) is made more than once (the
+output). Tests hold the two to the same result. Without numba installed, ``AVAILABLE`` is False
+and synthesis uses the reference.
+
+One character, in four passes over its frames:
+
+1. blend the plan's table rows (and the piece fading out), turn the root to the heading, put it
+   on the path; forward kinematics of the joints above the feet only, in the character's unit
+   (its world divided by its scale h: the library skeleton's geometry);
+2. plant targets per foot (:func:`synth_core.footlock.plant_targets`);
+3. the root's sink where a target needs a leg straighter than ``REACH`` (eased, bounded);
+4. limb IK (:func:`synth_core.ik.solve`, without the ground tipping) on the upper joint, hinge
+   and ankle of each leg.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any, TypeVar, cast
+
+import numpy as np
+from numpy.typing import NDArray
+
+from synth_core import UP_AXIS
+from synth_core.footlock import EASE_FRAMES, MAX_SINK, REACH
+from synth_core.ik import HINGE_AXIS_MIN_SIN, limb_rigs
+
+if TYPE_CHECKING:
+    from synth_core.bank import Bank
+    from synth_core.synthesis import Plan
+
+try:
+    import numba
+    AVAILABLE = True
+except ImportError:  # pragma: no cover - numba is a dependency; synth_core itself needs only numpy
+    AVAILABLE = False
+
+_EPS = 1e-9
+
+
+F = TypeVar("F", bound=Callable[..., Any])
+
+
+def _jit(parallel: bool = False) -> Callable[[F], F]:
+    def wrap(f: F) -> F:
+        if not AVAILABLE:
+            return f
+        return cast(F, numba.njit(cache=True, parallel=parallel, fastmath=True, error_model="numpy")(f))
+    return wrap
+
+
+_prange: Any = numba.prange if AVAILABLE else range
+
+
+# --- small vector and quaternion helpers (xyzw) on tuples of float64: no allocation per call --
+
+@_jit()
+def _qmul(a: Any, b: Any) -> Any:
+    ax, ay, az, aw = a
+    bx, by, bz, bw = b
+    return (aw * bx + ax * bw + ay * bz - az * by, aw * by - ax * bz + ay * bw + az * bx,
+            aw * bz + ax * by - ay * bx + az * bw, aw * bw - ax * bx - ay * by - az * bz)
+
+
+@_jit()
+def _conj(q: Any) -> Any:
+    return (-q[0], -q[1], -q[2], q[3])
+
+
+@_jit()
+def _qrot(q: Any, v: Any) -> Any:
+    """q v q*, as quat.rotate: v + w t + u x t with t = 2 u x v."""
+    ux, uy, uz, w = q
+    tx = 2.0 * (uy * v[2] - uz * v[1])
+    ty = 2.0 * (uz * v[0] - ux * v[2])
+    tz = 2.0 * (ux * v[1] - uy * v[0])
+    return (v[0] + w * tx + (uy * tz - uz * ty), v[1] + w * ty + (uz * tx - ux * tz),
+            v[2] + w * tz + (ux * ty - uy * tx))
+
+
+@_jit()
+def _add(a: Any, b: Any) -> Any:
+    return (a[0] + b[0], a[1] + b[1], a[2] + b[2])
+
+
+@_jit()
+def _sub(a: Any, b: Any) -> Any:
+    return (a[0] - b[0], a[1] - b[1], a[2] - b[2])
+
+
+@_jit()
+def _scale(a: Any, k: float) -> Any:
+    return (a[0] * k, a[1] * k, a[2] * k)
+
+
+@_jit()
+def _cross(a: Any, b: Any) -> Any:
+    return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
+
+
+@_jit()
+def _dot3(a: Any, b: Any) -> float:
+    return float(a[0] * b[0] + a[1] * b[1] + a[2] * b[2])
+
+
+@_jit()
+def _norm3(a: Any) -> float:
+    return math.sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2])
+
+
+@_jit()
+def _unit3(a: Any) -> Any:
+    return _scale(a, 1.0 / max(_norm3(a), _EPS))
+
+
+@_jit()
+def _normalize4(q: Any) -> Any:
+    n = math.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
+    if n > _EPS:
+        return (q[0] / n, q[1] / n, q[2] / n, q[3] / n)
+    return (0.0, 0.0, 0.0, 1.0)
+
+
+@_jit()
+def _axis_angle(axis: Any, angle: float) -> Any:
+    s = math.sin(0.5 * angle) / max(_norm3(axis), _EPS)
+    return (axis[0] * s, axis[1] * s, axis[2] * s, math.cos(0.5 * angle))
+
+
+@_jit()
+def _between(u: Any, v: Any) -> Any:
+    """Smallest rotation taking direction u onto v (quat.between)."""
+    lengths = math.sqrt(_dot3(u, u) * _dot3(v, v))
+    w = lengths + _dot3(u, v)  # |u||v| (1 + cos): the same quaternion, unnormalized
+    if w < 1e-9 * max(lengths, _EPS):  # opposite: a half turn about any axis perpendicular to u
+        o = _cross(u, (1.0, 0.0, 0.0) if abs(u[0]) < 0.9 * _norm3(u) else (0.0, 1.0, 0.0))
+        return _normalize4((o[0], o[1], o[2], 0.0))
+    c = _cross(u, v)
+    return _normalize4((c[0], c[1], c[2], w))
+
+
+@_jit()
+def _v3(a: Any) -> Any:
+    return (float(a[0]), float(a[1]), float(a[2]))
+
+
+@_jit()
+def _q4(a: Any) -> Any:
+    return (float(a[0]), float(a[1]), float(a[2]), float(a[3]))
+
+
+@_jit()
+def _put(out: Any, q: Any) -> None:
+    for k in range(len(q)):
+        out[k] = q[k]
+
+
+@_jit()
+def _nlerp_into(a: Any, b: Any, w: float, out: Any) -> None:
+    """out = normalize(a (1 - w) + b w sign), b turned to a's side; a, b float32 rows (J, 4)."""
+    for j in range(a.shape[0]):
+        d = a[j, 0] * b[j, 0] + a[j, 1] * b[j, 1] + a[j, 2] * b[j, 2] + a[j, 3] * b[j, 3]
+        s = -w if d < 0 else w
+        x = a[j, 0] * (1 - w) + b[j, 0] * s
+        y = a[j, 1] * (1 - w) + b[j, 1] * s
+        z = a[j, 2] * (1 - w) + b[j, 2] * s
+        q = a[j, 3] * (1 - w) + b[j, 3] * s
+        n = 1.0 / math.sqrt(x * x + y * y + z * z + q * q)
+        out[j, 0], out[j, 1], out[j, 2], out[j, 3] = x * n, y * n, z * n, q * n
+
+
+# --- the four passes ---------------------------------------------------------------------------
+
+@_jit()
+def _assemble(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, yaw: Any, path: Any,
+              h: float, out_rot: Any, out_root: Any) -> None:
+    """Pass 1 without FK: blended, turned, warped pose of each frame of one character."""
+    T, J = out_rot.shape[0], out_rot.shape[1]
+    before = np.empty((J, 4), np.float32)
+    now = np.empty((J, 4), np.float32)
+    for t in range(T):
+        r0, r1, p0, p1 = rows[t, 0], rows[t, 1], rows[t, 2], rows[t, 3]
+        w, pw, keep = weights[t, 0], weights[t, 1], weights[t, 2]
+        ht = height[r0] * (1 - w) + height[r1] * w
+        sg = surge[r0] * (1 - w) + surge[r1] * w
+        if keep > 0:
+            _nlerp_into(poses[r0], poses[r1], w, now)
+            _nlerp_into(poses[p0], poses[p1], pw, before)
+            _nlerp_into(now, before, keep, out_rot[t])
+            ht = ht * (1 - keep) + (height[p0] * (1 - pw) + height[p1] * pw) * keep
+            sg = sg * (1 - keep) + (surge[p0] * (1 - pw) + surge[p1] * pw) * keep
+        else:
+            _nlerp_into(poses[r0], poses[r1], w, out_rot[t])
+        a = yaw[t]
+        _put(out_rot[t, 0], _qmul((0.0, math.sin(0.5 * a), 0.0, math.cos(0.5 * a)), _q4(out_rot[t, 0])))
+        out_root[t, 0] = path[t, 0] + math.sin(a) * sg * h
+        out_root[t, 1] = path[t, 1] + ht * h
+        out_root[t, 2] = path[t, 2] + math.cos(a) * sg * h
+
+
+@_jit()
+def _fk(rot: Any, root: Any, h: float, parents: Any, offsets: Any, joints: Any, g_pos: Any,
+        g_rot: Any) -> None:
+    """World positions / rotations (unit space: root / h) of ``joints`` (parent order) per frame."""
+    for t in range(rot.shape[0]):
+        _put(g_rot[t, 0], _q4(rot[t, 0]))
+        _put(g_pos[t, 0], _scale(_v3(root[t]), 1.0 / h))
+        for i in range(1, len(joints)):
+            j = joints[i]
+            p = parents[j]
+            parent = _q4(g_rot[t, p])
+            _put(g_rot[t, j], _qmul(parent, _q4(rot[t, j])))
+            _put(g_pos[t, j], _add(_v3(g_pos[t, p]), _qrot(parent, _v3(offsets[j]))))
+
+
+@_jit()
+def _plant_targets(feet: Any, contacts: Any, out: Any) -> None:
+    """footlock.plant_targets for one character: feet (T, 4, 3), contacts (T, 4)."""
+    T = feet.shape[0]
+    avg = np.empty((T, 3))  # per plant, indexed by its first frame
+    for f in range(4):
+        out[:, f, :] = feet[:, f, :]
+        # Plants: average position.
+        t = 0
+        while t < T:
+            if not contacts[t, f]:
+                t += 1
+                continue
+            s = t
+            acc0 = acc1 = acc2 = 0.0
+            while t < T and contacts[t, f]:
+                acc0 += feet[t, f, 0]
+                acc1 += feet[t, f, 1]
+                acc2 += feet[t, f, 2]
+                t += 1
+            n = t - s
+            avg[s, 0], avg[s, 1], avg[s, 2] = acc0 / n, acc1 / n, acc2 / n
+            for u in range(s, t):
+                out[u, f, 0], out[u, f, 1], out[u, f, 2] = avg[s, 0], avg[s, 1], avg[s, 2]
+        # Swings: eased from the last plant's lift-off correction to the next one's touchdown one.
+        t = 0
+        last_start = -1
+        last_end = -1
+        while t < T:
+            if contacts[t, f]:
+                if t == 0 or not contacts[t - 1, f]:
+                    last_start = t
+                if t == T - 1 or not contacts[t + 1, f]:
+                    last_end = t
+                t += 1
+                continue
+            s = t
+            while t < T and not contacts[t, f]:
+                t += 1
+            has_before = last_start >= 0
+            has_after = t < T
+            if not (has_before or has_after):
+                continue
+            for u in range(s, t):
+                if has_before and has_after:
+                    span = max(t - last_end, 1)
+                    x = min(max((u - last_end) / span, 0.0), 1.0)
+                    x = x * x * (3 - 2 * x)
+                elif has_after:
+                    x = 1.0
+                else:
+                    x = 0.0
+                for k in range(3):
+                    if k == 1:
+                        continue
+                    lift = avg[last_start, k] - feet[last_end, f, k] if has_before else 0.0
+                    touch = avg[t, k] - feet[t, f, k] if has_after else 0.0
+                    out[u, f, k] = feet[u, f, k] + (1 - x) * lift + x * touch
+
+
+@_jit()
+def _ease_sink(sink: Any, limit: float, out: Any) -> None:
+    """footlock.ease_sink for one character: running max (EASE_FRAMES, nearest), Gaussian."""
+    T = sink.shape[0]
+    half = EASE_FRAMES // 2
+    spread = np.empty(T)
+    for t in range(T):
+        m = 0.0
+        for u in range(t - half, t - half + EASE_FRAMES):
+            m = max(m, min(sink[min(max(u, 0), T - 1)], limit))
+        spread[t] = m
+    sigma = EASE_FRAMES / 6
+    radius = int(4.0 * sigma + 0.5)
+    kernel = np.empty(2 * radius + 1)
+    total = 0.0
+    for i in range(-radius, radius + 1):
+        kernel[i + radius] = math.exp(-0.5 * i * i / (sigma * sigma))
+        total += kernel[i + radius]
+    for t in range(T):
+        acc = 0.0
+        for i in range(-radius, radius + 1):
+            acc += kernel[i + radius] * spread[min(max(t + i, 0), T - 1)]
+        out[t] = acc / total
+
+
+@_jit()
+def _bend(thigh: Any, shin: Any, axis: Any, distance: float) -> Any:
+    """The hinge's turn about unit ``axis`` (a quaternion) of ik._turn_to_distance, without its
+    trigonometry: both solutions' cosines and sines follow from a, b and want, and the smaller
+    turn is the one with the larger cosine."""
+    along = _dot3(axis, shin)
+    c = _dot3(thigh, axis) * along
+    a = _dot3(thigh, shin) - c
+    k = _cross(axis, shin)
+    b = _dot3(thigh, k)
+    want = 0.5 * (distance * distance - _dot3(thigh, thigh) - _dot3(shin, shin)) - c
+    amp = math.hypot(a, b)
+    cb, sb = (a / amp, b / amp) if amp > _EPS else (1.0, 0.0)  # cos, sin of the base angle
+    cs = min(max(want / max(amp, _EPS), -1.0), 1.0)  # cos, sin of the spread either side
+    ss = math.sqrt(max(1.0 - cs * cs, 0.0))
+    best_cos, best_sin, best_rank = 1.0, 0.0, -1e30
+    for sgn in (-1.0, 1.0):
+        cos_phi = cb * cs - sgn * sb * ss
+        sin_phi = sb * cs + sgn * cb * ss
+        turned = _add(_add(_scale(shin, cos_phi), _scale(k, sin_phi)), _scale(axis, along * (1.0 - cos_phi)))
+        # The side the axis says first (positive bend about it), then the smaller turn.
+        rank = cos_phi + (0.0 if _dot3(axis, _cross(thigh, turned)) > 0 else -10.0)
+        if rank > best_rank:
+            best_cos, best_sin, best_rank = cos_phi, sin_phi, rank
+    half_sin = math.copysign(math.sqrt(max(0.5 * (1.0 - best_cos), 0.0)), best_sin)
+    return (axis[0] * half_sin, axis[1] * half_sin, axis[2] * half_sin,
+            math.sqrt(max(0.5 * (1.0 + best_cos), 0.0)))
+
+
+@_jit()
+def _solve_leg(g_pos: Any, g_rot: Any, t: int, sink: float, target: Any, upper: int, hinge: int,
+               ankle: int, effector: int, parents: Any, offsets: Any, bend: Any, out_rot: Any) -> None:
+    """ik.solve (ground=None) for one leg at frame t, the root lowered by ``sink``."""
+    down = (0.0, sink, 0.0)
+    p_root = _sub(_v3(g_pos[t, upper]), down)
+    p_hinge = _sub(_v3(g_pos[t, hinge]), down)
+    p_ankle = _sub(_v3(g_pos[t, ankle]), down)
+    p_toe = _sub(_v3(g_pos[t, effector]), down)
+    ankle_rot = _q4(g_rot[t, ankle])
+    ankle_target = _sub(_v3(target), _qrot(ankle_rot, _v3(offsets[effector])))
+    thigh = _sub(p_hinge, p_root)
+    shin = _sub(p_ankle, p_hinge)
+    unit_thigh = _unit3(thigh)
+    primary = _cross(unit_thigh, _unit3(shin))
+    dominant = _qrot(_q4(g_rot[t, 0]), _v3(bend))
+    size = _norm3(primary)
+    if size >= HINGE_AXIS_MIN_SIN:
+        axis = _scale(primary, math.copysign(1.0 / size, _dot3(primary, dominant)))
+    else:
+        by_toe = _cross(unit_thigh, _unit3(_sub(p_toe, p_hinge)))
+        size = _norm3(by_toe)
+        if size >= HINGE_AXIS_MIN_SIN:
+            axis = _scale(by_toe, math.copysign(1.0 / size, _dot3(by_toe, dominant)))
+        else:
+            axis = _unit3(dominant)
+    to_target = _sub(ankle_target, p_root)
+    bend_q = _bend(thigh, shin, axis, _norm3(to_target))
+    swing = _between(_add(thigh, _qrot(bend_q, shin)), to_target)
+    upper_world = _qmul(swing, _q4(g_rot[t, upper]))
+    hinge_world = _qmul(swing, _qmul(bend_q, _q4(g_rot[t, hinge])))
+    ankle_parent = _qmul(swing, _qmul(bend_q, _q4(g_rot[t, parents[ankle]])))
+    _put(out_rot[t, upper], _normalize4(_qmul(_conj(_q4(g_rot[t, parents[upper]])), upper_world)))
+    _put(out_rot[t, hinge], _normalize4(_qmul(_conj(upper_world), hinge_world)))
+    _put(out_rot[t, ankle], _normalize4(_qmul(_conj(ankle_parent), ankle_rot)))
+
+
+@_jit()
+def _character(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, yaw: Any, path: Any,
+                    h: float, contacts: Any, parents: Any, offsets: Any, fk_joints: Any, rigs: Any,
+                    bends: Any, sink_limit: float, foot_lock: bool, out_rot: Any, out_root: Any,
+                    g_pos: Any, g_rot: Any, feet: Any, targets: Any, sink: Any, eased: Any) -> None:
+    """All four passes for one character (scratch arrays given)."""
+    T = out_rot.shape[0]
+    _assemble(poses, height, surge, rows, weights, yaw, path, h, out_rot, out_root)
+    if not foot_lock:
+        return
+    _fk(out_rot, out_root, h, parents, offsets, fk_joints, g_pos, g_rot)
+    for f in range(4):
+        feet[:, f, :] = g_pos[:, rigs[f, 3], :]
+    _plant_targets(feet, contacts, targets)
+    for t in range(T):
+        floor = path[t, 1] / h
+        worst = 0.0
+        for f in range(4):
+            if targets[t, f, 1] < floor:
+                targets[t, f, 1] = floor
+            up, hi, an, ef = rigs[f, 0], rigs[f, 1], rigs[f, 2], rigs[f, 3]
+            p_up, p_hi, p_an = _v3(g_pos[t, up]), _v3(g_pos[t, hi]), _v3(g_pos[t, an])
+            reach = _norm3(_sub(p_hi, p_up)) + _norm3(_sub(p_an, p_hi))
+            to_ankle = _sub(_sub(_v3(targets[t, f]), _sub(_v3(g_pos[t, ef]), p_an)), p_up)
+            allowed = REACH * reach
+            across2 = to_ankle[0] ** 2 + to_ankle[2] ** 2
+            s = -to_ankle[1] - math.sqrt(max(allowed * allowed - across2, 0.0))
+            worst = max(worst, s)
+        sink[t] = worst
+    _ease_sink(sink, sink_limit, eased)
+    for t in range(T):
+        out_root[t, 1] = (out_root[t, 1] / h - eased[t]) * h
+        for f in range(4):
+            _solve_leg(g_pos, g_rot, t, eased[t], targets[t, f], rigs[f, 0], rigs[f, 1], rigs[f, 2],
+                       rigs[f, 3], parents, offsets, bends[f], out_rot)
+
+
+@_jit(parallel=True)
+def _render_all(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, yaw: Any, path: Any,
+                scales: Any, contacts: Any, parents: Any, offsets: Any, fk_joints: Any, rigs: Any,
+                bends: Any, sink_limit: float, foot_lock: bool, workers: int, out_rot: Any,
+                out_root: Any) -> None:
+    C, T, J = out_rot.shape[0], out_rot.shape[1], out_rot.shape[2]
+    workers = min(C, workers)
+    # One scratch set per worker, reused for its characters: a fresh megabyte per character
+    # would cost more in page faults than the lock's arithmetic.
+    for worker in _prange(workers):
+        g_pos = np.empty((T, J, 3))
+        g_rot = np.empty((T, J, 4))
+        feet = np.empty((T, 4, 3))
+        targets = np.empty((T, 4, 3))
+        sink = np.empty(T)
+        eased = np.empty(T)
+        for c in range(worker, C, workers):
+            _character(poses, height, surge, rows[c], weights[c], yaw[c], path[c], scales[c],
+                            contacts[c], parents, offsets, fk_joints, rigs, bends, sink_limit, foot_lock,
+                            out_rot[c], out_root[c], g_pos, g_rot, feet, targets, sink, eased)
+
+
+def render(bank: Bank, plan: Plan, foot_lock: bool = True) -> tuple[NDArray[np.float32], NDArray[np.float32]]:
+    """Root ``(C, T, 3)`` and local rotations ``(C, T, J, 4)`` of a plan (see
+    :func:`synth_core.synthesis.render`, the reference)."""
+    if not AVAILABLE:
+        raise RuntimeError("synth_core.kernels needs numba; use the numpy backend")
+    sk = bank.skeleton
+    rigs = limb_rigs(sk)
+    C, T = plan.yaw.shape
+    J = sk.n_joints
+    rig_table = np.array([[r.upper, r.hinge, r.ankle, r.effector] for r in rigs], np.int64)
+    needed = np.zeros(J, bool)
+    for r in rigs:  # the joints above each foot, for FK
+        j = r.effector
+        while j >= 0:
+            needed[j] = True
+            j = int(sk.parents[j])
+    out_rot = np.empty((C, T, J, 4), np.float32)
+    out_root = np.empty((C, T, 3), np.float64)
+    _render_all(bank.poses, bank.height.astype(np.float64), bank.surge.astype(np.float64),
+                plan.rows, plan.weights, plan.yaw, plan.path, plan.scales.astype(np.float64),
+                plan.contacts, sk.parents.astype(np.int64), sk.offsets.astype(np.float64),
+                np.flatnonzero(needed).astype(np.int64), rig_table, np.asarray(bank.bends, np.float64),
+                MAX_SINK * sk.leg_length(), foot_lock, numba.get_num_threads(), out_rot, out_root)
+    assert UP_AXIS == 1  # the kernels index Y directly
+    return out_root.astype(np.float32), out_rot
