@@ -112,7 +112,7 @@ def _canonical(root_pos: NDArray[np.floating], rotations: NDArray[np.floating], 
     return rot, np.asarray(root_pos, np.float64)[:, UP_AXIS], surge
 
 
-def _match(poses: NDArray[np.floating], contacts: NDArray[np.bool_], pose: NDArray[np.floating],
+def nearest_pose(poses: NDArray[np.floating], contacts: NDArray[np.bool_], pose: NDArray[np.floating],
            contact: NDArray[np.bool_]) -> int:
     """The row of ``poses (F, J, 4)`` nearest ``pose (J, 4)``, feet agreeing first."""
     distance = (1.0 - np.abs(np.sum(poses[:, 1:] * pose[None, 1:], axis=-1))).sum(axis=-1)
@@ -163,10 +163,10 @@ def build_bank(library: Library) -> Bank:
         entry = exit_ = 0
         if source in middle:
             gait_rot, gait_contacts = rows[middle[source]][0], rows[middle[source]][3]
-            entry = _match(gait_rot, gait_contacts, rot[0], contacts[0])
+            entry = nearest_pose(gait_rot, gait_contacts, rot[0], contacts[0])
         if target in middle:
             gait_rot, gait_contacts = rows[middle[target]][0], rows[middle[target]][3]
-            exit_ = _match(gait_rot, gait_contacts, rot[-1], contacts[-1])
+            exit_ = nearest_pose(gait_rot, gait_contacts, rot[-1], contacts[-1])
         transitions[(source, target)] = Piece(piece.offset, piece.frames, 1, entry, exit_)
         distance[(source, target)] = progress[-1] + creep * np.arange(clip.n_frames)
     poses = quat.normalize(np.concatenate([r[0] for r in rows])).astype(np.float32)

@@ -40,6 +40,7 @@ MARGIN = 10  # frames over which a finished piece fades out where the next start
 BACKENDS = ("auto", "numba", "numpy")
 STAND_SHARE = 0.5  # below this share of the slowest clip's speed a character stands
 MIN_TURN_SPEED = 0.05  # m/s: slower than this the heading holds (a standing animal does not spin)
+LOOKAHEAD = 1  # segments: gaits are chosen on the speed this far ahead, as transitions take time
 MAX_RATE = 1.6  # a gait asked to go faster than its fastest clip plays its stride up to this fast
 
 
@@ -169,7 +170,7 @@ def schedule(bank: Bank, kinds: _Kinds, speed: Floats, m: int, travelled: Floats
     for k in range(K):
         a = k * step
         # Decided on the speed a segment ahead: transitions take time, so start them early.
-        nxt = _choose(bank, current, speed[:, min(a + m, T - 1)], rng)
+        nxt = _choose(bank, current, speed[:, min(a + LOOKAHEAD * m, T - 1)], rng)
         go = np.flatnonzero((busy <= a) & (nxt != current))
         if len(go) == 0:
             continue

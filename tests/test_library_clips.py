@@ -16,6 +16,7 @@ from quadsynth.cli import main
 from synth_core import FOOT_NAMES, bvh, quat
 from synth_core import contacts as C
 from synth_core import metrics as M
+from synth_core.bank import nearest_pose
 from synth_core.library.clips import CLIP_NAMES, GAITS, TRANSITIONS, build_clips
 from synth_core.library.gaits import FOOTFALL_TEMPLATES, GAIT_SPECS
 from synth_core.motion import Motion
@@ -175,7 +176,11 @@ def test_transitions_keep_the_footfall_sequence_continuous(clips: dict, animal: 
     source, target = clip.split("2")
     specs = GAIT_SPECS[animal]
     before = clips[animal][source].contacts if source in specs else np.ones((30, 4), bool)
-    after = clips[animal][target].contacts if target in specs else np.ones((30, 4), bool)
+    after = np.ones((30, 4), bool)
+    if target in specs:  # the target gait carries on from the frame the clip's end matches
+        cycle = clips[animal][target]
+        exit_ = nearest_pose(cycle.rotations, cycle.contacts, motion.rotations[-1], motion.contacts[-1])
+        after = np.roll(cycle.contacts, -(exit_ + 1), axis=0)
     played = np.concatenate([before, before, motion.contacts, after, after])
     frames = [specs[g].frames for g in (source, target) if g in specs]
     for k, foot in enumerate(FOOT_NAMES):

@@ -16,6 +16,10 @@ GAITS = ("walk", "trot", "canter", "gallop")
 TRANSITIONS = ("static2walk", "walk2static", "walk2trot", "trot2walk", "trot2canter", "canter2trot",
                "canter2gallop", "gallop2canter")
 CLIP_NAMES = ("idle", *GAITS, *TRANSITIONS)
+# Strides each transition's blend takes: short, as animals change gait within a stride or so,
+# but long enough for the generator to keep the feet planted and clear (tests/test_library_clips):
+# starting and stopping take longer, and a canter's lead is slow to unwind into a trot.
+TRANSITION_STRIDES = {"static2walk": 2.0, "walk2static": 2.0, "canter2trot": 1.5}
 
 
 def build_clips(animal: str) -> dict[str, Motion]:
@@ -30,7 +34,8 @@ def build_clips(animal: str) -> dict[str, Motion]:
     for name in TRANSITIONS:
         source, target = name.split("2")
         clips[name] = transition_clip(skeleton, specs[source], specs[target], name,
-                                      start=starts.get(source, 0), end=starts.get(target, 0))
+                                      strides=TRANSITION_STRIDES.get(name, 1.25),
+                                      start=starts.get(source, 0))
     return clips
 
 

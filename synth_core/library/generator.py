@@ -386,15 +386,17 @@ STILL_FRAMES = 12  # standing kept at either end of a start or stop, 0.2 s
 
 
 def transition_clip(skeleton: Skeleton, a: GaitSpec, b: GaitSpec, name: str,
-                    strides: float = 2.0, start: int = 0, end: int = 0) -> Motion:
-    """A blend from ``a`` to ``b`` over ``strides`` strides, then ``b`` up to a whole stride.
+                    strides: float = 2.0, start: int = 0, end: int | None = None) -> Motion:
+    """A blend from ``a`` to ``b`` over ``strides`` strides.
 
     Short, as an animal changes gait within a stride or so, and as synthesis wants: a character
     in a transition cannot follow its trajectory's speed until the transition ends. The clip
-    starts ``start`` frames into a stride of ``a`` and ends one frame before ``end`` frames into
-    a stride of ``b``: pass the cyclic clips' loop starts, and the transition plays seamlessly
-    after ``a``'s loop and before ``b``'s (the footfalls carry straight on). Starting or ending
-    to stand, it keeps ``STILL_FRAMES`` of standing, so it clearly begins or ends at rest.
+    starts ``start`` frames into a stride of ``a`` (pass ``a``'s cyclic clip's loop start, and it
+    plays seamlessly after that loop). It ends where the blend does, at whatever phase of ``b``
+    that is (the motion graph carries on from the matching frame of ``b``'s cycle); or, given
+    ``end``, up to a stride later, one frame before ``end`` frames into a stride of ``b``.
+    Starting or ending to stand, it keeps ``STILL_FRAMES`` of standing, so it clearly begins or
+    ends at rest.
     """
     lead = STILL_FRAMES if a.name == "static" else 0  # standing has no phase to keep
     settle = STILL_FRAMES if b.name == "static" else 0
@@ -408,11 +410,13 @@ def transition_clip(skeleton: Skeleton, a: GaitSpec, b: GaitSpec, name: str,
     # which a slightly faster or slower stride frequency over the ramp makes up exactly.
     clock = np.concatenate([[0.0], np.cumsum(track.frequency[1:]) / FPS])
     nominal = pad + a.frames + ramp + settle
-    later = np.arange(nominal, nominal + b.frames)
-    off = (clock[later] - end / b.frames + 0.5) % 1.0 - 0.5
-    stop = int(later[np.abs(off).argmin()])
-    ramp_frames = slice(pad + a.frames, pad + a.frames + ramp)
-    track.frequency[ramp_frames] -= off[stop - nominal] * FPS / ramp
+    stop = nominal
+    if end is not None:
+        later = np.arange(nominal, nominal + b.frames)
+        off = (clock[later] - end / b.frames + 0.5) % 1.0 - 0.5
+        stop = int(later[np.abs(off).argmin()])
+        ramp_frames = slice(pad + a.frames, pad + a.frames + ramp)
+        track.frequency[ramp_frames] -= off[stop - nominal] * FPS / ramp
     motion = synthesize(skeleton, track, name, None)
     return _at_origin(motion.slice(pad + a.frames - lead, stop), name, None)
 

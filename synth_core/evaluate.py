@@ -1,0 +1,107 @@
+"""Quality figures of a synthesized crowd, all from :mod:`synth_core.metrics` (``quadsynth eval``).
+
+The standard scenario: ``crowd.simulate(500, 500, seed=0)`` trajectories (its top speed scaled
+to the library's gaits, so every gait is asked for), scales random in [0.8, 1.2], seed 0.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from synth_core import UP_AXIS, crowd
+from synth_core import metrics as M
+from synth_core.bank import Bank
+from synth_core.build import sync_frames
+from synth_core.skeleton import forward_kinematics
+from synth_core.synthesis import Options, Result, headings, synthesize
+
+STANDARD = {"characters": 500, "frames": 500, "seed": 0, "scale_range": (0.8, 1.2)}
+STITCH_WINDOW = 2  # frames either side of a stitch where pops are looked for
+
+
+def crowd_top_speed(bank: Bank) -> float:
+    """A crowd-sim top speed that asks the library for its gallop at every scale in [0.8, 1.2]:
+    1.25 x the slowest gallop clip (with the built-in horse, 5.9 m/s; crowd-sim's default is 7)."""
+    return float(min(7.0, 1.25 * 1.2 * bank.speeds[max(bank.speeds)][0]))
+
+
+def world_positions(bank: Bank, result: Result) -> NDArray[np.float32]:
+    """FK of every joint, ``(C, T, J, 3)`` metres, each character at its scale."""
+    offsets = bank.skeleton.offsets[None, None] * result.scales[:, None, None, None].astype(np.float32)
+    pos, _ = forward_kinematics(bank.skeleton, result.root_pos, result.rotations, offsets)
+    return np.asarray(pos, np.float32)
+
+
+def footfall_preserved(bank: Bank, result: Result) -> float:
+    """Share of strides (LH touchdown to LH touchdown) played wholly in one gait whose touchdown
+    order is that gait's, taken from the library's own clips."""
+    matched = total = 0
+    for hub, piece in bank.gaits.items():
+        rows = slice(piece.offset, piece.offset + piece.frames)
+        sync = sync_frames(piece.frames)
+        template = [frozenset(g) for g in M.footfall_template(bank.contacts[rows], sync)]
+        for c in range(len(result.gait)):  # per character: strides are ragged; not a hot path
+            groups = M.touchdown_groups(result.contacts[c], sync)
+            starts = [i for i, (_, g) in enumerate(groups) if "LH" in g]
+            for a, b in zip(starts[:-1], starts[1:], strict=False):
+                t0, t1 = groups[a][0], groups[b][0]
+                if not np.all(result.gait[c, t0:t1 + 1] == hub):
+                    continue
+                total += 1
+                matched += [g for _, g in groups[a:b]] == template
+    return matched / total if total else float("nan")
+
+
+def pop_ratio(bank: Bank, result: Result) -> float:
+    """Largest joint angular acceleration near stitches over the largest within the library's clips."""
+    if not result.stitches.any():
+        return 0.0
+    acc = M.angular_acceleration(result.rotations[:, :, 1:], bank.fps)  # the root turns with the path
+    near = np.zeros_like(result.stitches)
+    for d in range(-STITCH_WINDOW, STITCH_WINDOW + 1):
+        near |= np.roll(result.stitches, d, axis=1)
+    near = near[:, 1:-1]  # acc frame f is centred on frame f + 1
+    clips = [bank.poses[p.offset + i * p.frames:p.offset + (i + 1) * p.frames, 1:]
+             for p in bank.gaits.values() for i in range(p.clips)]
+    reference = max(float(M.angular_acceleration(np.concatenate([c, c[:2]]), bank.fps).max())
+                    for c in clips)
+    return float(acc[near].max()) / max(reference, 1e-9)
+
+
+def figures(bank: Bank, result: Result) -> dict[str, Any]:
+    pos = world_positions(bank, result)
+    feet = pos[..., bank.skeleton.foot_joints, :]
+    ground = result.path[..., UP_AXIS]
+    offset = (result.root_pos - result.path)[..., [0, 2]]
+    yaw = headings(result.path, bank.fps)
+    left = np.stack([np.cos(yaw), -np.sin(yaw)], axis=-1)  # the path's sideways direction
+    sideways = np.abs(np.sum(offset * left, axis=-1)) * 100
+    skate = M.foot_skate(feet, result.contacts)
+    lowest = float((feet[..., UP_AXIS] - ground[..., None]).min())
+    gait = np.bincount(result.gait.ravel(), minlength=len(bank.hubs))
+    return {
+        "path_error_cm_max": round(float(sideways.max()), 4),
+        "path_error_cm_mean": round(float(sideways.mean()), 4),
+        "timing_error_cm_max": round(float(np.linalg.norm(offset, axis=-1).max() * 100), 3),
+        "skate_mm_mean": round(skate.mean_mm, 4),
+        "skate_mm_p95": round(skate.p95_mm, 4),
+        "skating_ratio": round(skate.ratio, 5),
+        "footfall_preserved": round(footfall_preserved(bank, result), 4),
+        "pop_ratio": round(pop_ratio(bank, result), 3),
+        "penetration_mm": round(max(0.0, -lowest * 1000), 3),
+        "gait_frames": {name: int(n) for name, n in zip(bank.hubs, gait, strict=False)},
+        "nan_count": int(np.isnan(result.rotations).sum() + np.isnan(result.root_pos).sum()),
+        "resample_rate": round(result.resample_rate, 4),
+    }
+
+
+def standard(bank: Bank, characters: int = 500, frames: int = 500, seed: int = 0,
+             backend: str = "auto") -> dict[str, Any]:
+    """The standard scenario's figures (see the module doc)."""
+    paths = crowd.simulate(characters, frames, seed=seed, top=crowd_top_speed(bank))
+    result = synthesize(bank, paths, options=Options(scale_range=STANDARD["scale_range"],  # type: ignore[arg-type]
+                                                     seed=seed, backend=backend))
+    return {"characters": characters, "frames": frames, "seed": seed, **figures(bank, result)}
