@@ -3,9 +3,14 @@
 from __future__ import annotations
 
 import argparse
+import json
 import sys
-from collections.abc import Sequence
+import time
+from collections.abc import Callable, Sequence
 from pathlib import Path
+from typing import Any
+
+import numpy as np
 
 
 def _serve(args: argparse.Namespace, extra: list[str]) -> int:
@@ -57,8 +62,6 @@ def _build(args: argparse.Namespace, extra: list[str]) -> int:
 
 
 def _report(args: argparse.Namespace, extra: list[str]) -> int:
-    import json
-
     from synth_core.artifact import load_library
     from synth_core.build import report
 
@@ -79,6 +82,108 @@ def _export_speedmap(args: argparse.Namespace, extra: list[str]) -> int:
             path = out / f"{gait}_{speed_map.speeds[i]:.2f}.bvh"
             bvh.write(speed_map.clip(i), path)
             print(path)
+    return 0
+
+
+def _progress(label: str) -> Callable[[int, int], None]:
+    """A one-line progress bar on stderr (only when it is a terminal, or for long runs)."""
+    start = time.perf_counter()
+
+    def show(done: int, total: int) -> None:
+        if not sys.stderr.isatty() and time.perf_counter() - start < 2.0 and done < total:
+            return
+        width = 30
+        filled = int(width * done / max(total, 1))
+        print(f"\r{label} [{'#' * filled}{'.' * (width - filled)}] {done}/{total}", end="",
+              file=sys.stderr, flush=True)
+        if done >= total:
+            print(file=sys.stderr)
+    return show
+
+
+def _load_library(animal: str, library: str | None) -> Any:
+    from synth_core.artifact import load_library
+    from synth_core.build import build_builtin
+
+    if library:
+        return load_library(library)
+    if animal not in ("horse", "dog"):
+        raise ValueError(f"animal: unknown animal {animal!r} (built-in: horse, dog; or --library FILE)")
+    from service.libraries import library_dir
+
+    path = library_dir() / f"{animal}.qslib.npz"
+    return load_library(path) if path.exists() else build_builtin(animal)
+
+
+def _crowd_sim(args: argparse.Namespace, extra: list[str]) -> int:
+    from synth_core import crowd, crowd_io
+
+    positions = crowd.simulate(args.characters, args.frames, seed=args.seed, fps=args.fps,
+                               top=args.top_speed, spacing=args.spacing)
+    print(crowd_io.write_npz(args.out, positions, args.fps))
+    return 0
+
+
+def _synth(args: argparse.Namespace, extra: list[str]) -> int:
+    from synth_core import crowd_io
+    from synth_core.bank import build_bank
+    from synth_core.export import write_bvh_files, write_glb
+    from synth_core.synthesis import Options, synthesize
+
+    traj = crowd_io.read(args.trajectories, args.fps)
+    library = _load_library(args.animal, args.library)
+    bank = build_bank(library)
+    options = Options(sigma=args.sigma, seed=args.seed, scale_range=(args.scale_min, args.scale_max),
+                      skip_invalid=args.skip_invalid)
+    result = synthesize(bank, traj.positions, traj.fps, options=options, ids=traj.ids,
+                        progress=_progress("synthesizing"))
+    ids = [traj.ids[c] for c in result.kept]
+    for c, why in sorted(result.rejected.items()):
+        print(f"skipped character {traj.ids[c]}: {why}", file=sys.stderr)
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    summary = {"characters": len(ids), "frames": int(result.root_pos.shape[1]), "fps": bank.fps,
+               "resample_rate": result.resample_rate, "animal": library.animal,
+               "skipped": {traj.ids[c]: why for c, why in result.rejected.items()}}
+    np.savez_compressed(out / "motion.npz", root_pos=result.root_pos, rotations=result.rotations,
+                        gait=result.gait, contacts=result.contacts, scales=result.scales, ids=np.array(ids))
+    if args.bvh:
+        write_bvh_files(bank.skeleton, result, ids, out, bank.fps, _progress("writing BVH"))
+    if args.glb:
+        print(write_glb(bank.skeleton, result, ids, args.glb, bank.fps))
+    if args.preview:
+        from quadsynth.herd_preview import render_herd
+
+        print(render_herd(bank.skeleton, result, args.preview, bank.fps, bank.hubs))
+    (out / "summary.json").write_text(json.dumps(summary, indent=2))
+    print(json.dumps(summary))
+    return 0
+
+
+def _eval(args: argparse.Namespace, extra: list[str]) -> int:
+    from synth_core import evaluate
+    from synth_core.bank import build_bank
+
+    libraries: dict[str, Any] = {}
+    for name in args.animal:
+        if name == "mann_dog":
+            from synth_core.manifest import build_from_manifest
+
+            libraries[name] = build_from_manifest(Path(args.manifest))
+        else:
+            libraries[name] = _load_library(name, None)
+    figures = {name: evaluate.standard(build_bank(lib), args.characters, args.frames, args.seed)
+               for name, lib in libraries.items()}
+    result = figures[args.animal[0]] if len(figures) == 1 else figures
+    print(json.dumps(result) if args.json else json.dumps(result, indent=2))
+    return 0
+
+
+def _bench(args: argparse.Namespace, extra: list[str]) -> int:
+    from quadsynth.bench import run
+
+    figures = run(args.quick)
+    print(json.dumps(figures) if args.json else json.dumps(figures, indent=2))
     return 0
 
 
@@ -124,12 +229,57 @@ def build_parser() -> argparse.ArgumentParser:
     exp.add_argument("file")
     exp.add_argument("--out", required=True, help="output directory (created if missing)")
     exp.set_defaults(func=_export_speedmap, passthrough=False)
+
+    sim = sub.add_parser("crowd-sim", help="herd trajectories on a looped path (positions (C, F, 3) .npz)")
+    sim.add_argument("--characters", type=int, required=True)
+    sim.add_argument("--frames", type=int, required=True)
+    sim.add_argument("--seed", type=int, default=0)
+    sim.add_argument("--fps", type=float, default=60.0)
+    sim.add_argument("--top-speed", type=float, default=7.0, help="m/s the herd reaches (default 7)")
+    sim.add_argument("--spacing", type=float, default=3.0, help="metres between neighbours (default 3)")
+    sim.add_argument("--out", required=True, help="FILE.npz")
+    sim.set_defaults(func=_crowd_sim, passthrough=False)
+
+    syn = sub.add_parser("synth", help="synthesize a herd's motion from trajectories (.npz or .csv)")
+    syn.add_argument("--trajectories", required=True, help="traj.npz (positions (C, F, 3)) or traj.csv "
+                     "(header id,frame,x,y,z in any order)")
+    syn.add_argument("--animal", default="horse", help="built-in animal: horse or dog (default horse)")
+    syn.add_argument("--library", help="a library file (.qslib.npz) instead of a built-in animal")
+    syn.add_argument("--seed", type=int, default=0)
+    syn.add_argument("--fps", type=float, default=None, help="trajectory frame rate (default: the file's, "
+                     "CSV 60)")
+    syn.add_argument("--sigma", type=float, default=4.0, help="trajectory smoothing, frames (default 4)")
+    syn.add_argument("--scale-min", type=float, default=0.8)
+    syn.add_argument("--scale-max", type=float, default=1.2)
+    syn.add_argument("--skip-invalid", action="store_true", help="skip bad characters instead of failing")
+    syn.add_argument("--out", required=True, help="output directory: motion.npz, summary.json, BVH files")
+    syn.add_argument("--bvh", action="store_true", help="write DIR/<id>.bvh per character (centimetres)")
+    syn.add_argument("--glb", help="write the herd as one glTF 2.0 binary FILE.glb")
+    syn.add_argument("--preview", help="write a herd preview FILE.gif")
+    syn.set_defaults(func=_synth, passthrough=False)
+
+    ev = sub.add_parser("eval", help="quality figures of the standard scenario (JSON)")
+    ev.add_argument("--animal", action="append", choices=["horse", "dog", "mann_dog"],
+                    help="repeatable (default: horse)")
+    ev.add_argument("--manifest", default="tests/fixtures/mann_dog.toml", help="for mann_dog")
+    ev.add_argument("--characters", type=int, default=500)
+    ev.add_argument("--frames", type=int, default=500)
+    ev.add_argument("--seed", type=int, default=0)
+    ev.add_argument("--json", action="store_true", help="one JSON object on one line")
+    ev.set_defaults(func=_eval, passthrough=False)
+
+    be = sub.add_parser("bench", help="synthesis speed on the built-in horse (JSON)")
+    be.add_argument("--quick", action="store_true", help="stop at 1,000 characters / 1,000 frames")
+    be.add_argument("--json", action="store_true", help="one JSON object on one line")
+    be.set_defaults(func=_bench, passthrough=False)
     return parser
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     args, extra = parser.parse_known_args(argv)
+    if getattr(args, "command", None) == "eval" and not args.animal:
+        args.animal = ["horse"]
     if extra and not args.passthrough:
         parser.error(f"unrecognized arguments: {' '.join(extra)}")
     try:

@@ -45,7 +45,7 @@ def load_for_preview(source: str | Path, unit: str = "cm") -> Motion:
     return motion
 
 
-def _bone_colors(motion: Motion) -> list[str]:
+def bone_colors(motion: Motion) -> list[str]:
     colors = [BODY] * motion.skeleton.n_joints
     for foot in motion.skeleton.feet:
         for j in foot.chain:
@@ -70,7 +70,7 @@ def _travel_axes(pos: NDArray[np.floating], feet: NDArray[np.int64]) -> tuple[ND
     return along, across
 
 
-def _draw_pose(ax: Axes, xy: NDArray[np.floating], parents: NDArray[np.int32],
+def draw_pose(ax: Axes, xy: NDArray[np.floating], parents: NDArray[np.int32],
                colors: list[str], alpha: float = 1.0, lw: float = 2.0) -> None:
     for j in range(1, len(parents)):
         p = parents[j]
@@ -90,7 +90,7 @@ class _Scene:
         along, across = _travel_axes(self.pos, self.feet)
         self.side = np.stack([self.pos @ along, self.pos[..., 1]], axis=-1)
         self.top = np.stack([self.pos @ along, self.pos @ across], axis=-1)
-        self.colors = _bone_colors(motion)
+        self.colors = bone_colors(motion)
         self.parents = motion.skeleton.parents
         self.height = float(np.ptp(self.pos[..., 1])) or 1.0
         # Half-width of a side panel: the farthest any joint gets from the root along travel.
@@ -99,7 +99,7 @@ class _Scene:
     def side_view(self, ax: Axes, f: int, follow: bool = True) -> None:
         half = self.reach
         cx = self.side[f, 0, 0]
-        _draw_pose(ax, self.side[f], self.parents, self.colors)
+        draw_pose(ax, self.side[f], self.parents, self.colors)
         for k, j in enumerate(self.feet):
             if self.contacts[f, k]:
                 ax.plot(*self.side[f, j], "o", color=PLANT, ms=6, zorder=5)
@@ -123,7 +123,7 @@ class _Scene:
         # Body only (legs fold onto themselves from above and hide the path).
         body = [c if c == BODY else "none" for c in self.colors]
         for f in frames:
-            _draw_pose(ax, self.top[f], self.parents, body, alpha=0.6, lw=1.5)
+            draw_pose(ax, self.top[f], self.parents, body, alpha=0.6, lw=1.5)
         ax.set_aspect("equal")
         ax.grid(True, color="#eee")
         if follow:

@@ -63,6 +63,7 @@ class Bank:
     progress: dict[tuple[int, int], Floats]  # transition -> its frames' "distance" (see creep)
     creep: float  # m/frame added to distance on both sides so standing clip frames still play
     bends: Floats  # (4, 3) each leg's dominant bend axis in the root's frame (foot lock's IK)
+    ground: float = 0.0  # the library clips' ground height (heights above are ``height``)
 
     @property
     def top_speed(self) -> float:
@@ -112,6 +113,18 @@ def _canonical(root_pos: NDArray[np.floating], rotations: NDArray[np.floating], 
     return rot, np.asarray(root_pos, np.float64)[:, UP_AXIS], surge
 
 
+def canonical_cycle(root_pos: NDArray[np.floating],
+                    rotations: NDArray[np.floating]) -> tuple[Floats, Floats, Floats]:
+    """A cyclic clip's table rows: rotations facing +Z, root height, surge (see :func:`_canonical`)."""
+    yaw = float(np.arctan2(*cycle_displacement(root_pos)[[0, 2]]))
+    return _canonical(root_pos, rotations, yaw, cyclic=True)
+
+
+def library_ground(library: Library) -> float:
+    """The height the library's gait clips plant their feet at."""
+    return min(float(m.clip(0).foot_positions()[..., UP_AXIS].min()) for m in library.maps.values())
+
+
 def nearest_pose(poses: NDArray[np.floating], contacts: NDArray[np.bool_], pose: NDArray[np.floating],
            contact: NDArray[np.bool_]) -> int:
     """The row of ``poses (F, J, 4)`` nearest ``pose (J, 4)``, feet agreeing first."""
@@ -131,8 +144,7 @@ def build_bank(library: Library) -> Bank:
         hub = HUBS.index(gait)
         middle[hub] = len(rows) + m.n_clips // 2
         for i in range(m.n_clips):
-            yaw = float(np.arctan2(*cycle_displacement(m.root_pos[i])[[0, 2]]))
-            rows.append((*_canonical(m.root_pos[i], m.rotations[i], yaw, cyclic=True), m.contacts))
+            rows.append((*canonical_cycle(m.root_pos[i], m.rotations[i]), m.contacts))
         gaits[hub] = Piece(offset, m.n_frames, m.n_clips)
         speeds[hub] = np.asarray(m.speeds, np.float64)
         offset += m.n_clips * m.n_frames
@@ -171,11 +183,11 @@ def build_bank(library: Library) -> Bank:
         distance[(source, target)] = progress[-1] + creep * np.arange(clip.n_frames)
     poses = quat.normalize(np.concatenate([r[0] for r in rows])).astype(np.float32)
     gait_rows = sum(p.clips * p.frames for p in gaits.values())
-    ground = min(float(m.clip(0).foot_positions()[..., UP_AXIS].min()) for m in library.maps.values())
+    ground = library_ground(library)
     return Bank(library.skeleton, library.fps, poses,
                 (np.concatenate([r[1] for r in rows]) - ground).astype(np.float32),
                 np.concatenate([r[2] for r in rows]).astype(np.float32),
                 np.concatenate([r[3] for r in rows]).astype(bool),
                 tuple(h for h in HUBS if h == "static" or h in library.maps),
                 gaits, speeds, idle, transitions, distance, creep,
-                np.asarray(ik.bend_axes(library.skeleton, poses[:gait_rows]), np.float64))
+                np.asarray(ik.bend_axes(library.skeleton, poses[:gait_rows]), np.float64), ground)

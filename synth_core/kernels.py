@@ -428,9 +428,11 @@ def _render_all(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, ya
                             out_rot[c], out_root[c], g_pos, g_rot, feet, targets, sink, eased)
 
 
-def render(bank: Bank, plan: Plan, foot_lock: bool = True) -> tuple[NDArray[np.float32], NDArray[np.float32]]:
+def render(bank: Bank, plan: Plan, foot_lock: bool = True,
+           out: tuple[NDArray[np.float32], NDArray[np.float32]] | None = None
+           ) -> tuple[NDArray[np.float32], NDArray[np.float32]]:
     """Root ``(C, T, 3)`` and local rotations ``(C, T, J, 4)`` of a plan (see
-    :func:`synth_core.synthesis.render`, the reference)."""
+    :func:`synth_core.synthesis.render`, the reference); into ``out`` (root, rotations) if given."""
     if not AVAILABLE:
         raise RuntimeError("synth_core.kernels needs numba; use the numpy backend")
     sk = bank.skeleton
@@ -444,12 +446,15 @@ def render(bank: Bank, plan: Plan, foot_lock: bool = True) -> tuple[NDArray[np.f
         while j >= 0:
             needed[j] = True
             j = int(sk.parents[j])
-    out_rot = np.empty((C, T, J, 4), np.float32)
     out_root = np.empty((C, T, 3), np.float64)
+    out_rot = np.empty((C, T, J, 4), np.float32) if out is None else out[1]
     _render_all(bank.poses, bank.height.astype(np.float64), bank.surge.astype(np.float64),
                 plan.rows, plan.weights, plan.yaw, plan.path, plan.scales.astype(np.float64),
                 plan.contacts, sk.parents.astype(np.int64), sk.offsets.astype(np.float64),
                 np.flatnonzero(needed).astype(np.int64), rig_table, np.asarray(bank.bends, np.float64),
                 MAX_SINK * sk.leg_length(), foot_lock, numba.get_num_threads(), out_rot, out_root)
     assert UP_AXIS == 1  # the kernels index Y directly
-    return out_root.astype(np.float32), out_rot
+    if out is None:
+        return out_root.astype(np.float32), out_rot
+    out[0][...] = out_root
+    return out

@@ -25,6 +25,7 @@ the only Python loops run over segments (a dozen) and gaits (four):
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -37,6 +38,7 @@ from synth_core.trajectory import DEFAULT_SIGMA, Prepared, TrajectoryError, prep
 
 Floats = NDArray[np.float64]
 MARGIN = 10  # frames over which a finished piece fades out where the next starts
+CHUNK = 1024  # characters rendered at a time (bounds the kernels' scratch; progress steps)
 BACKENDS = ("auto", "numba", "numpy")
 STAND_SHARE = 0.5  # below this share of the slowest clip's speed a character stands
 MIN_TURN_SPEED = 0.05  # m/s: slower than this the heading holds (a standing animal does not spin)
@@ -378,10 +380,9 @@ def render(bank: Bank, p: Plan, foot_lock: bool = True) -> tuple[NDArray[np.floa
                      bends=bank.bends)
 
 
-def synthesize(bank: Bank, positions: ArrayLike, fps: float | None = None,
-               scales: ArrayLike | None = None, options: Options = Options(),
-               ids: list[str] | None = None) -> Result:
-    """Motion for every trajectory ``positions (C, F, 3)`` sampled at ``fps`` (default: the library's)."""
+def prepare_batch(bank: Bank, positions: ArrayLike, fps: float | None, scales: ArrayLike | None,
+                  options: Options, ids: list[str] | None) -> tuple[Prepared, Floats, np.random.Generator]:
+    """Checked options, every character's scale (given, or drawn), prepared trajectories."""
     fps = bank.fps if fps is None else fps
     rng = np.random.default_rng(options.seed)
     n = np.shape(positions)[0] if np.ndim(positions) >= 1 else 0
@@ -400,13 +401,37 @@ def synthesize(bank: Bank, positions: ArrayLike, fps: float | None = None,
         raise TrajectoryError(f"margin: must be an integer within [0, 60] frames, got {options.margin}")
     if options.backend not in BACKENDS:
         raise TrajectoryError(f"backend: must be one of {BACKENDS}, got {options.backend!r}")
-    prep: Prepared = prepare(positions, fps, bank.fps, bank.top_speed, bank.mean_cycle, all_scales,
-                             options.sigma, options.skip_invalid, ids)
-    h = all_scales[prep.kept]
+    prep = prepare(positions, fps, bank.fps, bank.top_speed, bank.mean_cycle, all_scales,
+                   options.sigma, options.skip_invalid, ids)
+    return prep, all_scales[prep.kept], rng
+
+
+def _chunk(p: Plan, sl: slice) -> Plan:
+    return Plan(p.rows[sl], p.weights[sl], p.yaw[sl], p.path[sl], p.scales[sl], p.contacts[sl],
+                p.stitches[sl], p.gait[sl])
+
+
+def synthesize(bank: Bank, positions: ArrayLike, fps: float | None = None,
+               scales: ArrayLike | None = None, options: Options = Options(),
+               ids: list[str] | None = None,
+               progress: Callable[[int, int], None] | None = None) -> Result:
+    """Motion for every trajectory ``positions (C, F, 3)`` sampled at ``fps`` (default: the library's).
+
+    ``progress(done, total)`` is called as characters are finished (they are rendered in chunks
+    of ``CHUNK``; the result does not depend on it)."""
+    prep, h, rng = prepare_batch(bank, positions, fps, scales, options, ids)
     p = plan(bank, prep, h, rng, options.margin)
-    if options.backend == "numpy" or (options.backend == "auto" and not kernels.AVAILABLE):
-        root, rotations = render(bank, p, options.foot_lock)
-    else:
-        root, rotations = kernels.render(bank, p, options.foot_lock)
+    C, T = p.yaw.shape
+    compiled = options.backend == "numba" or (options.backend == "auto" and kernels.AVAILABLE)
+    root = np.empty((C, T, 3), np.float32)
+    rotations = np.empty((C, T, bank.skeleton.n_joints, 4), np.float32)
+    for a in range(0, C, CHUNK):
+        sl = slice(a, min(a + CHUNK, C))
+        if compiled:
+            kernels.render(bank, _chunk(p, sl), options.foot_lock, out=(root[sl], rotations[sl]))
+        else:
+            root[sl], rotations[sl] = render(bank, _chunk(p, sl), options.foot_lock)
+        if progress:
+            progress(sl.stop, C)
     return Result(root, rotations, p.gait, p.contacts, p.stitches, h, p.path,
                   prep.resample_rate, prep.kept, prep.rejected)

@@ -1,0 +1,43 @@
+"""One synthesized character as a :class:`Motion` of its own (scaled) skeleton; BVH per character."""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Callable
+from dataclasses import replace
+from pathlib import Path
+
+from synth_core import bvh
+from synth_core.motion import Motion
+from synth_core.skeleton import Skeleton
+from synth_core.synthesis import Result
+
+
+def scaled_skeleton(skeleton: Skeleton, scale: float) -> Skeleton:
+    """The skeleton with every bone ``scale`` times as long (a character of scale h)."""
+    return replace(skeleton, offsets=skeleton.offsets * scale)
+
+
+def character_motion(skeleton: Skeleton, result: Result, c: int, fps: float, name: str = "") -> Motion:
+    return Motion(scaled_skeleton(skeleton, float(result.scales[c])), result.root_pos[c],
+                  result.rotations[c], fps, result.contacts[c], name)
+
+
+def safe_name(name: str) -> str:
+    """A file name from a character id (anything but letters, digits, ``-_.`` becomes ``_``)."""
+    cleaned = re.sub(r"[^A-Za-z0-9_.-]", "_", name).strip(".")
+    return cleaned or "_"
+
+
+def write_bvh_files(skeleton: Skeleton, result: Result, ids: list[str], out: Path, fps: float,
+                    progress: Callable[[int, int], None] | None = None) -> list[Path]:
+    """``out/<id>.bvh`` (centimetres) for every character synthesized."""
+    out.mkdir(parents=True, exist_ok=True)
+    written = []
+    for c, name in enumerate(ids):
+        path = out / f"{safe_name(name)}.bvh"
+        bvh.write(character_motion(skeleton, result, c, fps, name), path, unit="cm")
+        written.append(path)
+        if progress:
+            progress(c + 1, len(ids))
+    return written
