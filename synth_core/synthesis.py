@@ -26,7 +26,7 @@ the only Python loops run over segments (a dozen) and gaits (four):
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -38,7 +38,8 @@ from synth_core.trajectory import DEFAULT_SIGMA, Prepared, TrajectoryError, prep
 
 Floats = NDArray[np.float64]
 MARGIN = 10  # frames over which a finished piece fades out where the next starts
-CHUNK = 1024  # characters rendered at a time (bounds the kernels' scratch; progress steps)
+N_HUBS = 5  # static, walk, trot, canter, gallop
+CHUNK = 256  # characters planned and rendered at a time (the working set stays in cache)
 BACKENDS = ("auto", "numba", "numpy")
 STAND_SHARE = 0.5  # below this share of the slowest clip's speed a character stands
 MIN_TURN_SPEED = 0.05  # m/s: slower than this the heading holds (a standing animal does not spin)
@@ -88,7 +89,7 @@ class _Kinds:
 
 
 def _kinds(bank: Bank) -> _Kinds:
-    n_hubs = 5
+    n_hubs = N_HUBS
     pieces = [bank.gaits.get(h, bank.idle) if h else bank.idle for h in range(n_hubs)]
     trs = sorted(bank.transitions.items())
     pieces += [p for _, p in trs]
@@ -133,14 +134,15 @@ def distance_since(travelled: Floats, creep: float, begin: NDArray[np.int64]) ->
 
 
 def stride_clocks(bank: Bank, kinds: _Kinds, speed: Floats) -> Floats:
-    """(kinds, C, T+1): per gait, the stride frames played before each frame.
+    """(N_HUBS + 1, C, T+1): per hub, the stride frames played before each frame; the last row
+    (every transition's) is plain time.
 
     One clip frame per output frame -- unless the character is asked for more speed than the
     gait's fastest clip has (a transition still under way, a sprint): then the stride plays up to
     MAX_RATE times faster, so the feet keep pace instead of sliding.
     """
     C, T = speed.shape
-    clocks = np.broadcast_to(np.arange(T + 1, dtype=np.float64), (len(kinds.frames), C, T + 1)).copy()
+    clocks = np.broadcast_to(np.arange(T + 1, dtype=np.float64), (N_HUBS + 1, C, T + 1)).copy()
     for hub, s in bank.speeds.items():
         rate = np.clip(speed / s[-1], 1.0, MAX_RATE)
         clocks[hub, :, 1:] = np.cumsum(rate, axis=1)
@@ -205,11 +207,13 @@ def _local(clocks: Floats, kind: NDArray[np.int64], first: NDArray[np.int64], st
     if at is None:
         C, T = kind.shape
         c, t = np.arange(C)[:, None], np.arange(T)[None, :]
-        now = clocks[kind, c, t]
-        then = clocks[kind, c, np.clip(start, 0, T)]
+        row = np.minimum(kind, N_HUBS)  # transitions play by time (and distance, in _rows)
+        now = clocks[row, c, t]
+        then = clocks[row, c, np.clip(start, 0, T)]
     else:
-        now = clocks[kind, at[0], at[1]]
-        then = clocks[kind, at[0], np.clip(start, 0, clocks.shape[-1] - 1)]
+        row = np.minimum(kind, N_HUBS)
+        now = clocks[row, at[0], at[1]]
+        then = clocks[row, at[0], np.clip(start, 0, clocks.shape[-1] - 1)]
     return np.floor(first + now - then + 0.5).astype(np.int64)
 
 
@@ -406,32 +410,34 @@ def prepare_batch(bank: Bank, positions: ArrayLike, fps: float | None, scales: A
     return prep, all_scales[prep.kept], rng
 
 
-def _chunk(p: Plan, sl: slice) -> Plan:
-    return Plan(p.rows[sl], p.weights[sl], p.yaw[sl], p.path[sl], p.scales[sl], p.contacts[sl],
-                p.stitches[sl], p.gait[sl])
-
-
 def synthesize(bank: Bank, positions: ArrayLike, fps: float | None = None,
                scales: ArrayLike | None = None, options: Options = Options(),
                ids: list[str] | None = None,
                progress: Callable[[int, int], None] | None = None) -> Result:
     """Motion for every trajectory ``positions (C, F, 3)`` sampled at ``fps`` (default: the library's).
 
-    ``progress(done, total)`` is called as characters are finished (they are rendered in chunks
-    of ``CHUNK``; the result does not depend on it)."""
+    The batch is checked and resampled as a whole, then planned and rendered ``CHUNK`` characters
+    at a time (the working set stays in cache, so the cost per character-frame does not grow with
+    the crowd); ``progress(done, total)`` is called after each chunk."""
     prep, h, rng = prepare_batch(bank, positions, fps, scales, options, ids)
-    p = plan(bank, prep, h, rng, options.margin)
-    C, T = p.yaw.shape
+    C, T = prep.positions.shape[:2]
     compiled = options.backend == "numba" or (options.backend == "auto" and kernels.AVAILABLE)
     root = np.empty((C, T, 3), np.float32)
     rotations = np.empty((C, T, bank.skeleton.n_joints, 4), np.float32)
+    gait = np.empty((C, T), np.int8)
+    contacts = np.empty((C, T, 4), bool)
+    stitches = np.empty((C, T), bool)
     for a in range(0, C, CHUNK):
         sl = slice(a, min(a + CHUNK, C))
+        part = replace(prep, positions=prep.positions[sl], raw=prep.raw[sl],
+                       segment_speeds=prep.segment_speeds[sl])
+        p = plan(bank, part, h[sl], rng, options.margin)
         if compiled:
-            kernels.render(bank, _chunk(p, sl), options.foot_lock, out=(root[sl], rotations[sl]))
+            kernels.render(bank, p, options.foot_lock, out=(root[sl], rotations[sl]))
         else:
-            root[sl], rotations[sl] = render(bank, _chunk(p, sl), options.foot_lock)
+            root[sl], rotations[sl] = render(bank, p, options.foot_lock)
+        gait[sl], contacts[sl], stitches[sl] = p.gait, p.contacts, p.stitches
         if progress:
             progress(sl.stop, C)
-    return Result(root, rotations, p.gait, p.contacts, p.stitches, h, p.path,
+    return Result(root, rotations, gait, contacts, stitches, h, prep.positions,
                   prep.resample_rate, prep.kept, prep.rejected)
