@@ -18,7 +18,7 @@ from synth_core.artifact import Library
 from synth_core.bank import Bank, canonical_cycle
 from synth_core.motion_graph import HUBS
 from synth_core.speed_map import build_speed_map
-from synth_core.synthesis import Options, Plan, Result, plan, prepare_batch, render
+from synth_core.synthesis import Options, Plan, Result, compiled_backend, plan, prepare_batch, render
 
 DEFAULT_OPTIONS = Options()
 CHUNK = 512  # clips made per IK call (bounds memory)
@@ -85,9 +85,7 @@ def synthesize_onthefly(bank: Bank, library: Library, positions: ArrayLike, fps:
     segment = np.minimum(np.arange(T) // prep.segment, prep.segment_speeds.shape[1] - 1)
     segment = np.broadcast_to(segment[None, :], p.rows.shape[:2])
     extended, p = _remap(bank, p, segment, prep.segment_speeds / h[:, None], library)
-    if options.backend == "numpy" or (options.backend == "auto" and not kernels.AVAILABLE):
-        root, rotations = render(extended, p, options.foot_lock)
-    else:
-        root, rotations = kernels.render(extended, p, options.foot_lock)
+    draw = kernels.render if compiled_backend(options) else render
+    root, rotations = draw(extended, p, options.foot_lock)
     return Result(root, rotations, p.gait, p.contacts, p.stitches, h, p.path,
                   prep.resample_rate, prep.kept, prep.rejected)

@@ -21,6 +21,9 @@ the only Python loops run over segments (a dozen) and gaits (four):
    never drifts from it -- and its heading follows the trajectory's tangent; its height is the
    clip's times h. Sideways sway of the clips is dropped: the path is the caller's.
 5. **Foot lock** (:mod:`synth_core.footlock`) pins each planted foot where it lands.
+
+Steps 1-2 make a :class:`Plan` (numpy); :func:`render` does 3-5 in numpy, the reference of the
+compiled :mod:`synth_core.kernels`, which synthesis uses when numba is installed.
 """
 
 from __future__ import annotations
@@ -89,20 +92,19 @@ class _Kinds:
 
 
 def _kinds(bank: Bank) -> _Kinds:
-    n_hubs = N_HUBS
-    pieces = [bank.gaits.get(h, bank.idle) if h else bank.idle for h in range(n_hubs)]
+    pieces = [bank.gaits.get(h, bank.idle) if h else bank.idle for h in range(N_HUBS)]
     trs = sorted(bank.transitions.items())
     pieces += [p for _, p in trs]
-    tr_kind = np.full((n_hubs, n_hubs), -1)
-    entry = np.zeros((n_hubs, n_hubs), np.int64)
-    exit_ = np.zeros((n_hubs, n_hubs), np.int64)
+    tr_kind = np.full((N_HUBS, N_HUBS), -1)
+    entry = np.zeros((N_HUBS, N_HUBS), np.int64)
+    exit_ = np.zeros((N_HUBS, N_HUBS), np.int64)
     for k, ((a, b), p) in enumerate(trs):
-        tr_kind[a, b], entry[a, b], exit_[a, b] = n_hubs + k, p.entry, p.exit
+        tr_kind[a, b], entry[a, b], exit_[a, b] = N_HUBS + k, p.entry, p.exit
     return _Kinds(np.array([p.offset for p in pieces]), np.array([p.frames for p in pieces]),
                   np.array([p.clips for p in pieces]),
-                  np.array([True] * n_hubs + [False] * len(trs)),
-                  np.array(list(range(n_hubs)) + [a for (a, _), _ in trs]),
-                  np.array(list(range(n_hubs)) + [b for (_, b), _ in trs]), tr_kind, entry, exit_)
+                  np.array([True] * N_HUBS + [False] * len(trs)),
+                  np.array(list(range(N_HUBS)) + [a for (a, _), _ in trs]),
+                  np.array(list(range(N_HUBS)) + [b for (_, b), _ in trs]), tr_kind, entry, exit_)
 
 
 def _choose(bank: Bank, current: NDArray[np.int64], speed: Floats,
@@ -204,14 +206,13 @@ def _local(clocks: Floats, kind: NDArray[np.int64], first: NDArray[np.int64], st
     """Clip frame (whole, before wrapping) each piece is at: its first frame plus its clock since
     it started. ``clocks (kinds, C, T+1)`` with ``kind (C, T)``; or, given ``at`` (characters,
     frames), flat (n,)."""
+    row = np.minimum(kind, N_HUBS)  # transitions play by time (and distance, in _rows)
     if at is None:
         C, T = kind.shape
         c, t = np.arange(C)[:, None], np.arange(T)[None, :]
-        row = np.minimum(kind, N_HUBS)  # transitions play by time (and distance, in _rows)
         now = clocks[row, c, t]
         then = clocks[row, c, np.clip(start, 0, T)]
     else:
-        row = np.minimum(kind, N_HUBS)
         now = clocks[row, at[0], at[1]]
         then = clocks[row, at[0], np.clip(start, 0, clocks.shape[-1] - 1)]
     return np.floor(first + now - then + 0.5).astype(np.int64)
@@ -410,6 +411,11 @@ def prepare_batch(bank: Bank, positions: ArrayLike, fps: float | None, scales: A
     return prep, all_scales[prep.kept], rng
 
 
+def compiled_backend(options: Options) -> bool:
+    """Whether ``options`` render with the numba kernels (else the numpy reference)."""
+    return options.backend == "numba" or (options.backend == "auto" and kernels.AVAILABLE)
+
+
 def synthesize(bank: Bank, positions: ArrayLike, fps: float | None = None,
                scales: ArrayLike | None = None, options: Options = Options(),
                ids: list[str] | None = None,
@@ -421,7 +427,7 @@ def synthesize(bank: Bank, positions: ArrayLike, fps: float | None = None,
     the crowd); ``progress(done, total)`` is called after each chunk."""
     prep, h, rng = prepare_batch(bank, positions, fps, scales, options, ids)
     C, T = prep.positions.shape[:2]
-    compiled = options.backend == "numba" or (options.backend == "auto" and kernels.AVAILABLE)
+    compiled = compiled_backend(options)
     root = np.empty((C, T, 3), np.float32)
     rotations = np.empty((C, T, bank.skeleton.n_joints, 4), np.float32)
     gait = np.empty((C, T), np.int8)
