@@ -10,6 +10,8 @@ measures the run-time IK, not Python overhead.
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
@@ -70,9 +72,9 @@ def _remap(bank: Bank, p: Plan, segment: NDArray[np.int64], speeds: NDArray[np.f
     fading = rows[..., 2] >= len(bank.poses)
     rows[..., 3] = np.where(fading, rows[..., 2], rows[..., 3])
     weights[..., 1] = np.where(fading, 0.0, weights[..., 1])
-    extended = Bank(**{**bank.__dict__, "poses": np.concatenate(poses), "height": np.concatenate(height),
-                       "surge": np.concatenate(surge), "contacts": np.concatenate(contacts)})
-    return extended, Plan(**{**p.__dict__, "rows": rows, "weights": weights})
+    extended = replace(bank, poses=np.concatenate(poses), height=np.concatenate(height),
+                       surge=np.concatenate(surge), contacts=np.concatenate(contacts))
+    return extended, replace(p, rows=rows, weights=weights)
 
 
 def synthesize_onthefly(bank: Bank, library: Library, positions: ArrayLike, fps: float | None = None,
