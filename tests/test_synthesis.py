@@ -129,6 +129,17 @@ def test_numba_kernels_match_the_numpy_reference(bank: Bank, herd: np.ndarray, f
         assert moved.max() > 1.0
 
 
+def test_writing_into_given_output_arrays_gives_the_same_motion(bank: Bank, herd: np.ndarray,
+                                                               result: Result) -> None:
+    out = (np.full_like(result.root_pos, np.nan), np.full_like(result.rotations, np.nan))
+    again = synthesize(bank, herd, options=Options(scale_range=(0.8, 1.2), seed=0), out=out)
+    assert again.root_pos is out[0] and again.rotations is out[1]
+    assert np.array_equal(again.rotations, result.rotations)
+    assert np.array_equal(again.root_pos, result.root_pos)
+    with pytest.raises(ValueError, match=r"out rotations: need a C-contiguous float32 array of shape"):
+        synthesize(bank, herd, options=Options(scale_range=(0.8, 1.2)), out=(out[0], out[1][:, :-1]))
+
+
 def test_unknown_backend_is_refused(bank: Bank, herd: np.ndarray) -> None:
     with pytest.raises(TrajectoryError, match="backend"):
         synthesize(bank, herd[:1, :50], options=Options(backend="gpu"))
