@@ -441,10 +441,10 @@ def synthesize(bank: Bank, positions: ArrayLike, fps: float | None = None,
         fresh = True
     else:
         root, rotations = out
-        for name, a, shape in (("root", root, (C, T, 3)), ("rotations", rotations, (C, T, J, 4))):
-            if a.shape != shape or a.dtype != np.float32 or not a.flags.c_contiguous:
+        for name, given, shape in (("root", root, (C, T, 3)), ("rotations", rotations, (C, T, J, 4))):
+            if given.shape != shape or given.dtype != np.float32 or not given.flags.c_contiguous:
                 raise ValueError(f"out {name}: need a C-contiguous float32 array of shape {shape}, "
-                                 f"got {a.dtype} {a.shape}")
+                                 f"got {given.dtype} {given.shape}")
         fresh = False
     gait = np.empty((C, T), np.int8)
     contacts = np.empty((C, T, 4), bool)
