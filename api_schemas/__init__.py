@@ -1,8 +1,27 @@
-"""Request and response models of the QuadSynth HTTP API (pydantic v2).
+"""Request and response models of the QuadSynth HTTP API (pydantic v2) and the binary wire format.
 
 Kept apart from :mod:`service` so clients can import them without the server.
 """
 
-from api_schemas.models import Health, LibrariesResponse, LibrarySummary, Readiness
+from api_schemas.models import (
+    Blob,
+    CharacterIn,
+    CharacterOut,
+    ErrorDetail,
+    ErrorResponse,
+    GaitRange,
+    Health,
+    LibrariesResponse,
+    LibraryDetail,
+    LibrarySummary,
+    Limits,
+    PackedRotations,
+    Readiness,
+    Skipped,
+    SynthesizeRequest,
+    SynthesizeResponse,
+)
 
-__all__ = ["Health", "LibrariesResponse", "LibrarySummary", "Readiness"]
+__all__ = ["Blob", "CharacterIn", "CharacterOut", "ErrorDetail", "ErrorResponse", "GaitRange", "Health",
+           "LibrariesResponse", "LibraryDetail", "LibrarySummary", "Limits", "PackedRotations", "Readiness",
+           "Skipped", "SynthesizeRequest", "SynthesizeResponse"]

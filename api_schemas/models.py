@@ -1,8 +1,20 @@
-"""Pydantic models for the service's JSON bodies."""
+"""Pydantic models for every request and response body (see docs/wire-format.md).
+
+The same models describe msgpack and JSON bodies: a :class:`Blob`'s ``data`` is raw bytes in
+msgpack (``bin``) and base64 text in JSON; it is accepted either way.
+"""
 
 from __future__ import annotations
 
-from pydantic import BaseModel, Field
+import base64
+import binascii
+from typing import Any
+
+from pydantic import BaseModel, ConfigDict, Field, field_serializer, field_validator
+
+from api_schemas.wire import DTYPES, ENCODINGS, Encoding
+
+_STRICT = ConfigDict(extra="forbid")
 
 
 class Health(BaseModel):
@@ -12,6 +24,99 @@ class Health(BaseModel):
 class Readiness(BaseModel):
     status: str = Field(description="'ready', 'starting' or 'draining'")
     libraries: int = Field(description="number of animal libraries loaded")
+
+
+class ErrorDetail(BaseModel):
+    status: int = Field(description="the HTTP status (or, on a WebSocket, the close code that follows)")
+    field: str = Field(description="where the problem is, e.g. 'characters[3].points' "
+                                   "('': the whole request)")
+    message: str = Field(description="what is wrong, naming the limit where one was exceeded")
+
+
+class ErrorResponse(BaseModel):
+    error: ErrorDetail
+
+
+class Blob(BaseModel):
+    """A little-endian array: ``data`` holds ``prod(shape)`` items of ``dtype``, C order."""
+
+    model_config = _STRICT
+    dtype: str = Field(description=f"numpy dtype string, one of {', '.join(DTYPES)}", examples=["<f4"])
+    shape: list[int] = Field(description="array shape", examples=[[2, 3]])
+    data: bytes = Field(description="the array's bytes: msgpack bin, or base64 text in JSON",
+                        json_schema_extra={"format": "base64"})
+
+    @field_validator("data", mode="before")
+    @classmethod
+    def _from_base64(cls, value: Any) -> Any:
+        if isinstance(value, str):
+            try:
+                return base64.b64decode(value, validate=True)
+            except (binascii.Error, ValueError) as exc:
+                raise ValueError(f"not valid base64: {exc}") from None
+        return value
+
+    @field_serializer("data", when_used="json")
+    def _to_base64(self, value: bytes) -> str:
+        return base64.b64encode(value).decode("ascii")
+
+
+class PackedRotations(Blob):
+    """Local joint rotations ``(frames, joints, 4)`` (f32, i16) or ``(frames, joints, 6)`` bytes (s48)."""
+
+    encoding: Encoding = Field(description="f32, i16 or s48 (docs/wire-format.md)")
+
+
+class CharacterIn(BaseModel):
+    model_config = _STRICT
+    id: str = Field(min_length=1, max_length=128, description="the caller's name for this character")
+    points: Blob = Field(description="root trajectory (F, 3) float32 or float64, metres, Y up, "
+                                     "one point per frame at the request's fps; F >= 2")
+    scale: float | None = Field(default=None, gt=0, le=100,
+                                description="size relative to the library animal (default: random "
+                                            "in [scale_min, scale_max], seeded)")
+
+
+class SynthesizeRequest(BaseModel):
+    model_config = _STRICT
+    animal: str = Field(default="horse", description="a library from GET /v1/libraries")
+    fps: float = Field(default=60.0, gt=0, le=1000, description="frame rate of the trajectory points")
+    seed: int = Field(default=0, ge=0, le=2**63 - 1, description="same input and seed: same bytes out")
+    sigma: float = Field(default=4.0, ge=0, le=100, description="Gaussian smoothing of the paths, frames")
+    encoding: Encoding = Field(default="s48", description=f"rotation encoding: {', '.join(ENCODINGS)}")
+    skip_invalid: bool = Field(default=False, description="drop bad characters (reported in 'skipped') "
+                                                          "instead of refusing the request")
+    scale_min: float = Field(default=0.8, gt=0, le=100)
+    scale_max: float = Field(default=1.2, gt=0, le=100)
+    foot_lock: bool = Field(default=True, description="pin planted feet (synth_core.footlock)")
+    characters: list[CharacterIn] = Field(min_length=1)
+
+
+class CharacterOut(BaseModel):
+    id: str
+    scale: float = Field(description="the scale used (given or drawn)")
+    frames: int = Field(description="frames of motion at the library's fps")
+    root: Blob = Field(description="root position (frames, 3) float32, metres")
+    rotations: PackedRotations
+    gait: Blob = Field(description="(frames,) int8: 0 static, 1 walk, 2 trot, 3 canter, 4 gallop")
+    contacts: Blob = Field(description="(frames,) uint8 bit mask of planted feet: 1 LF, 2 RF, 4 LH, 8 RH")
+
+
+class Skipped(BaseModel):
+    id: str
+    index: int = Field(description="position in the request's characters")
+    reason: str
+
+
+class SynthesizeResponse(BaseModel):
+    animal: str
+    skeleton_id: str = Field(description="identifies the joint layout; GET /v1/libraries/{animal}")
+    fps: float = Field(description="frame rate of the output (the library's)")
+    encoding: Encoding
+    resample_rate: float = Field(description="r >= 1: every path was resampled to r times its frames "
+                                             "because some character was faster than the library")
+    characters: list[CharacterOut]
+    skipped: list[Skipped] = Field(default_factory=list)
 
 
 class LibrarySummary(BaseModel):
@@ -25,3 +130,38 @@ class LibrarySummary(BaseModel):
 
 class LibrariesResponse(BaseModel):
     libraries: list[LibrarySummary]
+
+
+class GaitRange(BaseModel):
+    index: int = Field(description="the value in a character's gait stream")
+    name: str
+    min_speed: float = Field(description="m/s at scale 1 (a character of scale h: h times this)")
+    max_speed: float
+
+
+class LibraryDetail(BaseModel):
+    animal: str
+    skeleton_id: str
+    fps: float
+    joint_names: list[str]
+    parents: list[int] = Field(description="parent joint index, -1 for the root; parents come first")
+    offsets: list[list[float]] = Field(description="rest offset of each joint from its parent, metres")
+    feet: dict[str, str] = Field(description="foot (LF, RF, LH, RH) -> end-effector joint name")
+    gaits: list[GaitRange]
+
+
+class Limits(BaseModel):
+    max_body_bytes: int = Field(description="request body, bytes (413 beyond)")
+    max_characters: int = Field(description="characters per request (422 beyond)")
+    max_frames: int = Field(description="trajectory points per character (422 beyond)")
+    max_character_frames: int = Field(description="characters x output frames per request (422 beyond)")
+    max_in_flight: int = Field(description="synthesis requests running per worker process")
+    max_queued: int = Field(description="requests waiting per worker process; beyond: 503 + Retry-After")
+    deadline_s: float = Field(description="a request still synthesizing after this gets 504")
+    ws_chunk_frames: int = Field(description="frames per WebSocket chunk")
+    ws_window: int = Field(description="unacknowledged WebSocket chunks before the server waits")
+    ws_send_timeout_s: float = Field(description="a client not reading for this long is closed (1013)")
+    encodings: dict[str, dict[str, float]] = Field(
+        description="per rotation encoding: bytes per joint-frame and measured worst-case error")
+
+

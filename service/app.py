@@ -1,29 +1,159 @@
-"""FastAPI application factory: health, readiness and the library listing."""
+"""FastAPI application factory: the routes, thin over :mod:`service.jobs` and :mod:`synth_core`.
+
+Synthesis runs in a thread pool (``max_in_flight`` threads per worker process; the numba
+kernels release the GIL), so the event loop keeps answering health checks while it works.
+"""
 
 from __future__ import annotations
 
+import asyncio
+import logging
+import signal
+import threading
 from collections.abc import AsyncIterator
+from concurrent.futures import ThreadPoolExecutor
 from contextlib import asynccontextmanager
 from pathlib import Path
+from typing import Any
 
-from fastapi import FastAPI
-from fastapi.responses import JSONResponse
+from fastapi import FastAPI, Request
+from fastapi.exceptions import RequestValidationError
+from fastapi.responses import JSONResponse, PlainTextResponse, Response
+from starlette.exceptions import HTTPException as StarletteHTTPException
 
-from api_schemas import Health, LibrariesResponse, Readiness
+from api_schemas import (
+    ErrorResponse,
+    GaitRange,
+    Health,
+    LibrariesResponse,
+    LibraryDetail,
+    Limits,
+    Readiness,
+    SynthesizeRequest,
+    SynthesizeResponse,
+)
+from service import body, jobs
+from service.admission import Admission
+from service.errors import ApiError, handle_api_error, handle_http_error, handle_validation_error
 from service.libraries import LibraryRegistry, library_dir
+from service.metrics import Metrics, MetricsMiddleware
+from service.packing import characters_out, skeleton_id
+from service.settings import Settings
+from synth_core.motion_graph import HUBS
+
+log = logging.getLogger("quadsynth.service")
 
 
-def create_app(directory: Path | None = None) -> FastAPI:
-    registry = LibraryRegistry(directory if directory is not None else library_dir())
+def _errors(*codes: int) -> dict[int | str, dict[str, Any]]:
+    return {code: {"model": ErrorResponse} for code in codes}
+
+
+def _binary_body(model: type, description: str) -> dict[str, Any]:
+    ref = {"$ref": f"#/components/schemas/{model.__name__}"}
+    return {"description": description,
+            "content": {body.MSGPACK: {"schema": ref}, body.JSON: {"schema": ref}}}
+
+
+class State:
+    """Everything the routes share within one worker process."""
+
+    def __init__(self, settings: Settings, registry: LibraryRegistry) -> None:
+        self.settings, self.registry = settings, registry
+        self.metrics = Metrics()
+        self.admission = Admission(settings.max_in_flight, settings.max_queued, self.metrics)
+        self.pool = ThreadPoolExecutor(settings.max_in_flight, thread_name_prefix="synth")
+        self.draining = False
+        self.hold = threading.Event()  # test hook: workers wait on it while set ... see _held
+        self.held = threading.Event()
+        self.hold.set()
+
+    def _held(self) -> None:
+        self.held.set()
+        self.hold.wait()
+
+    async def synthesize(self, job: jobs.Job) -> tuple[Any, float]:
+        """Run ``job`` in the pool within the deadline (504 after; the work stops at its next chunk)."""
+        bank = self.registry.banks[job.request.animal]
+        loop = asyncio.get_running_loop()
+
+        def work() -> tuple[Any, float]:
+            if self.settings.test_hooks:
+                self._held()
+            return jobs.run(job, bank)
+
+        future = loop.run_in_executor(self.pool, work)
+        try:
+            return await asyncio.wait_for(asyncio.shield(future), self.settings.deadline_s)
+        except TimeoutError:
+            job.cancel.set()
+            self.metrics.rejected["deadline"] += 1
+            limit = self.settings.deadline_s
+            raise ApiError(504, "", f"synthesis took longer than the deadline of {limit:g} s (deadline_s); "
+                                    "send fewer characters or frames per request") from None
+        except asyncio.CancelledError:
+            job.cancel.set()  # the client went away: stop the work too
+            raise
+
+
+def _install_drain(state: State) -> None:
+    """On SIGTERM: /readyz turns 503 and WebSockets close (1001); uvicorn's own handler, called
+    next, stops accepting and lets in-flight requests finish within its graceful timeout."""
+    previous = signal.getsignal(signal.SIGTERM)
+
+    def on_term(signum: int, frame: Any) -> None:
+        state.draining = True
+        log.info("SIGTERM: draining")
+        if callable(previous):
+            previous(signum, frame)
+
+    try:
+        signal.signal(signal.SIGTERM, on_term)
+    except ValueError:  # not the main thread (an embedding server): nothing to chain
+        pass
+
+
+def warm_up(registry: LibraryRegistry) -> None:
+    """Load (or compile) the kernels and packers before /readyz says ready, so the first
+    request does not pay for it."""
+    import numpy as np
+
+    from service.packing import pack_rotations
+    from synth_core.synthesis import synthesize
+
+    path = np.zeros((1, 30, 3))
+    path[0, :, 2] = np.linspace(0.0, 0.3, 30)
+    for bank in registry.banks.values():
+        result = synthesize(bank, path)
+        for encoding in ("s48", "i16"):
+            pack_rotations(result.rotations, encoding)
+
+
+def create_app(directory: Path | None = None, settings: Settings | None = None) -> FastAPI:
+    settings = settings if settings is not None else Settings.from_env()
+    state = State(settings, LibraryRegistry(directory if directory is not None else library_dir()))
+
+    def load() -> None:
+        state.registry.load()
+        warm_up(state.registry)
 
     @asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
-        registry.load()
+        await asyncio.get_running_loop().run_in_executor(None, load)
+        _install_drain(state)
         yield
+        state.draining = True
+        state.pool.shutdown(wait=False, cancel_futures=True)
 
     app = FastAPI(title="QuadSynth", version="0.1.0", lifespan=lifespan,
-                  description="Fast motion synthesis for massive herds of quadrupeds (Sung 2011).")
-    app.state.registry = registry
+                  description="Fast motion synthesis for massive herds of quadrupeds (Sung 2011). "
+                              "Bodies are msgpack (application/vnd.msgpack) or JSON; arrays travel "
+                              "as binary blobs -- see docs/wire-format.md.")
+    app.state.quadsynth = state
+    app.add_middleware(MetricsMiddleware, metrics=state.metrics)
+    app.add_exception_handler(ApiError, handle_api_error)
+    app.add_exception_handler(RequestValidationError, handle_validation_error)
+    app.add_exception_handler(StarletteHTTPException, handle_http_error)
+    registry = state.registry
 
     @app.get("/livez", response_model=Health, tags=["health"])
     async def livez() -> Health:
@@ -31,16 +161,89 @@ def create_app(directory: Path | None = None) -> FastAPI:
         return Health(status="ok")
 
     @app.get("/readyz", response_model=Readiness, tags=["health"],
-             responses={503: {"model": Readiness, "description": "not ready yet"}})
+             responses={503: {"model": Readiness, "description": "starting or draining"}})
     async def readyz() -> JSONResponse:
-        """200 once the animal libraries are loaded, 503 before."""
-        body = Readiness(status="ready" if registry.loaded else "starting",
-                         libraries=len(registry.summaries))
-        return JSONResponse(body.model_dump(), status_code=200 if registry.loaded else 503)
+        """200 once the animal libraries are loaded; 503 before, and from SIGTERM on."""
+        status = "draining" if state.draining else "ready" if registry.loaded else "starting"
+        code = 200 if status == "ready" else 503
+        return JSONResponse(Readiness(status=status, libraries=len(registry.summaries)).model_dump(), code)
+
+    @app.get("/metrics", response_class=PlainTextResponse, tags=["health"])
+    async def metrics() -> PlainTextResponse:
+        """Prometheus text format, this worker process's counters."""
+        return PlainTextResponse(state.metrics.render(), media_type="text/plain; version=0.0.4")
 
     @app.get("/v1/libraries", response_model=LibrariesResponse, tags=["libraries"])
     async def libraries() -> LibrariesResponse:
         """The animal libraries this service can synthesize with."""
         return LibrariesResponse(libraries=list(registry.summaries.values()))
+
+    @app.get("/v1/libraries/{animal}", response_model=LibraryDetail, tags=["libraries"],
+             responses=_errors(404))
+    async def library(animal: str) -> LibraryDetail:
+        """What a client needs to play the streams: joints, parents, rest offsets, feet, gaits."""
+        if animal not in registry.libraries:
+            loaded = ", ".join(sorted(registry.libraries))
+            raise ApiError(404, "animal", f"unknown animal {animal!r}; loaded: {loaded}")
+        lib, bank = registry.libraries[animal], registry.banks[animal]
+        sk = lib.skeleton
+        gaits = [GaitRange(index=HUBS.index(g), name=g, min_speed=float(m.speeds[0]),
+                           max_speed=float(m.speeds[-1])) for g, m in lib.maps.items()]
+        return LibraryDetail(animal=animal, skeleton_id=skeleton_id(animal, sk), fps=bank.fps,
+                             joint_names=list(sk.names), parents=[int(p) for p in sk.parents],
+                             offsets=sk.offsets.astype(float).tolist(),
+                             feet={f.name: sk.names[f.end_effector] for f in sk.feet}, gaits=gaits)
+
+    @app.get("/v1/limits", response_model=Limits, tags=["libraries"])
+    async def limits() -> Limits:
+        """The request limits of this service and each rotation encoding's size and error."""
+        return settings.published()
+
+    @app.post("/v1/synthesize", tags=["synthesis"],
+              responses={200: _binary_body(SynthesizeResponse, "motion per character"),
+                         **_errors(413, 415, 422, 503, 504)},
+              openapi_extra={"requestBody": {"required": True, **_binary_body(
+                  SynthesizeRequest, "characters' trajectories and options")}})
+    async def synthesize(request: Request) -> Response:
+        """Trajectories in, packed joint-rotation streams out (docs/wire-format.md).
+
+        Body and answer in msgpack (``application/vnd.msgpack``, also ``application/x-msgpack``,
+        ``application/msgpack``) or JSON, by Content-Type and Accept. The same body and seed
+        give byte-identical answers."""
+        if not registry.loaded:
+            raise ApiError(503, "", "libraries are still loading", headers={"Retry-After": "1"})
+        raw = await body.read_body(request, settings.max_body_bytes)
+        job = jobs.parse(body.decode(raw, request.headers.get("content-type")), settings, registry.banks)
+        async with state.admission.slot():
+            result, seconds = await state.synthesize(job)
+        frames = jobs.output_frames(job, result)
+        state.metrics.character_frames += sum(frames)
+        state.metrics.synthesis_seconds += seconds
+        state.metrics.syntheses += 1
+        req = job.request
+        lib = registry.libraries[req.animal]
+        ids = [job.ids[c] for c in result.kept]
+        answer = {"animal": req.animal, "skeleton_id": skeleton_id(req.animal, lib.skeleton),
+                  "fps": registry.banks[req.animal].fps, "encoding": req.encoding,
+                  "resample_rate": result.resample_rate,
+                  "characters": characters_out(result, ids, frames, req.encoding),
+                  "skipped": jobs.skipped(job, result)}
+        return body.encode(answer, body.wants_msgpack(request))
+
+    if settings.test_hooks:
+        @app.post("/_test/hold", include_in_schema=False)
+        async def hold() -> dict[str, str]:
+            state.held.clear()
+            state.hold.clear()
+            return {"status": "holding"}
+
+        @app.post("/_test/release", include_in_schema=False)
+        async def release() -> dict[str, str]:
+            state.hold.set()
+            return {"status": "released"}
+
+        @app.get("/_test/held", include_in_schema=False)
+        async def held() -> dict[str, bool]:
+            return {"held": state.held.is_set()}
 
     return app

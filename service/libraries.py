@@ -16,6 +16,7 @@ from pathlib import Path
 
 from api_schemas import LibrarySummary
 from synth_core.artifact import SUFFIX, Library, LibraryFileError, load_library, save_library
+from synth_core.bank import Bank, build_bank
 from synth_core.library import BUILTIN_ANIMALS
 
 DEFAULT_LIBRARY_DIR = "library"
@@ -56,6 +57,7 @@ class LibraryRegistry:
     directory: Path
     libraries: dict[str, Library] = field(default_factory=dict)
     summaries: dict[str, LibrarySummary] = field(default_factory=dict)
+    banks: dict[str, Bank] = field(default_factory=dict)  # what synthesis reads, per animal
     errors: dict[str, str] = field(default_factory=dict)  # file -> why it was not loaded
     loaded: bool = False
 
@@ -74,4 +76,5 @@ class LibraryRegistry:
                 continue
             self.libraries[library.animal] = library
             self.summaries[library.animal] = summarize(library, path)
+            self.banks[library.animal] = build_bank(library)
         self.loaded = True

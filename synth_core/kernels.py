@@ -47,10 +47,12 @@ F = TypeVar("F", bound=Callable[..., Any])
 
 
 def _jit(parallel: bool = False) -> Callable[[F], F]:
+    # nogil: a service calls these from a worker thread; its event loop must keep answering.
     def wrap(f: F) -> F:
         if not AVAILABLE:
             return f
-        return cast(F, numba.njit(cache=True, parallel=parallel, fastmath=True, error_model="numpy")(f))
+        return cast(F, numba.njit(cache=True, parallel=parallel, fastmath=True, error_model="numpy",
+                                  nogil=True)(f))
     return wrap
 
 

@@ -1,0 +1,41 @@
+"""At most ``max_in_flight`` syntheses per process, ``max_queued`` waiting; beyond, 503.
+
+Synthesis is CPU-bound and already uses every core, so queueing more work than this only makes
+every caller wait longer: refusing early with ``Retry-After`` lets a load balancer try another
+replica. Health and metrics routes never pass through here.
+"""
+
+from __future__ import annotations
+
+import asyncio
+from collections.abc import AsyncIterator
+from contextlib import asynccontextmanager
+
+from service.errors import ApiError
+from service.metrics import Metrics
+
+RETRY_AFTER_S = 1
+
+
+class Admission:
+    def __init__(self, max_in_flight: int, max_queued: int, metrics: Metrics) -> None:
+        self.running = asyncio.Semaphore(max_in_flight)
+        self.capacity = max_in_flight + max_queued
+        self.metrics = metrics
+        self.admitted = 0
+
+    @asynccontextmanager
+    async def slot(self) -> AsyncIterator[None]:
+        if self.admitted >= self.capacity:
+            self.metrics.rejected["overloaded"] += 1
+            raise ApiError(503, "", f"busy: {self.admitted} requests running or queued in this worker "
+                                    f"(max_in_flight + max_queued = {self.capacity}); retry shortly",
+                           headers={"Retry-After": str(RETRY_AFTER_S)})
+        self.admitted += 1
+        self.metrics.in_flight = self.admitted
+        try:
+            async with self.running:
+                yield
+        finally:
+            self.admitted -= 1
+            self.metrics.in_flight = self.admitted

@@ -1,0 +1,133 @@
+"""A synthesis request from wire dict to result: checked, padded to one batch, synthesized
+(in a worker thread, cancellable between character chunks), cut back per character."""
+
+from __future__ import annotations
+
+import threading
+import time
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+from pydantic import ValidationError
+
+from api_schemas import SynthesizeRequest
+from api_schemas.wire import WireError, unblob
+from service.errors import ApiError, from_validation
+from service.settings import Settings
+from synth_core.bank import Bank
+from synth_core.synthesis import Options, Result, synthesize
+from synth_core.trajectory import TrajectoryError
+
+
+class Cancelled(Exception):
+    """The request's deadline passed or its client left: stop at the next chunk."""
+
+
+@dataclass
+class Job:
+    request: SynthesizeRequest
+    positions: NDArray[np.float64]  # (C, F_max, 3): shorter paths held at their last point
+    lengths: list[int]  # each character's own point count
+    cancel: threading.Event
+
+    @property
+    def ids(self) -> list[str]:
+        return [c.id for c in self.request.characters]
+
+
+def parse(body: Any, settings: Settings, banks: dict[str, Bank]) -> Job:
+    """422 naming the field and the problem for anything the synthesis could not use."""
+    if not isinstance(body, dict):
+        raise ApiError(422, "body", f"expected an object (a map), got {type(body).__name__}")
+    characters = body.get("characters")
+    if isinstance(characters, list) and len(characters) > settings.max_characters:
+        raise ApiError(422, "characters", f"{len(characters)} characters is over the limit of "
+                                          f"{settings.max_characters} per request (max_characters)")
+    try:
+        req = SynthesizeRequest.model_validate(body)
+    except ValidationError as exc:
+        raise from_validation(exc) from None
+    if req.animal not in banks:
+        raise ApiError(422, "animal", f"unknown animal {req.animal!r}; loaded: {', '.join(sorted(banks))}")
+    if req.scale_min > req.scale_max:
+        raise ApiError(422, "scale_min", f"must not exceed scale_max ({req.scale_min} > {req.scale_max})")
+    seen: dict[str, int] = {}
+    paths = []
+    for i, ch in enumerate(req.characters):
+        where = f"characters[{i}].points"
+        if ch.id in seen:
+            raise ApiError(422, f"characters[{i}].id", f"{ch.id!r} is also character {seen[ch.id]}'s id")
+        seen[ch.id] = i
+        if ch.points.dtype not in ("<f4", "<f8"):
+            raise ApiError(422, f"{where}.dtype", f"points must be float32 ('<f4') or float64 ('<f8'), "
+                                                  f"got {ch.points.dtype!r}")
+        try:
+            points = unblob(ch.points.dtype, ch.points.shape, ch.points.data, where)
+        except WireError as exc:
+            raise ApiError(422, exc.field, exc.reason) from None
+        if points.ndim != 2 or points.shape[1] != 3:
+            raise ApiError(422, f"{where}.shape", f"expected (frames, 3), got {tuple(points.shape)}")
+        if len(points) < 2:
+            raise ApiError(422, where, f"needs at least 2 points, got {len(points)}")
+        if len(points) > settings.max_frames:
+            raise ApiError(422, where, f"{len(points)} points is over the limit of {settings.max_frames} "
+                                       f"per character (max_frames)")
+        paths.append(points)
+    lengths = [len(p) for p in paths]
+    bank = banks[req.animal]
+    # Counted at the library's frame rate: that is how many frames come back (before any
+    # resampling of a too-fast herd, which can add up to 8x; see trajectory.MAX_RESAMPLE).
+    out_frames = int(round((max(lengths) - 1) * bank.fps / req.fps)) + 1
+    total = out_frames * len(paths)
+    if total > settings.max_character_frames:
+        raise ApiError(422, "characters", f"{len(paths)} characters x {out_frames} frames at "
+                                          f"{bank.fps:g} fps = {total} character-frames is over the limit "
+                                          f"of {settings.max_character_frames} (max_character_frames)")
+    positions = np.empty((len(paths), max(lengths), 3))
+    for c, p in enumerate(paths):
+        positions[c, :len(p)] = p
+        positions[c, len(p):] = p[-1]  # a shorter path: it stands at its end
+    return Job(req, positions, lengths, threading.Event())
+
+
+def run(job: Job, bank: Bank) -> tuple[Result, float]:
+    """Synthesize (in a worker thread); raises :class:`ApiError` 422 for a bad trajectory."""
+    req = job.request
+    scales = np.array([np.nan if c.scale is None else c.scale for c in req.characters])
+
+    def check_cancel(done: int, total: int) -> None:
+        if job.cancel.is_set():
+            raise Cancelled
+
+    options = Options(sigma=req.sigma, seed=req.seed, scale_range=(req.scale_min, req.scale_max),
+                      skip_invalid=req.skip_invalid, foot_lock=req.foot_lock)
+    t0 = time.perf_counter()
+    try:
+        result = synthesize(bank, job.positions, req.fps, scales, options, ids=job.ids,
+                            progress=check_cancel)
+    except TrajectoryError as exc:
+        raise trajectory_error(exc, job) from None
+    return result, time.perf_counter() - t0
+
+
+def trajectory_error(exc: TrajectoryError, job: Job) -> ApiError:
+    message = str(exc.args[0]) if exc.args else str(exc)
+    if exc.character is None:
+        return ApiError(422, "characters", message)
+    index = job.ids.index(str(exc.character)) if str(exc.character) in job.ids else -1
+    reason = message.split(": ", 1)[1] if message.startswith("character ") and ": " in message else message
+    part = "scale" if reason.startswith("scale") else "points"
+    return ApiError(422, f"characters[{index}].{part}", reason.removeprefix("positions: "))
+
+
+def output_frames(job: Job, result: Result) -> list[int]:
+    """Each kept character's own frame count: its share of the common time axis."""
+    T = result.root_pos.shape[1]
+    longest = job.positions.shape[1]
+    return [int(round((job.lengths[c] - 1) / (longest - 1) * (T - 1))) + 1 for c in result.kept]
+
+
+def skipped(job: Job, result: Result) -> list[dict[str, Any]]:
+    return [{"id": job.ids[c], "index": c, "reason": why} for c, why in sorted(result.rejected.items())]

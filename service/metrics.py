@@ -1,0 +1,81 @@
+"""Prometheus text metrics, kept per worker process, and the middleware that counts requests.
+
+Each uvicorn worker process has its own counters (a scrape reaches one of them); the
+``pid`` label tells them apart so a collector can sum.
+"""
+
+from __future__ import annotations
+
+import os
+from collections import Counter
+from dataclasses import dataclass, field
+
+from starlette.types import ASGIApp, Message, Receive, Scope, Send
+
+
+@dataclass
+class Metrics:
+    requests: Counter[tuple[str, str, int]] = field(default_factory=Counter)  # (method, route, status)
+    rejected: Counter[str] = field(default_factory=Counter)  # reason -> count
+    character_frames: int = 0
+    synthesis_seconds: float = 0.0
+    syntheses: int = 0
+    in_flight: int = 0
+    ws_sessions: int = 0
+
+    def render(self) -> str:
+        pid = os.getpid()
+        lines = [
+            "# HELP quadsynth_requests_total HTTP requests by method, route and status.",
+            "# TYPE quadsynth_requests_total counter",
+        ]
+        for (method, route, status), n in sorted(self.requests.items()):
+            lines.append(f'quadsynth_requests_total{{pid="{pid}",method="{method}",route="{route}",'
+                         f'status="{status}"}} {n}')
+        lines += ["# HELP quadsynth_rejected_total Requests refused before synthesis, by reason.",
+                  "# TYPE quadsynth_rejected_total counter"]
+        for reason, n in sorted(self.rejected.items()):
+            lines.append(f'quadsynth_rejected_total{{pid="{pid}",reason="{reason}"}} {n}')
+        lines += [
+            "# HELP quadsynth_character_frames_total Character-frames synthesized.",
+            "# TYPE quadsynth_character_frames_total counter",
+            f'quadsynth_character_frames_total{{pid="{pid}"}} {self.character_frames}',
+            "# HELP quadsynth_synthesis_seconds Time spent synthesizing (sum and count).",
+            "# TYPE quadsynth_synthesis_seconds summary",
+            f'quadsynth_synthesis_seconds_sum{{pid="{pid}"}} {self.synthesis_seconds:.6f}',
+            f'quadsynth_synthesis_seconds_count{{pid="{pid}"}} {self.syntheses}',
+            "# HELP quadsynth_in_flight Synthesis requests running or queued now.",
+            "# TYPE quadsynth_in_flight gauge",
+            f'quadsynth_in_flight{{pid="{pid}"}} {self.in_flight}',
+            "# HELP quadsynth_websocket_sessions Open WebSocket sessions.",
+            "# TYPE quadsynth_websocket_sessions gauge",
+            f'quadsynth_websocket_sessions{{pid="{pid}"}} {self.ws_sessions}',
+        ]
+        return "\n".join(lines) + "\n"
+
+
+class MetricsMiddleware:
+    """Counts every HTTP response by its route template (not the raw path: an unknown URL must
+    not make a new series)."""
+
+    def __init__(self, app: ASGIApp, metrics: Metrics) -> None:
+        self.app, self.metrics = app, metrics
+
+    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
+        if scope["type"] != "http":
+            await self.app(scope, receive, send)
+            return
+        status = 500
+
+        async def counted(message: Message) -> None:
+            nonlocal status
+            if message["type"] == "http.response.start":
+                status = message["status"]
+            await send(message)
+
+        try:
+            await self.app(scope, receive, counted)
+        finally:
+            route = scope.get("route")
+            name = getattr(route, "path", None) or "unmatched"
+            self.metrics.requests[(scope["method"], name, status)] += 1
