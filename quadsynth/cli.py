@@ -22,8 +22,13 @@ def _serve(args: argparse.Namespace, extra: list[str]) -> int:
         print(f"built {path}", file=sys.stderr)
 
     # Run uvicorn's own CLI so every uvicorn option (--workers, --log-level, ...) passes through.
+    # In-flight requests get drain_grace_s after SIGTERM (uvicorn's default is to wait forever).
+    from service.settings import Settings
+
+    grace = [] if any(a.startswith("--timeout-graceful-shutdown") for a in extra) else [
+        "--timeout-graceful-shutdown", str(int(Settings.from_env().drain_grace_s))]
     argv = ["service.app:create_app", "--factory", "--host", args.host, "--port", str(args.port),
-            "--ws-per-message-deflate", "false", *extra]
+            "--ws-per-message-deflate", "false", *grace, *extra]
     uvicorn.main.main(args=argv, prog_name="quadsynth serve")
     return 0
 

@@ -103,6 +103,8 @@ def _install_drain(state: State) -> None:
     def on_term(signum: int, frame: Any) -> None:
         state.draining = True
         log.info("SIGTERM: draining")
+        if state.settings.test_hooks:  # a test holding the workers cannot reach /_test/release now
+            threading.Timer(1.0, state.hold.set).start()
         if callable(previous):
             previous(signum, frame)
 

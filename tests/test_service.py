@@ -27,8 +27,8 @@ def quadsynth_command() -> list[str]:
     return [str(script)] if script.exists() else [sys.executable, "-m", "quadsynth.cli"]
 
 
-def start(args: list[str], tmp_path: Path) -> subprocess.Popen[bytes]:
-    env = {**os.environ, "QUADSYNTH_LIBRARY_DIR": str(tmp_path / "library")}
+def start(args: list[str], tmp_path: Path, env: dict[str, str] | None = None) -> subprocess.Popen[bytes]:
+    env = {**os.environ, "QUADSYNTH_LIBRARY_DIR": str(tmp_path / "library"), **(env or {})}
     return subprocess.Popen([*quadsynth_command(), "serve", *args], env=env,
                             stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
 

@@ -1,0 +1,106 @@
+"""The wire format: blobs round-trip, each rotation encoding within its documented error, the
+compiled packers byte-equal to the numpy reference, and the body decoder refuses garbage with a 422."""
+
+from __future__ import annotations
+
+import msgpack
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from api_schemas.wire import (
+    BYTES_PER_JOINT_FRAME,
+    ENCODING_ERROR,
+    ENCODINGS,
+    WireError,
+    blob,
+    decode_rotations,
+    encode_rotations,
+    rotation_angle,
+    unblob,
+    worst_error,
+)
+from service.body import decode
+from service.errors import ApiError
+from service.jobs import parse
+from service.packing import contact_bits, pack_rotations
+from service.settings import Settings
+
+
+def random_rotations(n: int, seed: int = 0) -> np.ndarray:
+    q = np.random.default_rng(seed).normal(size=(n, 4)).astype(np.float32)
+    return q / np.linalg.norm(q, axis=1, keepdims=True)
+
+
+@pytest.mark.parametrize("encoding", ENCODINGS)
+def test_each_encoding_is_within_its_documented_error(encoding: str) -> None:
+    degrees, mm = worst_error(encoding, n=200_000, seed=1)  # type: ignore[arg-type]
+    assert degrees <= ENCODING_ERROR[encoding][0] and mm <= ENCODING_ERROR[encoding][1]
+    packed = encode_rotations(random_rotations(10), encoding)  # type: ignore[arg-type]
+    assert packed.nbytes == 10 * BYTES_PER_JOINT_FRAME[encoding]
+
+
+def test_s48_is_six_bytes_and_keeps_edge_cases() -> None:
+    edge = np.array([[1, 0, 0, 0], [0, 0, 0, -1], [0.5, -0.5, 0.5, -0.5], [0, 0.70710677, 0.70710677, 0],
+                     [0, 0, 0, 1], [-0.70710677, 0, 0, 0.70710677]], np.float32)
+    packed = encode_rotations(edge, "s48")
+    assert packed.shape == (6, 6) and packed.dtype == np.uint8
+    assert np.degrees(rotation_angle(edge, decode_rotations(packed, "s48"))).max() < ENCODING_ERROR["s48"][0]
+    assert not (packed[:, 5] & 0x80).any()  # bit 47 stays 0
+
+
+@pytest.mark.parametrize("encoding", ["s48", "i16"])
+def test_compiled_packers_give_the_reference_bytes(encoding: str) -> None:
+    q = random_rotations(50_000, seed=2).reshape(500, 100, 4)
+    assert np.array_equal(pack_rotations(q, encoding), encode_rotations(q, encoding))  # type: ignore[arg-type]
+
+
+def test_blobs_round_trip_and_refuse_what_does_not_add_up() -> None:
+    a = np.arange(12, dtype=np.float32).reshape(4, 3)
+    b = blob(a)
+    assert b["dtype"] == "<f4" and b["shape"] == [4, 3]
+    assert np.array_equal(unblob(b["dtype"], b["shape"], b["data"]), a)
+    with pytest.raises(WireError, match=r"points.data: 8 bytes do not hold <f4 of shape \[4, 3\]"):
+        unblob("<f4", [4, 3], b"\0" * 8, "points")
+    with pytest.raises(WireError, match="dtype must be one of"):
+        unblob(">f8", [1], b"\0" * 8, "points")
+
+
+def test_contact_bits_follow_the_foot_order() -> None:
+    contacts = np.array([[True, False, False, False], [False, True, False, True]])
+    assert contact_bits(contacts).tolist() == [1, 10]
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.binary(max_size=200))
+def test_any_bytes_decode_or_are_refused_with_422(raw: bytes) -> None:
+    for kind in ("application/vnd.msgpack", "application/json"):
+        try:
+            decode(raw, kind)
+        except ApiError as exc:
+            assert exc.status == 422 and exc.field == "body"
+
+
+values = st.recursive(st.none() | st.booleans() | st.integers(-2**63, 2**64 - 1) | st.floats() | st.text(max_size=8)
+                      | st.binary(max_size=24),
+                      lambda inner: st.lists(inner, max_size=4) | st.dictionaries(st.text(max_size=8), inner,
+                                                                                   max_size=4),
+                      max_leaves=20)
+requests = st.fixed_dictionaries({"characters": st.lists(st.fixed_dictionaries(
+    {"id": values, "points": st.one_of(values, st.fixed_dictionaries(
+        {"dtype": st.sampled_from(["<f4", "<f8", "<i2", "x"]), "shape": st.lists(st.integers(-2, 5), max_size=3),
+         "data": st.binary(max_size=48)}))}), max_size=3)}, optional={"animal": values, "fps": values,
+                                                                       "encoding": values, "seed": values})
+
+
+@settings(max_examples=300, deadline=None)
+@given(requests)
+def test_any_msgpack_structure_is_parsed_or_refused_with_422(body: dict) -> None:
+    raw = msgpack.packb(body, use_bin_type=True)
+    try:
+        parse(decode(raw, "application/vnd.msgpack"), Settings(), {"horse": None})  # type: ignore[dict-item]
+    except ApiError as exc:
+        assert exc.status == 422 and exc.message
+    except (TypeError, AttributeError) as exc:  # pragma: no cover - would be a 500
+        pytest.fail(f"parse crashed: {exc!r}")
