@@ -285,3 +285,35 @@ def test_sigterm_lets_the_request_in_flight_finish(tmp_path: Path, herd: np.ndar
     finally:
         if proc.poll() is None:
             proc.kill()
+
+
+def test_python_client_gives_the_motion_synthesize_gives_locally(server: str, herd: np.ndarray) -> None:
+    import asyncio
+
+    from api_schemas.client import AsyncClient, Client, ServiceError
+    from synth_core.bank import build_bank
+    from synth_core.build import build_builtin
+    from synth_core.synthesis import Options, synthesize
+
+    with Client(server) as qs:
+        motion = qs.synthesize(herd[:3], ids=["a", "b", "c"], scales=[1.1, None, 0.9], seed=5, encoding="f32")
+        assert [c.id for c in motion.characters] == ["a", "b", "c"]
+        with pytest.raises(ServiceError, match="422 animal: unknown animal 'cat'"):
+            qs.synthesize(herd[:1], animal="cat")
+    local = synthesize(build_bank(build_builtin("horse")), herd[:3].astype(np.float64), 60.0,
+                       [1.1, np.nan, 0.9], Options(seed=5, scale_range=(0.8, 1.2)))
+    for c, ch in enumerate(motion.characters):
+        assert ch.scale == pytest.approx(local.scales[c])
+        assert np.abs(ch.root - local.root_pos[c]).max() < 1e-5
+        assert np.degrees(rotation_angle(ch.rotations, local.rotations[c]).max()) < 1e-3
+        assert np.array_equal(ch.contacts, local.contacts[c]) and np.array_equal(ch.gait, local.gait[c])
+
+    async def over_asyncio() -> None:
+        async with AsyncClient(server) as qs:
+            again = await qs.synthesize(herd[:3], ids=["a", "b", "c"], scales=[1.1, None, 0.9], seed=5,
+                                        encoding="s48")
+        worst = max(np.degrees(rotation_angle(a.rotations, b.rotations).max())
+                    for a, b in zip(again.characters, motion.characters, strict=True))
+        assert worst <= ENCODING_ERROR["s48"][0]
+
+    asyncio.run(over_asyncio())

@@ -1,0 +1,146 @@
+"""Python client for the QuadSynth service: numpy arrays in, numpy arrays out (sync and async).
+
+    from api_schemas.client import Client
+    with Client("http://127.0.0.1:8000") as qs:
+        motion = qs.synthesize(positions, fps=60, animal="horse", seed=1)   # positions (C, F, 3)
+        motion.characters[0].rotations   # (frames, joints, 4) float32 xyzw, whatever the encoding
+
+Needs httpx (``pip install httpx``); the server is not needed to import this module.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import msgpack
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from api_schemas.wire import Encoding, blob, decode_rotations, unblob
+
+MSGPACK = "application/vnd.msgpack"
+
+
+class ServiceError(RuntimeError):
+    """The service refused the request: ``status``, ``field`` and ``message`` say why."""
+
+    def __init__(self, status: int, field: str, message: str) -> None:
+        super().__init__(f"{status} {field}: {message}" if field else f"{status} {message}")
+        self.status, self.field, self.message = status, field, message
+
+
+@dataclass(frozen=True)
+class CharacterMotion:
+    id: str
+    scale: float
+    root: NDArray[np.float32]  # (F, 3) metres
+    rotations: NDArray[np.float32]  # (F, J, 4) local, xyzw
+    gait: NDArray[np.int8]  # (F,)
+    contacts: NDArray[np.bool_]  # (F, 4) LF, RF, LH, RH
+
+
+@dataclass(frozen=True)
+class Motion:
+    animal: str
+    skeleton_id: str
+    fps: float
+    resample_rate: float
+    characters: list[CharacterMotion]
+    skipped: list[dict[str, Any]] = field(default_factory=list)
+
+
+def request_body(positions: ArrayLike, ids: Sequence[str] | None = None,
+                 scales: Sequence[float | None] | None = None, **options: Any) -> bytes:
+    """The msgpack body for ``positions``: an array (C, F, 3) or a list of (F_c, 3) arrays."""
+    paths = [np.asarray(p, np.float32) for p in positions]  # type: ignore[union-attr]
+    ids = list(ids) if ids is not None else [str(c) for c in range(len(paths))]
+    characters = []
+    for c, path in enumerate(paths):
+        entry: dict[str, Any] = {"id": ids[c], "points": blob(path)}
+        if scales is not None and scales[c] is not None:
+            entry["scale"] = float(scales[c])  # type: ignore[arg-type]
+        characters.append(entry)
+    return bytes(msgpack.packb({**options, "characters": characters}, use_bin_type=True))
+
+
+def decode_response(content: bytes) -> Motion:
+    body = msgpack.unpackb(content)
+    characters = []
+    for ch in body["characters"]:
+        rot = ch["rotations"]
+        encoding: Encoding = rot["encoding"]
+        bits = unblob(**ch["contacts"])
+        characters.append(CharacterMotion(
+            id=ch["id"], scale=ch["scale"], root=unblob(**ch["root"]),
+            rotations=decode_rotations(unblob(rot["dtype"], rot["shape"], rot["data"]), encoding),
+            gait=unblob(**ch["gait"]), contacts=(bits[:, None] >> np.arange(4)) & 1 == 1))
+    return Motion(body["animal"], body["skeleton_id"], body["fps"], body["resample_rate"], characters,
+                  body.get("skipped", []))
+
+
+def _raise_for(status: int, content: bytes) -> None:
+    if status == 200:
+        return
+    try:
+        import json
+
+        error = json.loads(content)["error"]
+        raise ServiceError(status, error.get("field", ""), error.get("message", ""))
+    except (ValueError, KeyError, TypeError):
+        raise ServiceError(status, "", content[:200].decode("utf-8", "replace")) from None
+
+
+class Client:
+    """Synchronous client; ``timeout`` in seconds (synthesis of big batches takes a while)."""
+
+    def __init__(self, url: str, timeout: float = 120.0) -> None:
+        import httpx
+
+        self._http = httpx.Client(base_url=url.rstrip("/"), timeout=timeout)
+
+    def __enter__(self) -> Client:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def close(self) -> None:
+        self._http.close()
+
+    def library(self, animal: str) -> dict[str, Any]:
+        response = self._http.get(f"/v1/libraries/{animal}")
+        _raise_for(response.status_code, response.content)
+        return dict(response.json())
+
+    def synthesize(self, positions: ArrayLike, ids: Sequence[str] | None = None,
+                   scales: Sequence[float | None] | None = None, **options: Any) -> Motion:
+        """``options``: the request's fields (animal, fps, seed, sigma, encoding, skip_invalid, ...)."""
+        response = self._http.post("/v1/synthesize", content=request_body(positions, ids, scales, **options),
+                                   headers={"content-type": MSGPACK, "accept": MSGPACK})
+        _raise_for(response.status_code, response.content)
+        return decode_response(response.content)
+
+
+class AsyncClient:
+    """The same, for asyncio."""
+
+    def __init__(self, url: str, timeout: float = 120.0) -> None:
+        import httpx
+
+        self._http = httpx.AsyncClient(base_url=url.rstrip("/"), timeout=timeout)
+
+    async def __aenter__(self) -> AsyncClient:
+        return self
+
+    async def __aexit__(self, *exc: object) -> None:
+        await self._http.aclose()
+
+    async def synthesize(self, positions: ArrayLike, ids: Sequence[str] | None = None,
+                         scales: Sequence[float | None] | None = None, **options: Any) -> Motion:
+        response = await self._http.post("/v1/synthesize",
+                                         content=request_body(positions, ids, scales, **options),
+                                         headers={"content-type": MSGPACK, "accept": MSGPACK})
+        _raise_for(response.status_code, response.content)
+        return decode_response(response.content)
