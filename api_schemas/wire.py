@@ -99,10 +99,6 @@ def decode_rotations(packed: NDArray[Any], encoding: Encoding) -> NDArray[np.flo
     raise WireError(f"must be one of {', '.join(ENCODINGS)}, got {encoding!r}", "encoding")
 
 
-def packed_shape(frames: int, joints: int, encoding: Encoding) -> tuple[int, int, int]:
-    return (frames, joints, 6 if encoding == "s48" else 4)
-
-
 def packed_dtype(encoding: Encoding) -> str:
     return {"f32": "<f4", "i16": "<i2", "s48": "|u1"}[encoding]
 

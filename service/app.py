@@ -63,7 +63,9 @@ class State:
         self.admission = Admission(settings.max_in_flight, settings.max_queued, self.metrics)
         self.pool = ThreadPoolExecutor(settings.max_in_flight, thread_name_prefix="synth")
         self.draining = False
-        self.hold = threading.Event()  # test hook: workers wait on it while set ... see _held
+        # Test hooks (settings.test_hooks): a worker about to synthesize sets `held` and waits
+        # until `hold` is set again; /_test/hold clears it, /_test/release sets it.
+        self.hold = threading.Event()
         self.held = threading.Event()
         self.hold.set()
 

@@ -94,22 +94,18 @@ def contact_bits(contacts: NDArray[np.bool_]) -> NDArray[np.uint8]:
     return np.asarray((contacts.astype(np.uint8) << np.arange(4, dtype=np.uint8)).sum(-1), np.uint8)
 
 
-def characters_out(result: Result, ids: list[str], frames: list[int], encoding: Encoding,
-                   window: slice = slice(None)) -> list[dict[str, Any]]:
+def characters_out(result: Result, ids: list[str], frames: list[int],
+                   encoding: Encoding) -> list[dict[str, Any]]:
     """Per kept character, its wire dict; ``frames``: each one's own frame count (characters
-    padded to a common length are cut back); ``window``: only these frames (streaming)."""
-    packed = pack_rotations(result.rotations[:, window], encoding)
-    root = result.root_pos[:, window]
-    gait = result.gait[:, window]
-    bits = contact_bits(result.contacts[:, window])
-    start = window.start or 0
+    padded to a common length are cut back to it)."""
+    packed = pack_rotations(result.rotations, encoding)
+    bits = contact_bits(result.contacts)
     out = []
     for c, (cid, n) in enumerate(zip(ids, frames, strict=True)):
-        stop = max(0, min(n - start, packed.shape[1]))
-        rot = blob(packed[c, :stop])
+        rot = blob(packed[c, :n])
         rot["encoding"] = encoding
         rot["dtype"] = packed_dtype(encoding)
         out.append({"id": cid, "scale": float(result.scales[c]), "frames": n,
-                    "root": blob(root[c, :stop]), "rotations": rot,
-                    "gait": blob(gait[c, :stop]), "contacts": blob(bits[c, :stop])})
+                    "root": blob(result.root_pos[c, :n]), "rotations": rot,
+                    "gait": blob(result.gait[c, :n]), "contacts": blob(bits[c, :n])})
     return out
