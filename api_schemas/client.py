@@ -10,6 +10,7 @@ Needs httpx (``pip install httpx``); the server is not needed to import this mod
 
 from __future__ import annotations
 
+import json
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -84,8 +85,6 @@ def _raise_for(status: int, content: bytes) -> None:
     if status == 200:
         return
     try:
-        import json
-
         error = json.loads(content)["error"]
         raise ServiceError(status, error.get("field", ""), error.get("message", ""))
     except (ValueError, KeyError, TypeError):
