@@ -19,9 +19,7 @@ import msgpack
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from api_schemas.wire import Encoding, blob, decode_rotations, unblob
-
-MSGPACK = "application/vnd.msgpack"
+from api_schemas.wire import MSGPACK, Encoding, blob, decode_rotations, unblob
 
 
 class ServiceError(RuntimeError):

@@ -26,6 +26,7 @@ from typing import Any, Literal
 import numpy as np
 from numpy.typing import NDArray
 
+MSGPACK = "application/vnd.msgpack"  # the media type of msgpack bodies (two aliases also accepted)
 Encoding = Literal["f32", "i16", "s48"]
 ENCODINGS: tuple[Encoding, ...] = ("f32", "i16", "s48")
 BYTES_PER_JOINT_FRAME = {"f32": 16, "i16": 8, "s48": 6}
@@ -151,7 +152,9 @@ def _unpack_s48(packed: NDArray[np.uint8]) -> NDArray[np.float32]:
 
 def rotation_angle(a: NDArray[np.floating], b: NDArray[np.floating]) -> NDArray[np.float64]:
     """Radians between rotations ``a`` and ``b`` (..., 4): 2 atan2(|vector part|, |w|) of
-    conj(a) b, exact for small angles (arccos of the dot product is not)."""
+    conj(a) b, exact for small angles (arccos of the dot product is not). Written out rather than
+    quat.angle(quat.mul(quat.inv(a), b)): this form is exactly 0 for equal inputs, which the
+    lossless f32 encoding's documented error of 0 relies on."""
     a = np.asarray(a, np.float64)
     b = np.asarray(b, np.float64)
     w = np.sum(a * b, axis=-1)

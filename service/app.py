@@ -32,6 +32,7 @@ from api_schemas import (
     SynthesizeRequest,
     SynthesizeResponse,
 )
+from api_schemas.wire import MSGPACK
 from service import body, jobs
 from service.admission import Admission
 from service.errors import ApiError, handle_api_error, handle_http_error, handle_validation_error
@@ -51,7 +52,7 @@ def _errors(*codes: int) -> dict[int | str, dict[str, Any]]:
 def _binary_body(model: type, description: str) -> dict[str, Any]:
     ref = {"$ref": f"#/components/schemas/{model.__name__}"}
     return {"description": description,
-            "content": {body.MSGPACK: {"schema": ref}, body.JSON: {"schema": ref}}}
+            "content": {MSGPACK: {"schema": ref}, body.JSON: {"schema": ref}}}
 
 
 class State:

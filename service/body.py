@@ -10,9 +10,9 @@ import msgpack
 from fastapi import Request
 from fastapi.responses import Response
 
+from api_schemas.wire import MSGPACK
 from service.errors import ApiError
 
-MSGPACK = "application/vnd.msgpack"
 MSGPACK_TYPES = (MSGPACK, "application/x-msgpack", "application/msgpack")
 JSON = "application/json"
 
