@@ -6,10 +6,10 @@ the only Python loops run over segments (a dozen) and gaits (four):
 1. **Schedule** (per segment, vectorized over characters). Every character starts standing and
    moves through the motion graph one hub at a time. A segment's speed ``s / h`` (scale h) picks
    the gait: the current one while its range covers the speed (hysteresis), else one of the
-   gaits covering it -- at random, from the seeded generator, where ranges overlap -- reached
-   one transition per step. A transition starts when the stride reaches the phase the clip
-   starts from (``Bank`` entry), and the next gait picks up at the phase the clip ends in: the
-   footfall sequence carries on across it.
+   gaits covering it -- at random where ranges overlap (each character's own counter-based
+   draws, :mod:`synth_core.draws`) -- reached one transition per step. A transition starts when
+   the stride reaches the phase the clip starts from (``Bank`` entry), and the next gait picks up
+   at the phase the clip ends in: the footfall sequence carries on across it.
 2. **Clip interpolation.** Within a gait every speed-map clip has the same frames and contacts,
    so the stride phase just runs on (one clip frame per output frame) and the speed only moves
    the pair of clips blended, ``M = (1 - a) M_i + a M_j`` with the paper's ``a``, a continuous
@@ -36,6 +36,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from synth_core import UP_AXIS, kernels, quat
 from synth_core.bank import STATIC, Bank
+from synth_core.draws import SCALE_STREAM, SCHEDULE_STREAM, character_keys, uniform
 from synth_core.footlock import lock_feet
 from synth_core.trajectory import DEFAULT_SIGMA, Prepared, TrajectoryError, prepare
 
@@ -108,9 +109,9 @@ def _kinds(bank: Bank) -> _Kinds:
 
 
 def _choose(bank: Bank, current: NDArray[np.int64], speed: Floats,
-            rng: np.random.Generator) -> NDArray[np.int64]:
+            draws: Floats) -> NDArray[np.int64]:
     """Next hub per character for a segment's speed: stay while covered, else one step toward a
-    covering gait (a random one where several cover it)."""
+    covering gait (a random one where several cover it; ``draws (C, 5)`` uniform)."""
     C = len(current)
     covered = np.zeros((C, 5), bool)
     low = np.full(5, np.inf)
@@ -123,7 +124,7 @@ def _choose(bank: Bank, current: NDArray[np.int64], speed: Floats,
     covered[:, STATIC] = speed < low[slowest]
     beyond = ~covered.any(axis=1)  # faster than the fastest gait (resampling makes that rare)
     covered[beyond, max(bank.speeds)] = True
-    priority = np.where(covered, rng.random((C, 5)), -1.0)
+    priority = np.where(covered, draws, -1.0)
     target = np.where(covered[np.arange(C), current], current, priority.argmax(axis=1))
     return np.asarray(current + np.sign(target - current))
 
@@ -152,11 +153,13 @@ def stride_clocks(bank: Bank, kinds: _Kinds, speed: Floats) -> Floats:
 
 
 def schedule(bank: Bank, kinds: _Kinds, speed: Floats, m: int, travelled: Floats, clocks: Floats,
-             rng: np.random.Generator) -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.int64]]:
+             keys: NDArray[np.uint64]) -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.int64]]:
     """Per character the pieces played: ``(start frame, kind, first clip frame)``, each (C, E).
 
     Decisions every half segment, on the speed a segment ahead (``speed (C, T)``, m/s in the character's
-    unit). ``travelled (C, T)``: distance along the path from frame 0, same unit.
+    unit). ``travelled (C, T)``: distance along the path from frame 0, same unit. ``keys``: each
+    character's random key (:mod:`synth_core.draws`); decision k draws its stream k, so a plan of
+    the first frames only decides them as the whole plan does.
     """
     C, T = speed.shape
     step = max(1, m // 2)
@@ -176,7 +179,8 @@ def schedule(bank: Bank, kinds: _Kinds, speed: Floats, m: int, travelled: Floats
     for k in range(K):
         a = k * step
         # Decided on the speed a segment ahead: transitions take time, so start them early.
-        nxt = _choose(bank, current, speed[:, min(a + LOOKAHEAD * m, T - 1)], rng)
+        draws = uniform(keys, SCHEDULE_STREAM + k, N_HUBS)
+        nxt = _choose(bank, current, speed[:, min(a + LOOKAHEAD * m, T - 1)], draws)
         go = np.flatnonzero((busy <= a) & (nxt != current))
         if len(go) == 0:
             continue
@@ -296,7 +300,7 @@ class Plan:
     gait: NDArray[np.int8]  # (C, T)
 
 
-def plan(bank: Bank, prep: Prepared, h: Floats, rng: np.random.Generator, margin: int = MARGIN) -> Plan:
+def plan(bank: Bank, prep: Prepared, h: Floats, keys: NDArray[np.uint64], margin: int = MARGIN) -> Plan:
     """Schedule every character's pieces and find the rows each frame blends (see the module doc)."""
     path = prep.positions
     C, T = path.shape[:2]
@@ -307,7 +311,7 @@ def plan(bank: Bank, prep: Prepared, h: Floats, rng: np.random.Generator, margin
     clocks = stride_clocks(bank, kinds, v)
     step = np.linalg.norm(np.diff(path[..., [0, 2]], axis=1), axis=-1)
     travelled = np.concatenate([np.zeros((C, 1)), np.cumsum(step, axis=1)], axis=1) / h[:, None]
-    start, kind_e, first_e = schedule(bank, kinds, v, m, travelled, clocks, rng)
+    start, kind_e, first_e = schedule(bank, kinds, v, m, travelled, clocks, keys)
 
     # Which piece plays at every frame: the last one started.
     E = start.shape[1]
@@ -386,15 +390,19 @@ def render(bank: Bank, p: Plan, foot_lock: bool = True) -> tuple[NDArray[np.floa
 
 
 def prepare_batch(bank: Bank, positions: ArrayLike, fps: float | None, scales: ArrayLike | None,
-                  options: Options, ids: list[str] | None) -> tuple[Prepared, Floats, np.random.Generator]:
-    """Checked options, every character's scale (given, or drawn), prepared trajectories."""
+                  options: Options, ids: list[str] | None, seeds: ArrayLike | None = None
+                  ) -> tuple[Prepared, Floats, NDArray[np.uint64]]:
+    """Checked options, prepared trajectories, and each kept character's scale (given, or
+    drawn) and random key (from its own seed, ``-1``: none, else from ``options.seed``)."""
     fps = bank.fps if fps is None else fps
-    rng = np.random.default_rng(options.seed)
     n = np.shape(positions)[0] if np.ndim(positions) >= 1 else 0
+    if seeds is not None and np.shape(seeds) != (n,):
+        raise TrajectoryError(f"seeds: expected {n} values (one per character), got shape {np.shape(seeds)}")
+    keys = character_keys(options.seed, n, seeds)
     h_min, h_max = options.scale_range
     if not (0 < h_min <= h_max and np.isfinite(h_max)):
         raise TrajectoryError(f"scale_range: need 0 < min <= max, got {options.scale_range}")
-    drawn = rng.uniform(h_min, h_max, n)
+    drawn = h_min + (h_max - h_min) * uniform(keys, SCALE_STREAM)[:, 0]
     if scales is None:
         all_scales = drawn
     else:
@@ -408,7 +416,7 @@ def prepare_batch(bank: Bank, positions: ArrayLike, fps: float | None, scales: A
         raise TrajectoryError(f"backend: must be one of {BACKENDS}, got {options.backend!r}")
     prep = prepare(positions, fps, bank.fps, bank.top_speed, bank.mean_cycle, all_scales,
                    options.sigma, options.skip_invalid, ids)
-    return prep, all_scales[prep.kept], rng
+    return prep, all_scales[prep.kept], keys[prep.kept]
 
 
 def compiled_backend(options: Options) -> bool:
@@ -420,8 +428,13 @@ def synthesize(bank: Bank, positions: ArrayLike, fps: float | None = None,
                scales: ArrayLike | None = None, options: Options = Options(),
                ids: list[str] | None = None,
                progress: Callable[[int, int], None] | None = None,
-               out: tuple[NDArray[np.float32], NDArray[np.float32]] | None = None) -> Result:
+               out: tuple[NDArray[np.float32], NDArray[np.float32]] | None = None,
+               seeds: ArrayLike | None = None) -> Result:
     """Motion for every trajectory ``positions (C, F, 3)`` sampled at ``fps`` (default: the library's).
+
+    ``seeds (C,)``: a character's own seed (``-1``: none, it draws from ``options.seed`` and its
+    index); a character's motion depends on its seed, not on the rest of the batch (save for the
+    batch's resampling rate, when some character is too fast for the library).
 
     The batch is checked and resampled as a whole, then planned and rendered ``CHUNK`` characters
     at a time (the working set stays in cache, so the cost per character-frame does not grow with
@@ -431,7 +444,7 @@ def synthesize(bank: Bank, positions: ArrayLike, fps: float | None = None,
     previous result's, as a caller synthesizing batch after batch would keep them (T: the frame
     count after resampling). Fresh memory is dear: its first touch costs up to 1.8 ms per MB on
     a VM (measured here), 5.7 s for 10,000 characters x 500 frames."""
-    prep, h, rng = prepare_batch(bank, positions, fps, scales, options, ids)
+    prep, h, keys = prepare_batch(bank, positions, fps, scales, options, ids, seeds)
     C, T = prep.positions.shape[:2]
     compiled = compiled_backend(options)
     J = bank.skeleton.n_joints
@@ -453,7 +466,7 @@ def synthesize(bank: Bank, positions: ArrayLike, fps: float | None = None,
         sl = slice(a, min(a + CHUNK, C))
         part = replace(prep, positions=prep.positions[sl], raw=prep.raw[sl],
                        segment_speeds=prep.segment_speeds[sl])
-        p = plan(bank, part, h[sl], rng, options.margin)
+        p = plan(bank, part, h[sl], keys[sl], options.margin)
         if compiled:
             # Touch the chunk's output pages here, in one thread, before the kernel's workers write
             # them: first-touch page faults taken by parallel workers contend for the process's

@@ -1,4 +1,5 @@
-"""Shared fixtures: the real dog mocap (skipped when ../shared is absent) and a toy quadruped."""
+"""Shared fixtures: the real dog mocap (skipped when ../shared is absent), a toy quadruped and the
+built-in horse's synthesis tables."""
 
 from __future__ import annotations
 
@@ -8,6 +9,8 @@ import numpy as np
 import pytest
 
 from synth_core import quat
+from synth_core.bank import Bank, build_bank
+from synth_core.build import build_builtin
 from synth_core.motion import Motion
 from synth_core.skeleton import Skeleton
 
@@ -83,3 +86,9 @@ def rng() -> np.random.Generator:
 @pytest.fixture
 def toy() -> Skeleton:
     return toy_skeleton()
+
+
+@pytest.fixture(scope="session")
+def bank() -> Bank:
+    """The built-in horse's synthesis tables (built once for the whole run)."""
+    return build_bank(build_builtin("horse"))

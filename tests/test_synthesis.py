@@ -7,17 +7,11 @@ import pytest
 
 from synth_core import crowd, kernels
 from synth_core import metrics as M
-from synth_core.bank import Bank, build_bank
-from synth_core.build import build_builtin
+from synth_core.bank import Bank
 from synth_core.footlock import plant_targets
 from synth_core.skeleton import forward_kinematics
 from synth_core.synthesis import Options, Result, headings, synthesize
 from synth_core.trajectory import TrajectoryError
-
-
-@pytest.fixture(scope="module")
-def bank() -> Bank:
-    return build_bank(build_builtin("horse"))
 
 
 @pytest.fixture(scope="module")
