@@ -430,6 +430,74 @@ def _render_all(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, ya
                             out_rot[c], out_root[c], g_pos, g_rot, feet, targets, sink, eased)
 
 
+@_jit(parallel=True)
+def _render_windows(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, yaw: Any, path: Any,
+                    scales: Any, contacts: Any, parents: Any, offsets: Any, fk_joints: Any, rigs: Any,
+                    bends: Any, sink_limit: float, foot_lock: bool, workers: int, begin: Any, end: Any,
+                    start: int, out_rot: Any, out_root: Any) -> None:
+    """Frames ``[start, start + out.shape[1])`` of each character, rendered over its own context
+    ``[begin[c], end[c])`` of the plan (see :func:`render_window`)."""
+    C, n, J = out_rot.shape[0], out_rot.shape[1], out_rot.shape[2]
+    longest = 0
+    for c in range(C):
+        longest = max(longest, end[c] - begin[c])
+    workers = min(C, workers)
+    for worker in _prange(workers):
+        rot = np.empty((longest, J, 4), np.float32)
+        root = np.empty((longest, 3))
+        g_pos = np.empty((longest, J, 3))
+        g_rot = np.empty((longest, J, 4))
+        feet = np.empty((longest, 4, 3))
+        targets = np.empty((longest, 4, 3))
+        sink = np.empty(longest)
+        eased = np.empty(longest)
+        for c in range(worker, C, workers):
+            b, e = begin[c], end[c]
+            k = e - b
+            _character(poses, height, surge, rows[c, b:e], weights[c, b:e], yaw[c, b:e], path[c, b:e],
+                       scales[c], contacts[c, b:e], parents, offsets, fk_joints, rigs, bends, sink_limit,
+                       foot_lock, rot[:k], root[:k], g_pos[:k], g_rot[:k], feet[:k], targets[:k],
+                       sink[:k], eased[:k])
+            out_rot[c] = rot[start - b:start - b + n]
+            out_root[c] = root[start - b:start - b + n]
+
+
+def _skeleton_tables(bank: Bank) -> tuple[Any, ...]:
+    """The skeleton's arrays as the kernels take them: parents, offsets, the joints above the
+    feet (FK needs no others), the legs' rig table, bend axes, the sink limit."""
+    sk = bank.skeleton
+    rigs = limb_rigs(sk)
+    rig_table = np.array([[r.upper, r.hinge, r.ankle, r.effector] for r in rigs], np.int64)
+    needed = np.zeros(sk.n_joints, bool)
+    for r in rigs:
+        j = r.effector
+        while j >= 0:
+            needed[j] = True
+            j = int(sk.parents[j])
+    return (sk.parents.astype(np.int64), sk.offsets.astype(np.float64),
+            np.flatnonzero(needed).astype(np.int64), rig_table, np.asarray(bank.bends, np.float64),
+            MAX_SINK * sk.leg_length())
+
+
+def render_window(bank: Bank, plan: Plan, start: int, stop: int, begin: NDArray[np.int64],
+                  end: NDArray[np.int64], foot_lock: bool = True
+                  ) -> tuple[NDArray[np.float32], NDArray[np.float32]]:
+    """Root ``(C, stop - start, 3)`` and rotations of frames ``[start, stop)`` only, each
+    character rendered over its context ``[begin, end)`` of ``plan`` (from
+    :func:`synth_core.streaming.lock_context`): the same numbers as :func:`render` of the whole."""
+    if not AVAILABLE:
+        raise RuntimeError("synth_core.kernels needs numba; use the numpy backend")
+    C = plan.yaw.shape[0]
+    J = bank.skeleton.n_joints
+    out_root = np.empty((C, stop - start, 3), np.float64)
+    out_rot = np.empty((C, stop - start, J, 4), np.float32)
+    _render_windows(bank.poses, bank.height.astype(np.float64), bank.surge.astype(np.float64),
+                    plan.rows, plan.weights, plan.yaw, plan.path, plan.scales.astype(np.float64),
+                    plan.contacts, *_skeleton_tables(bank), foot_lock, numba.get_num_threads(),
+                    np.asarray(begin, np.int64), np.asarray(end, np.int64), start, out_rot, out_root)
+    return out_root.astype(np.float32), out_rot
+
+
 def render(bank: Bank, plan: Plan, foot_lock: bool = True,
            out: tuple[NDArray[np.float32], NDArray[np.float32]] | None = None
            ) -> tuple[NDArray[np.float32], NDArray[np.float32]]:
@@ -437,24 +505,13 @@ def render(bank: Bank, plan: Plan, foot_lock: bool = True,
     :func:`synth_core.synthesis.render`, the reference); into ``out`` (root, rotations) if given."""
     if not AVAILABLE:
         raise RuntimeError("synth_core.kernels needs numba; use the numpy backend")
-    sk = bank.skeleton
-    rigs = limb_rigs(sk)
     C, T = plan.yaw.shape
-    J = sk.n_joints
-    rig_table = np.array([[r.upper, r.hinge, r.ankle, r.effector] for r in rigs], np.int64)
-    needed = np.zeros(J, bool)
-    for r in rigs:  # the joints above each foot, for FK
-        j = r.effector
-        while j >= 0:
-            needed[j] = True
-            j = int(sk.parents[j])
+    J = bank.skeleton.n_joints
     out_root = np.empty((C, T, 3), np.float64)
     out_rot = np.empty((C, T, J, 4), np.float32) if out is None else out[1]
     _render_all(bank.poses, bank.height.astype(np.float64), bank.surge.astype(np.float64),
                 plan.rows, plan.weights, plan.yaw, plan.path, plan.scales.astype(np.float64),
-                plan.contacts, sk.parents.astype(np.int64), sk.offsets.astype(np.float64),
-                np.flatnonzero(needed).astype(np.int64), rig_table, np.asarray(bank.bends, np.float64),
-                MAX_SINK * sk.leg_length(), foot_lock, numba.get_num_threads(), out_rot, out_root)
+                plan.contacts, *_skeleton_tables(bank), foot_lock, numba.get_num_threads(), out_rot, out_root)
     assert UP_AXIS == 1  # the kernels index Y directly
     if out is None:
         return out_root.astype(np.float32), out_rot

@@ -299,15 +299,32 @@ class Plan:
     stitches: NDArray[np.bool_]  # (C, T)
     gait: NDArray[np.int8]  # (C, T)
 
+    def window(self, start: int, stop: int) -> Plan:
+        """Frames ``[start, stop)`` of every character."""
+        t = slice(start, stop)
+        return Plan(self.rows[:, t], self.weights[:, t], self.yaw[:, t], self.path[:, t], self.scales,
+                    self.contacts[:, t], self.stitches[:, t], self.gait[:, t])
 
-def plan(bank: Bank, prep: Prepared, h: Floats, keys: NDArray[np.uint64], margin: int = MARGIN) -> Plan:
-    """Schedule every character's pieces and find the rows each frame blends (see the module doc)."""
+
+def plan(bank: Bank, prep: Prepared, h: Floats, keys: NDArray[np.uint64], margin: int = MARGIN,
+         frames: int | None = None) -> Plan:
+    """Schedule every character's pieces and find the rows each frame blends (see the module doc).
+
+    ``frames``: plan only the first ``frames`` frames -- exactly as the whole plan has them: every
+    decision looks one segment ahead, so the schedule runs that much further, and headings and
+    speeds come from the whole path. (A streamed batch's first window needs no more.)"""
     path = prep.positions
     C, T = path.shape[:2]
     kinds = _kinds(bank)
     m = prep.segment
     speeds = prep.segment_speeds / h[:, None]  # the library motion's speed for each character
     v = _frame_speeds(speeds, m, T)
+    yaw = headings(path, bank.fps)
+    keep = T
+    if frames is not None and frames + LOOKAHEAD * m + 1 < T:
+        keep = max(frames, 1)
+        T = keep + LOOKAHEAD * m + 1
+        path, v, yaw = path[:, :T], v[:, :T], yaw[:, :T]
     clocks = stride_clocks(bank, kinds, v)
     step = np.linalg.norm(np.diff(path[..., [0, 2]], axis=1), axis=-1)
     travelled = np.concatenate([np.zeros((C, 1)), np.cumsum(step, axis=1)], axis=1) / h[:, None]
@@ -349,7 +366,8 @@ def plan(bank: Bank, prep: Prepared, h: Floats, keys: NDArray[np.uint64], margin
     stitches[:, 1:] = e[:, 1:] != e[:, :-1]
     first_half = (r0 - kinds.offset[kind]) < kinds.frames[kind] // 2
     gait = np.where(first_half, kinds.source[kind], kinds.target[kind]).astype(np.int8)
-    return Plan(rows, weights, headings(path, bank.fps), path, h, bank.contacts[r0], stitches, gait)
+    full = Plan(rows, weights, yaw, path, h, bank.contacts[r0], stitches, gait)
+    return full if keep == T else full.window(0, keep)
 
 
 def _nlerp(a: NDArray[np.float32], b: NDArray[np.float32], w: NDArray[np.float32]) -> NDArray[np.float32]:

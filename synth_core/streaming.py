@@ -1,0 +1,165 @@
+"""A batch synthesized in time windows: its first frames come out long before its last are made,
+and every frame is the number :func:`synth_core.synthesis.synthesize` gives for the whole batch.
+
+Why the windows can be exact:
+
+- the plan of the first frames is the whole plan's (:func:`synth_core.synthesis.plan` with
+  ``frames``; draws are per character and per decision, :mod:`synth_core.draws`), so the first
+  window waits only for its own frames' plan; the rest use the whole plan, made meanwhile;
+- a frame's pose is its plan row's, but the foot lock looks further: a planted foot goes to its
+  plant's average position, a swinging one eases between the plants either side, and the root's
+  sink is eased over ``PAD`` frames either side. So each character renders a window over a
+  *context* -- from the start of the plant (or the plant before the swing) ``PAD`` frames before
+  the window, to the end of the plant (or the plant after the swing) ``PAD`` frames after it --
+  and keeps the window's frames. Within the context every plant that matters is whole, so the
+  numbers are the same (tested bit for bit).
+
+The context costs extra frames (a stride or two either side), so after the first window the
+frames are rendered ``RENDER_CHUNKS`` chunks at a time.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from synth_core import kernels
+from synth_core.bank import Bank
+from synth_core.footlock import EASE_FRAMES
+from synth_core.synthesis import Options, Plan, compiled_backend, plan, prepare_batch, render
+
+# Frames either side of a frame that its eased sink reads: the running max's half width plus the
+# Gaussian's radius (footlock.ease_sink: sigma EASE_FRAMES / 6, truncated at 4 sigma).
+PAD = EASE_FRAMES // 2 + int(4.0 * EASE_FRAMES / 6 + 0.5)
+RENDER_CHUNKS = 4  # chunks rendered at once after the first (the context's cost spread over more)
+FIRST_PLAN_STRIDES = 3  # the first window's plan reaches this many of the slowest gait's cycles on
+
+
+def runs(contacts: NDArray[np.bool_]) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+    """``(start, end)``, each ``(C, T, 4)``: the first frame of the run of equal contact flags each
+    frame is in, and the frame after its last."""
+    C, T, F = contacts.shape
+    t = np.arange(T)[None, :, None]
+    change = np.ones(contacts.shape, bool)
+    change[:, 1:] = contacts[:, 1:] != contacts[:, :-1]
+    start = np.maximum.accumulate(np.where(change, t, 0), axis=1)
+    after = np.full(contacts.shape, T)
+    after[:, :-1] = np.where(change[:, 1:], t[:, 1:], T)  # the next run's first frame, if it is t + 1
+    end = np.minimum.accumulate(after[:, ::-1], axis=1)[:, ::-1]
+    return start, end
+
+
+def lock_context(contacts: NDArray[np.bool_], start: int, stop: int,
+                 run_bounds: tuple[NDArray[np.int64], NDArray[np.int64]] | None = None
+                 ) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+    """Per character ``(begin, end)``: the frames the foot lock of ``[start, stop)`` reads."""
+    C, T, F = contacts.shape
+    first, after = runs(contacts) if run_bounds is None else run_bounds
+    lo, hi = max(start - PAD, 0), min(stop + PAD, T)
+    c, f = np.arange(C)[:, None], np.arange(F)[None, :]
+    # At lo: the plant it is in, or the plant before the swing it is in.
+    run = first[:, lo]
+    before = first[c, np.maximum(run - 1, 0), f]
+    begin = np.where(contacts[:, lo], run, np.where(run > 0, before, 0))
+    # At hi - 1: the plant it is in, or the plant after the swing it is in.
+    run_end = after[:, hi - 1]
+    following = after[c, np.minimum(run_end, T - 1), f]
+    end = np.where(contacts[:, hi - 1], run_end, np.where(run_end < T, following, T))
+    return begin.min(axis=1), end.max(axis=1)
+
+
+@dataclass(frozen=True, eq=False)
+class Window:
+    """Frames ``[start, start + n)`` of every kept character."""
+
+    start: int
+    root_pos: NDArray[np.float32]  # (C, n, 3)
+    rotations: NDArray[np.float32]  # (C, n, J, 4)
+    gait: NDArray[np.int8]  # (C, n)
+    contacts: NDArray[np.bool_]  # (C, n, 4)
+
+    @property
+    def stop(self) -> int:
+        return self.start + self.root_pos.shape[1]
+
+
+@dataclass(eq=False)
+class BatchStream:
+    """A batch checked and prepared (as :func:`synthesize` does: errors are raised here), whose
+    motion :meth:`windows` then makes ``chunk_frames`` frames at a time."""
+
+    bank: Bank
+    positions: ArrayLike
+    fps: float | None = None
+    scales: ArrayLike | None = None
+    options: Options = Options()
+    ids: list[str] | None = None
+    seeds: ArrayLike | None = None
+    chunk_frames: int = 30
+    _plan: Plan | None = field(default=None, init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        if not (isinstance(self.chunk_frames, int) and self.chunk_frames >= 1):
+            raise ValueError(f"chunk_frames: must be a positive integer, got {self.chunk_frames!r}")
+        self.prep, self.character_scales, self.keys = prepare_batch(
+            self.bank, self.positions, self.fps, self.scales, self.options, self.ids, self.seeds)
+        self.frames = self.prep.positions.shape[1]
+
+    @property
+    def kept(self) -> NDArray[np.int64]:
+        return self.prep.kept
+
+    @property
+    def rejected(self) -> dict[int, str]:
+        return self.prep.rejected
+
+    @property
+    def resample_rate(self) -> float:
+        return self.prep.resample_rate
+
+    def _whole_plan(self) -> Plan:
+        if self._plan is None:
+            self._plan = plan(self.bank, self.prep, self.character_scales, self.keys, self.options.margin)
+        return self._plan
+
+    def _render(self, p: Plan, start: int, stop: int,
+                bounds: tuple[NDArray[np.int64], NDArray[np.int64]] | None) -> Window:
+        lock = self.options.foot_lock
+        C = p.yaw.shape[0]
+        if lock:
+            begin, end = lock_context(p.contacts, start, stop, bounds)
+        else:
+            begin, end = np.full(C, start), np.full(C, stop)
+        if compiled_backend(self.options):
+            root, rot = kernels.render_window(self.bank, p, start, stop, begin, end, lock)
+        else:  # the reference: one context for all, the widest
+            b, e = int(begin.min()), int(end.max())
+            root, rot = render(self.bank, p.window(b, e), lock)
+            root, rot = root[:, start - b:stop - b], rot[:, start - b:stop - b]
+        return Window(start, root, rot, p.gait[:, start:stop], p.contacts[:, start:stop])
+
+    def windows(self) -> Iterator[Window]:
+        """The motion, ``chunk_frames`` frames at a time, in order."""
+        K, T = self.chunk_frames, self.frames
+        first_stop = min(K, T)
+        # The first window from a plan of its own frames and its lock context's, if that is enough.
+        reach = first_stop + PAD + FIRST_PLAN_STRIDES * int(self.bank.mean_cycle)
+        early = plan(self.bank, self.prep, self.character_scales, self.keys, self.options.margin,
+                     frames=reach)
+        begin_end = lock_context(early.contacts, 0, first_stop) if self.options.foot_lock else None
+        if early.yaw.shape[1] < T and begin_end is not None and begin_end[1].max() >= early.yaw.shape[1]:
+            early = self._whole_plan()  # a plant runs past it: plan it all now
+        yield self._render(early, 0, first_stop, None)
+        if first_stop == T:
+            return
+        whole = self._whole_plan()
+        bounds = runs(whole.contacts) if self.options.foot_lock else None
+        for a in range(first_stop, T, K * RENDER_CHUNKS):
+            b = min(a + K * RENDER_CHUNKS, T)
+            w = self._render(whole, a, b, bounds)
+            for s in range(a, b, K):
+                n = slice(s - a, min(s + K, b) - a)
+                yield Window(s, w.root_pos[:, n], w.rotations[:, n], w.gait[:, n], w.contacts[:, n])
