@@ -462,7 +462,7 @@ def _render_windows(poses: Any, height: Any, surge: Any, rows: Any, weights: Any
             out_root[c] = root[start - b:start - b + n]
 
 
-def _skeleton_tables(bank: Bank) -> tuple[Any, ...]:
+def _skeleton_tables(bank: Bank) -> tuple[Any, Any, Any, Any, Any, float]:
     """The skeleton's arrays as the kernels take them: parents, offsets, the joints above the
     feet (FK needs no others), the legs' rig table, bend axes, the sink limit."""
     sk = bank.skeleton

@@ -83,7 +83,7 @@ class Window:
 
     @property
     def stop(self) -> int:
-        return self.start + self.root_pos.shape[1]
+        return self.start + int(self.root_pos.shape[1])
 
 
 @dataclass(eq=False)
