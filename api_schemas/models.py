@@ -75,6 +75,9 @@ class CharacterIn(BaseModel):
     scale: float | None = Field(default=None, gt=0, le=100,
                                 description="size relative to the library animal (default: random "
                                             "in [scale_min, scale_max], seeded)")
+    seed: int | None = Field(default=None, ge=0, le=2**63 - 1,
+                             description="this character's own seed: its motion then depends on it "
+                                         "alone (default: from the request's seed and its index)")
 
 
 class SynthesizeRequest(BaseModel):

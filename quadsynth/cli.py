@@ -28,7 +28,9 @@ def _serve(args: argparse.Namespace, extra: list[str]) -> int:
     grace = [] if any(a.startswith("--timeout-graceful-shutdown") for a in extra) else [
         "--timeout-graceful-shutdown", str(int(Settings.from_env().drain_grace_s))]
     argv = ["service.app:create_app", "--factory", "--host", args.host, "--port", str(args.port),
-            "--ws-per-message-deflate", "false", *grace, *extra]
+            "--ws", "websockets-sansio", "--ws-per-message-deflate", "false",
+            "--ws-ping-interval", "20", "--ws-ping-timeout", "20",
+            "--ws-max-size", str(Settings.from_env().max_body_bytes), *grace, *extra]
     uvicorn.main.main(args=argv, prog_name="quadsynth serve")
     return 0
 

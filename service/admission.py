@@ -39,3 +39,10 @@ class Admission:
         finally:
             self.admitted -= 1
             self.metrics.in_flight = self.admitted
+
+    @asynccontextmanager
+    async def turn(self) -> AsyncIterator[None]:
+        """A running slot for work already admitted (a stream's next window): it waits its turn
+        instead of being refused, and does not count against the queue."""
+        async with self.running:
+            yield

@@ -7,6 +7,7 @@ kernels release the GIL), so the event loop keeps answering health checks while 
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import logging
 import signal
 import threading
@@ -16,7 +17,7 @@ from contextlib import asynccontextmanager
 from pathlib import Path
 from typing import Any
 
-from fastapi import FastAPI, Request
+from fastapi import FastAPI, Request, WebSocket
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse, PlainTextResponse, Response
 from starlette.exceptions import HTTPException as StarletteHTTPException
@@ -33,7 +34,7 @@ from api_schemas import (
     SynthesizeResponse,
 )
 from api_schemas.wire import MSGPACK
-from service import body, jobs
+from service import body, jobs, stream
 from service.admission import Admission
 from service.errors import ApiError, handle_api_error, handle_http_error, handle_validation_error
 from service.libraries import LibraryRegistry, library_dir
@@ -64,6 +65,9 @@ class State:
         self.admission = Admission(settings.max_in_flight, settings.max_queued, self.metrics)
         self.pool = ThreadPoolExecutor(settings.max_in_flight, thread_name_prefix="synth")
         self.draining = False
+        self.drain = asyncio.Event()  # set on SIGTERM: WebSocket sessions close with 1001
+        self.sessions: set[Any] = set()  # open WebSocket sessions (service.stream.Session)
+        self.sessions_closed = asyncio.Event()
         # Test hooks (settings.test_hooks): a worker about to synthesize sets `held` and waits
         # until `hold` is set again; /_test/hold clears it, /_test/release sets it.
         self.hold = threading.Event()
@@ -98,18 +102,33 @@ class State:
             raise
 
 
+DRAIN_SESSIONS_S = 2.0  # how long SIGTERM waits for WebSocket sessions to close (1001) first
+
+
 def _install_drain(state: State) -> None:
-    """On SIGTERM: /readyz turns 503 and WebSockets close (1001); uvicorn's own handler, called
-    next, stops accepting and lets in-flight requests finish within its graceful timeout."""
+    """On SIGTERM: /readyz turns 503 and WebSocket sessions close with 1001; then uvicorn's own
+    handler stops accepting and lets in-flight requests finish within its graceful timeout.
+    (Its own shutdown would close WebSockets with 1012 -- so they go first.)"""
     previous = signal.getsignal(signal.SIGTERM)
+    loop = asyncio.get_running_loop()
+
+    async def drain(signum: int, frame: Any) -> None:
+        state.drain.set()
+        for session in list(state.sessions):
+            session.ack.set()  # a writer waiting for acks notices now
+        if state.sessions:
+            state.sessions_closed.clear()
+            with contextlib.suppress(TimeoutError):
+                await asyncio.wait_for(state.sessions_closed.wait(), DRAIN_SESSIONS_S)
+        if callable(previous):
+            previous(signum, frame)
 
     def on_term(signum: int, frame: Any) -> None:
         state.draining = True
         log.info("SIGTERM: draining")
         if state.settings.test_hooks:  # a test holding the workers cannot reach /_test/release now
             threading.Timer(1.0, state.hold.set).start()
-        if callable(previous):
-            previous(signum, frame)
+        loop.call_soon_threadsafe(lambda: loop.create_task(drain(signum, frame)))
 
     try:
         signal.signal(signal.SIGTERM, on_term)
@@ -123,6 +142,7 @@ def warm_up(registry: LibraryRegistry) -> None:
     import numpy as np
 
     from service.packing import pack_rotations
+    from synth_core.streaming import BatchStream
     from synth_core.synthesis import synthesize
 
     path = np.zeros((1, 30, 3))
@@ -131,6 +151,8 @@ def warm_up(registry: LibraryRegistry) -> None:
         result = synthesize(bank, path)
         for encoding in ("s48", "i16"):
             pack_rotations(result.rotations, encoding)
+        for _ in BatchStream(bank, path, chunk_frames=10).windows():
+            pass
 
 
 def create_app(directory: Path | None = None, settings: Settings | None = None) -> FastAPI:
@@ -234,6 +256,11 @@ def create_app(directory: Path | None = None, settings: Settings | None = None) 
                   "characters": characters_out(result, ids, frames, req.encoding),
                   "skipped": jobs.skipped(job, result)}
         return body.encode(answer, body.wants_msgpack(request))
+
+    @app.websocket("/v1/stream")
+    async def stream_route(ws: WebSocket) -> None:
+        """Batch streaming over WebSocket: binary msgpack messages, docs/streaming.md."""
+        await stream.session(ws, state)
 
     if settings.test_hooks:
         @app.post("/_test/hold", include_in_schema=False)

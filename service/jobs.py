@@ -17,6 +17,7 @@ from api_schemas.wire import WireError, unblob
 from service.errors import ApiError, from_validation
 from service.settings import Settings
 from synth_core.bank import Bank
+from synth_core.streaming import BatchStream
 from synth_core.synthesis import Options, Result, synthesize
 from synth_core.trajectory import TrajectoryError
 
@@ -92,21 +93,31 @@ def parse(body: Any, settings: Settings, banks: dict[str, Bank]) -> Job:
     return Job(req, positions, lengths, threading.Event())
 
 
+def character_scales_and_seeds(req: SynthesizeRequest) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+    """Given scales (NaN: draw one) and seeds (-1: from the request's), as synthesis takes them."""
+    scales = np.array([np.nan if c.scale is None else c.scale for c in req.characters])
+    seeds = np.array([-1 if c.seed is None else c.seed for c in req.characters], np.int64)
+    return scales, seeds
+
+
+def options(req: SynthesizeRequest) -> Options:
+    return Options(sigma=req.sigma, seed=req.seed, scale_range=(req.scale_min, req.scale_max),
+                   skip_invalid=req.skip_invalid, foot_lock=req.foot_lock)
+
+
 def run(job: Job, bank: Bank) -> tuple[Result, float]:
     """Synthesize (in a worker thread); raises :class:`ApiError` 422 for a bad trajectory."""
     req = job.request
-    scales = np.array([np.nan if c.scale is None else c.scale for c in req.characters])
+    scales, seeds = character_scales_and_seeds(req)
 
     def check_cancel(done: int, total: int) -> None:
         if job.cancel.is_set():
             raise Cancelled
 
-    options = Options(sigma=req.sigma, seed=req.seed, scale_range=(req.scale_min, req.scale_max),
-                      skip_invalid=req.skip_invalid, foot_lock=req.foot_lock)
     t0 = time.perf_counter()
     try:
-        result = synthesize(bank, job.positions, req.fps, scales, options, ids=job.ids,
-                            progress=check_cancel)
+        result = synthesize(bank, job.positions, req.fps, scales, options(req), ids=job.ids,
+                            progress=check_cancel, seeds=seeds)
     except TrajectoryError as exc:
         raise trajectory_error(exc, job) from None
     return result, time.perf_counter() - t0
@@ -122,12 +133,22 @@ def trajectory_error(exc: TrajectoryError, job: Job) -> ApiError:
     return ApiError(422, f"characters[{index}].{part}", reason.removeprefix("positions: "))
 
 
-def output_frames(job: Job, result: Result) -> list[int]:
+def open_stream(job: Job, bank: Bank, chunk_frames: int) -> BatchStream:
+    """The job checked and prepared for streaming (in a worker thread); 422 as :func:`run`."""
+    req = job.request
+    scales, seeds = character_scales_and_seeds(req)
+    try:
+        return BatchStream(bank, job.positions, req.fps, scales, options(req), job.ids, seeds, chunk_frames)
+    except TrajectoryError as exc:
+        raise trajectory_error(exc, job) from None
+
+
+def output_frames(job: Job, result: Result | BatchStream) -> list[int]:
     """Each kept character's own frame count: its share of the common time axis."""
-    T = result.root_pos.shape[1]
+    T = result.root_pos.shape[1] if isinstance(result, Result) else result.frames
     longest = job.positions.shape[1]
     return [int(round((job.lengths[c] - 1) / (longest - 1) * (T - 1))) + 1 for c in result.kept]
 
 
-def skipped(job: Job, result: Result) -> list[dict[str, Any]]:
+def skipped(job: Job, result: Result | BatchStream) -> list[dict[str, Any]]:
     return [{"id": job.ids[c], "index": c, "reason": why} for c, why in sorted(result.rejected.items())]

@@ -1,0 +1,268 @@
+"""WebSocket ``/v1/stream``: a batch's motion in chunks of K frames, each sent as soon as it is
+made (docs/streaming.md has the protocol).
+
+One session, two tasks: a reader that takes every client message as it comes (acks, pings,
+cancel, the next batch) and notices a disconnect at once -- even while the writer is blocked
+sending -- and the writer, which synthesizes window after window in the worker pool and sends
+the chunks, at most ``ws_window`` ahead of the client's acks. A client that stops reading or
+acking for ``ws_send_timeout_s`` is closed with 1013; a disconnect stops the work at the next
+window; SIGTERM closes every session with 1001.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import logging
+import time
+from collections.abc import Iterator, MutableMapping
+from typing import TYPE_CHECKING, Any
+
+import msgpack
+from starlette.websockets import WebSocket, WebSocketDisconnect, WebSocketState
+
+from api_schemas.wire import blob, packed_dtype
+from service import jobs
+from service.errors import ApiError, error_body
+from service.packing import contact_bits, pack_rotations, skeleton_id
+from synth_core.streaming import BatchStream, Window
+
+if TYPE_CHECKING:
+    from service.app import State
+
+log = logging.getLogger("quadsynth.stream")
+
+GOING_AWAY, INVALID_DATA, POLICY, TOO_BIG, INTERNAL, TRY_LATER = 1001, 1007, 1008, 1009, 1011, 1013
+MAX_CHUNK_FRAMES = 600
+CLOSE_TIMEOUT_S = 1.0
+# HTTP status of an error -> the close code after it.
+CLOSE_FOR = {413: TOO_BIG, 415: INVALID_DATA, 422: INVALID_DATA, 503: TRY_LATER, 504: TRY_LATER}
+
+
+class Closing(Exception):
+    """End the session: send ``error`` (if any), then close with ``code``."""
+
+    def __init__(self, code: int, error: ApiError | None = None) -> None:
+        super().__init__(code)
+        self.code, self.error = code, error
+
+
+def pack(message: dict[str, Any]) -> bytes:
+    return msgpack.packb(message, use_bin_type=True)  # type: ignore[no-any-return]
+
+
+def chunk_message(batch: int, index: int, window: Window, encoding: str) -> dict[str, Any]:
+    rotations = blob(pack_rotations(window.rotations, encoding))  # type: ignore[arg-type]
+    rotations["encoding"] = encoding
+    rotations["dtype"] = packed_dtype(encoding)  # type: ignore[arg-type]
+    return {"type": "chunk", "batch": batch, "chunk": index, "start": window.start,
+            "frames": window.stop - window.start, "root": blob(window.root_pos), "rotations": rotations,
+            "gait": blob(window.gait), "contacts": blob(contact_bits(window.contacts))}
+
+
+class Session:
+    def __init__(self, ws: WebSocket, state: State) -> None:
+        self.ws, self.state, self.settings = ws, state, state.settings
+        self.requests: asyncio.Queue[dict[str, Any]] = asyncio.Queue()
+        self.acked = -1  # the last chunk acknowledged (acks are cumulative)
+        self.ack = asyncio.Event()
+        self.cancel = asyncio.Event()
+        self.gone = asyncio.Event()  # the client disconnected
+        self.failure: Closing | None = None  # a protocol error the reader found
+        self.send_lock = asyncio.Lock()
+        self.batches = 0
+
+    # --- reading -------------------------------------------------------------------------------
+
+    async def read(self) -> None:
+        """Every client message, as it arrives, until the client goes."""
+        try:
+            while True:
+                message = await self.ws.receive()
+                if message["type"] == "websocket.disconnect":
+                    return
+                self.take(message)
+        except (WebSocketDisconnect, RuntimeError):
+            return
+        except Closing as exc:
+            self.failure = exc
+        finally:
+            if self.failure is None:
+                self.gone.set()
+            self.ack.set()  # wake a writer waiting for acks
+
+    def take(self, message: MutableMapping[str, Any]) -> None:
+        raw = message.get("bytes")
+        if raw is None:
+            raise Closing(INVALID_DATA, ApiError(422, "message", "send binary msgpack messages, not text"))
+        try:
+            body = msgpack.unpackb(raw, raw=False, strict_map_key=True)
+        except (ValueError, msgpack.ExtraData, msgpack.FormatError, msgpack.StackError, TypeError) as exc:
+            raise Closing(INVALID_DATA, ApiError(422, "message", f"not valid msgpack: {exc}")) from None
+        kind = body.get("type") if isinstance(body, dict) else None
+        if kind == "ack":
+            chunk = body.get("chunk")
+            if not isinstance(chunk, int) or isinstance(chunk, bool):
+                raise Closing(INVALID_DATA, ApiError(422, "chunk", "an ack needs the chunk number (integer)"))
+            self.acked = max(self.acked, chunk)
+            self.ack.set()
+        elif kind == "ping":
+            asyncio.get_running_loop().create_task(self.pong(body.get("time")))
+        elif kind == "cancel":
+            self.cancel.set()
+        elif kind == "synthesize":
+            self.requests.put_nowait(body)
+        else:
+            raise Closing(INVALID_DATA, ApiError(422, "type", f"unknown message type {kind!r}; expected "
+                                                              "synthesize, ack, ping or cancel"))
+
+    # --- writing -------------------------------------------------------------------------------
+
+    async def send(self, message: dict[str, Any]) -> None:
+        """Send, unless the client is gone; a client that does not take it in time: 1013."""
+        if self.gone.is_set():
+            return
+        limit = self.settings.ws_send_timeout_s
+        async with self.send_lock:
+            try:
+                await asyncio.wait_for(self.ws.send_bytes(pack(message)), limit)
+            except TimeoutError:
+                raise Closing(TRY_LATER, ApiError(503, "", f"slow consumer: a message was not taken within "
+                                                           f"{limit:g} s (ws_send_timeout_s)")) from None
+            except (WebSocketDisconnect, RuntimeError, OSError):
+                self.gone.set()
+
+    async def pong(self, stamp: Any) -> None:
+        try:
+            await self.send({"type": "pong", "time": stamp})
+        except Closing as exc:
+            self.failure = exc
+            self.ack.set()
+
+    async def wait_for_room(self, index: int) -> None:
+        """Hold chunk ``index`` until fewer than ``ws_window`` chunks are unacknowledged."""
+        window, limit = self.settings.ws_window, self.settings.ws_send_timeout_s
+        deadline = time.monotonic() + limit
+        while index - self.acked > window and not (self.gone.is_set() or self.cancel.is_set()):
+            self.check()
+            self.ack.clear()
+            left = deadline - time.monotonic()
+            if left <= 0:
+                raise Closing(TRY_LATER, ApiError(503, "", f"slow consumer: {window} chunks unacknowledged "
+                                                           f"for {limit:g} s (ws_window, ws_send_timeout_s)"))
+            with contextlib.suppress(TimeoutError):
+                await asyncio.wait_for(self.ack.wait(), left)
+
+    def check(self) -> None:
+        if self.failure is not None:
+            raise self.failure
+        if self.state.draining:
+            raise Closing(GOING_AWAY, ApiError(503, "", "the server is shutting down; reconnect to "
+                                                        "another replica"))
+
+    async def in_pool(self, fn: Any, *args: Any) -> Any:
+        """``fn(*args)`` in the worker pool, in turn with REST syntheses."""
+        loop = asyncio.get_running_loop()
+        async with self.state.admission.turn():
+            return await loop.run_in_executor(self.state.pool, fn, *args)
+
+    async def batch(self, body: dict[str, Any]) -> None:
+        settings, registry = self.settings, self.state.registry
+        self.batches += 1
+        number = self.batches
+        chunk_frames = body.pop("chunk_frames", settings.ws_chunk_frames)
+        body.pop("type", None)
+        if (not isinstance(chunk_frames, int) or isinstance(chunk_frames, bool)
+                or not 1 <= chunk_frames <= MAX_CHUNK_FRAMES):
+            raise ApiError(422, "chunk_frames", f"must be an integer from 1 to {MAX_CHUNK_FRAMES}, "
+                                                f"got {chunk_frames!r}")
+        job = jobs.parse(body, settings, registry.banks)
+        req = job.request
+        bank = registry.banks[req.animal]
+        async with self.state.admission.slot():  # refused (503 -> 1013) when the worker is full
+            stream: BatchStream = await asyncio.get_running_loop().run_in_executor(
+                self.state.pool, jobs.open_stream, job, bank, chunk_frames)
+        frames = jobs.output_frames(job, stream)
+        ids = [job.ids[c] for c in stream.kept]
+        count = -(-stream.frames // chunk_frames)
+        await self.send({
+            "type": "start", "batch": number, "animal": req.animal,
+            "skeleton_id": skeleton_id(req.animal, registry.libraries[req.animal].skeleton),
+            "fps": bank.fps, "encoding": req.encoding, "resample_rate": stream.resample_rate,
+            "frames": stream.frames, "chunk_frames": chunk_frames, "chunks": count,
+            "characters": [{"id": i, "scale": float(h), "frames": n}
+                           for i, h, n in zip(ids, stream.character_scales, frames, strict=True)],
+            "skipped": jobs.skipped(job, stream)})
+        windows: Iterator[Window] = stream.windows()
+        self.acked, sent = -1, 0
+        t0 = time.perf_counter()
+        while sent < count:
+            await self.wait_for_room(sent)
+            self.check()
+            if self.gone.is_set() or self.cancel.is_set():
+                break
+            window = await self.in_pool(next, windows)
+            await self.send(chunk_message(number, sent, window, req.encoding))
+            self.state.metrics.character_frames += len(ids) * (window.stop - window.start)
+            sent += 1
+        self.state.metrics.synthesis_seconds += time.perf_counter() - t0
+        self.state.metrics.syntheses += 1
+        cancelled = self.cancel.is_set()
+        self.cancel.clear()
+        await self.send({"type": "end", "batch": number, "chunks": sent, "cancelled": cancelled})
+
+    async def serve(self) -> None:
+        reader = asyncio.get_running_loop().create_task(self.read())
+        drain = asyncio.get_running_loop().create_task(self.state.drain.wait())  # SIGTERM
+        try:
+            while True:
+                nxt = asyncio.get_running_loop().create_task(self.requests.get())
+                done, _ = await asyncio.wait({nxt, reader, drain}, return_when=asyncio.FIRST_COMPLETED)
+                if nxt not in done:
+                    nxt.cancel()
+                    self.check()
+                    return  # the client went away
+                try:
+                    await self.batch(nxt.result())
+                except ApiError as exc:
+                    raise Closing(CLOSE_FOR.get(exc.status, POLICY), exc) from None
+                if self.gone.is_set():
+                    return
+        except Closing as exc:
+            await self.close(exc)
+        except Exception:  # never leave a client hanging: a typed error, then 1011
+            log.exception("stream session failed")
+            await self.close(Closing(INTERNAL, ApiError(500, "", "internal error; the session is closed")))
+        finally:
+            reader.cancel()
+            drain.cancel()
+
+    async def close(self, exc: Closing) -> None:
+        """The typed error, then the close code (each bounded: the client may not be reading)."""
+        if self.gone.is_set() or self.ws.client_state != WebSocketState.CONNECTED:
+            return
+        e = exc.error
+        with contextlib.suppress(Exception):
+            if e is not None:
+                message = pack({"type": "error", **error_body(e.status, e.field, e.message)})
+                await asyncio.wait_for(self.ws.send_bytes(message), CLOSE_TIMEOUT_S)
+        with contextlib.suppress(Exception):
+            # The close reason must fit a control frame (123 bytes); the error message has it all.
+            await asyncio.wait_for(self.ws.close(exc.code, e.message[:100] if e else None), CLOSE_TIMEOUT_S)
+
+
+async def session(ws: WebSocket, state: State) -> None:
+    if not state.registry.loaded or state.draining:
+        await ws.close(TRY_LATER if not state.draining else GOING_AWAY)
+        return
+    await ws.accept()
+    me = Session(ws, state)
+    state.sessions.add(me)
+    state.metrics.ws_sessions = len(state.sessions)
+    try:
+        await me.serve()
+    finally:
+        state.sessions.discard(me)
+        state.metrics.ws_sessions = len(state.sessions)
+        if not state.sessions:
+            state.sessions_closed.set()

@@ -1,0 +1,216 @@
+"""WebSocket /v1/stream end to end against a real `quadsynth serve`: the same motion as REST,
+typed errors and close codes, flow control, a slow consumer, a disconnect, SIGTERM."""
+
+from __future__ import annotations
+
+import signal
+import time
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import httpx
+import msgpack
+import numpy as np
+import pytest
+from websockets.exceptions import ConnectionClosed
+from websockets.sync.client import ClientConnection, connect
+
+from api_schemas.wire import blob, unblob
+from synth_core import crowd
+from tests.test_api import LIMITS, post
+from tests.test_service import free_port, start, wait_until_live
+
+STREAM_LIMITS = {**LIMITS, "QUADSYNTH_WS_WINDOW": "2", "QUADSYNTH_WS_SEND_TIMEOUT_S": "1.5"}
+
+
+def launch(tmp: Path, env: dict[str, str]) -> tuple[Any, str]:
+    port = free_port()
+    proc = start(["--port", str(port), "--log-level", "warning"], tmp, env)
+    url = f"http://127.0.0.1:{port}"
+    wait_until_live(proc, url)
+    while httpx.get(f"{url}/readyz").status_code != 200:
+        time.sleep(0.1)
+    return proc, url
+
+
+@pytest.fixture(scope="module")
+def server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
+    proc, url = launch(tmp_path_factory.mktemp("ws"), STREAM_LIMITS)
+    try:
+        yield url
+    finally:
+        proc.terminate()
+        proc.wait(timeout=30)
+
+
+@pytest.fixture(scope="module")
+def herd() -> np.ndarray:
+    return crowd.simulate(5, 300, seed=2).astype(np.float32)
+
+
+def batch(herd: np.ndarray, **options: Any) -> dict[str, Any]:
+    # Characters of different lengths: each is answered at its own.
+    return {"animal": "horse", "seed": 3, **options,
+            "characters": [{"id": f"h{c}", "points": blob(herd[c, :300 - 40 * c])} for c in range(len(herd))]}
+
+
+def ws_url(url: str) -> str:
+    return url.replace("http://", "ws://") + "/v1/stream"
+
+
+def send(ws: ClientConnection, message: dict[str, Any]) -> None:
+    ws.send(msgpack.packb(message, use_bin_type=True))
+
+
+def receive(ws: ClientConnection, timeout: float = 30) -> dict[str, Any]:
+    return msgpack.unpackb(ws.recv(timeout=timeout))  # type: ignore[no-any-return]
+
+
+def closed_with(ws: ClientConnection, code: int, status: int, field: str, *words: str) -> None:
+    """The next message is a typed error, then the connection closes with ``code``."""
+    error = receive(ws)
+    assert error["type"] == "error", error
+    assert error["error"]["status"] == status and error["error"]["field"] == field, error
+    for word in words:
+        assert word in error["error"]["message"], error
+    with pytest.raises(ConnectionClosed) as closed:
+        ws.recv(timeout=10)
+    assert closed.value.rcvd is not None and closed.value.rcvd.code == code
+
+
+def stream_all(ws: ClientConnection, body: dict[str, Any]) -> tuple[dict[str, Any], list[dict[str, Any]]]:
+    send(ws, {"type": "synthesize", **body})
+    head = receive(ws)
+    assert head["type"] == "start", head
+    chunks = []
+    while (m := receive(ws))["type"] == "chunk":
+        chunks.append(m)
+        send(ws, {"type": "ack", "chunk": m["chunk"]})
+    assert m == {"type": "end", "batch": head["batch"], "chunks": len(chunks), "cancelled": False}
+    return head, chunks
+
+
+def test_stream_gives_the_motion_rest_gives(server: str, herd: np.ndarray) -> None:
+    body = batch(herd, encoding="f32")
+    rest = msgpack.unpackb(post(server, body).content)
+    with connect(ws_url(server), compression=None) as ws:
+        head, chunks = stream_all(ws, {**body, "chunk_frames": 45})
+        again, _ = stream_all(ws, {**body, "chunk_frames": 300})  # a second batch, same session
+    assert head["frames"] == 300 and head["chunks"] == len(chunks) == 7 and again["batch"] == head["batch"] + 1
+    assert head["skeleton_id"] == rest["skeleton_id"] and head["resample_rate"] == rest["resample_rate"]
+    assert [c["start"] for c in chunks] == list(range(0, 300, 45))
+    joined = {name: np.concatenate([unblob(c[name]["dtype"], c[name]["shape"], c[name]["data"])
+                                    for c in chunks], axis=1) for name in ("root", "rotations", "gait", "contacts")}
+    for c, ch in enumerate(rest["characters"]):
+        meta = head["characters"][c]
+        assert meta == {"id": ch["id"], "scale": ch["scale"], "frames": ch["frames"]}
+        assert ch["frames"] == 300 - 40 * c
+        for name in joined:
+            expected = unblob(ch[name]["dtype"], ch[name]["shape"], ch[name]["data"])
+            assert np.array_equal(joined[name][c, :ch["frames"]], expected), name  # bit for bit
+
+
+def test_ping_pong_and_cancel(server: str, herd: np.ndarray) -> None:
+    with connect(ws_url(server)) as ws:
+        send(ws, {"type": "ping", "time": 12.5})
+        assert receive(ws) == {"type": "pong", "time": 12.5}
+        send(ws, {"type": "synthesize", **batch(herd), "chunk_frames": 1})
+        assert receive(ws)["type"] == "start"
+        send(ws, {"type": "cancel"})
+        while (m := receive(ws))["type"] == "chunk":
+            send(ws, {"type": "ack", "chunk": m["chunk"]})
+        assert m["type"] == "end" and m["cancelled"] and m["chunks"] < 300
+
+
+@pytest.mark.parametrize(("message", "code", "status", "field", "words"), [
+    ("text", 1007, 422, "message", ("binary msgpack",)),
+    (b"\xc1", 1007, 422, "message", ("msgpack",)),
+    ({"type": "dance"}, 1007, 422, "type", ("dance", "synthesize")),
+    ({"type": "ack", "chunk": "x"}, 1007, 422, "chunk", ("integer",)),
+    ({"type": "synthesize", "chunk_frames": 0}, 1007, 422, "chunk_frames", ("1 to 600",)),
+    ({"type": "synthesize", "animal": "cat"}, 1007, 422, "characters", ("Field required",)),
+])
+def test_bad_messages_get_a_typed_error_then_a_close_code(server: str, message: Any, code: int, status: int,
+                                                          field: str, words: tuple[str, ...]) -> None:
+    with connect(ws_url(server)) as ws:
+        if isinstance(message, dict):
+            send(ws, message)
+        else:
+            ws.send(message)
+        closed_with(ws, code, status, field, *words)
+
+
+def test_bad_batches_name_the_character_and_the_limit(server: str, herd: np.ndarray) -> None:
+    bad = herd.copy()
+    bad[2, 100] = np.nan
+    with connect(ws_url(server)) as ws:
+        send(ws, {"type": "synthesize", **batch(bad)})
+        closed_with(ws, 1007, 422, "characters[2].points", "NaN", "frame 100")
+    many = {"characters": [{"id": str(i), "points": blob(herd[0, :10])} for i in range(41)]}
+    with connect(ws_url(server)) as ws:
+        send(ws, {"type": "synthesize", **many})
+        closed_with(ws, 1007, 422, "characters", "max_characters")
+
+
+def test_a_client_that_stops_acking_is_closed_with_1013(server: str, herd: np.ndarray) -> None:
+    with connect(ws_url(server)) as ws:
+        send(ws, {"type": "synthesize", **batch(herd), "chunk_frames": 10})
+        assert receive(ws)["type"] == "start"
+        got = []
+        t0 = time.monotonic()
+        while (m := receive(ws))["type"] == "chunk":
+            got.append(m["chunk"])  # read, but never ack
+        assert got == [0, 1]  # the window: at most 2 chunks unacknowledged
+        assert m["type"] == "error" and m["error"]["status"] == 503 and "slow consumer" in m["error"]["message"]
+        assert "ws_window" in m["error"]["message"] and time.monotonic() - t0 >= 1.4
+        with pytest.raises(ConnectionClosed) as closed:
+            ws.recv(timeout=10)
+        assert closed.value.rcvd is not None and closed.value.rcvd.code == 1013
+
+
+def metric(url: str, name: str) -> float:
+    for line in httpx.get(f"{url}/metrics").text.splitlines():
+        if line.startswith(name + "{"):
+            return float(line.rsplit(" ", 1)[1])
+    raise AssertionError(f"{name} not in /metrics")
+
+
+def test_a_disconnect_mid_stream_stops_the_work(server: str) -> None:
+    long = crowd.simulate(40, 2000, seed=1).astype(np.float32)
+    body = {"animal": "horse", "chunk_frames": 1,
+            "characters": [{"id": str(c), "points": blob(long[c, :500])} for c in range(40)]}
+    with connect(ws_url(server)) as ws:
+        send(ws, {"type": "synthesize", **body})
+        assert receive(ws)["type"] == "start"
+        m = receive(ws)
+        send(ws, {"type": "ack", "chunk": m["chunk"]})
+    # gone mid-stream, 499 chunks to go
+    deadline = time.monotonic() + 5
+    while metric(server, "quadsynth_websocket_sessions") > 0 and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert metric(server, "quadsynth_websocket_sessions") == 0
+    made = metric(server, "quadsynth_character_frames_total")
+    time.sleep(0.5)
+    assert metric(server, "quadsynth_character_frames_total") == made  # nothing left running
+    assert metric(server, "quadsynth_in_flight") == 0
+    assert httpx.get(f"{server}/livez").status_code == 200
+
+
+def test_sigterm_closes_streams_with_1001(tmp_path: Path, herd: np.ndarray) -> None:
+    proc, url = launch(tmp_path, STREAM_LIMITS)
+    try:
+        with connect(ws_url(url)) as ws:
+            send(ws, {"type": "synthesize", **batch(herd), "chunk_frames": 10})
+            assert receive(ws)["type"] == "start"
+            proc.send_signal(signal.SIGTERM)
+            while (m := receive(ws))["type"] == "chunk":
+                pass  # not acking: the stream is mid-batch when the server drains
+            assert m["type"] == "error" and m["error"]["status"] == 503 and "shutting down" in m["error"]["message"]
+            with pytest.raises(ConnectionClosed) as closed:
+                ws.recv(timeout=10)
+            assert closed.value.rcvd is not None and closed.value.rcvd.code == 1001
+        assert proc.wait(timeout=30) in (0, -signal.SIGTERM)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
