@@ -4,14 +4,16 @@
     with Client("http://127.0.0.1:8000") as qs:
         motion = qs.synthesize(positions, fps=60, animal="horse", seed=1)   # positions (C, F, 3)
         motion.characters[0].rotations   # (frames, joints, 4) float32 xyzw, whatever the encoding
+        for chunk in qs.stream(positions, chunk_frames=30):   # over WebSocket, as it is made
+            chunk.rotations   # (characters, 30, joints, 4)
 
-Needs httpx (``pip install httpx``); the server is not needed to import this module.
+Needs httpx (and websockets to stream); the server is not needed to import this module.
 """
 
 from __future__ import annotations
 
 import json
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -50,9 +52,32 @@ class Motion:
     skipped: list[dict[str, Any]] = field(default_factory=list)
 
 
+@dataclass(frozen=True)
+class Chunk:
+    """Frames ``[start, start + n)`` of every character of a streamed batch (``header``: its
+    ``start`` message: ids, scales, each character's own frame count, fps, ...)."""
+
+    header: dict[str, Any]
+    index: int
+    start: int
+    root: NDArray[np.float32]  # (C, n, 3)
+    rotations: NDArray[np.float32]  # (C, n, J, 4) xyzw, whatever the encoding
+    gait: NDArray[np.int8]  # (C, n)
+    contacts: NDArray[np.bool_]  # (C, n, 4)
+
+
+def decode_chunk(header: dict[str, Any], message: dict[str, Any]) -> Chunk:
+    rot = message["rotations"]
+    bits = unblob(**message["contacts"])
+    return Chunk(header, message["chunk"], message["start"], unblob(**message["root"]),
+                 decode_rotations(unblob(rot["dtype"], rot["shape"], rot["data"]), rot["encoding"]),
+                 unblob(**message["gait"]), (bits[..., None] >> np.arange(4)) & 1 == 1)
+
+
 def request_body(positions: ArrayLike, ids: Sequence[str] | None = None,
                  scales: Sequence[float | None] | None = None, **options: Any) -> bytes:
-    """The msgpack body for ``positions``: an array (C, F, 3) or a list of (F_c, 3) arrays."""
+    """The msgpack body for ``positions``: an array (C, F, 3) or a list of (F_c, 3) arrays
+    (``options`` may carry ``type`` and ``chunk_frames`` too: a WebSocket ``synthesize``)."""
     paths = [np.asarray(p, np.float32) for p in positions]  # type: ignore[union-attr]
     ids = list(ids) if ids is not None else [str(c) for c in range(len(paths))]
     characters = []
@@ -118,6 +143,37 @@ class Client:
                                    headers={"content-type": MSGPACK, "accept": MSGPACK})
         _raise_for(response.status_code, response.content)
         return decode_response(response.content)
+
+
+    def stream(self, positions: ArrayLike, ids: Sequence[str] | None = None,
+               scales: Sequence[float | None] | None = None, chunk_frames: int = 30,
+               **options: Any) -> Iterator[Chunk]:
+        """The batch over WebSocket ``/v1/stream`` (docs/streaming.md), chunk by chunk as the
+        server makes them; each chunk is acknowledged once yielded. Needs ``websockets``."""
+        from websockets.exceptions import ConnectionClosed
+        from websockets.sync.client import connect
+
+        url = str(self._http.base_url).rstrip("/").replace("http", "ws", 1) + "/v1/stream"
+        body = request_body(positions, ids, scales, type="synthesize", chunk_frames=chunk_frames, **options)
+        with connect(url, compression=None, max_size=None) as ws:
+            ws.send(body)
+            header: dict[str, Any] = {}
+            while True:
+                try:
+                    message = msgpack.unpackb(ws.recv())
+                except ConnectionClosed as exc:
+                    raise ServiceError(exc.rcvd.code if exc.rcvd else 1006, "", "the stream closed") from None
+                kind = message["type"]
+                if kind == "error":
+                    error = message["error"]
+                    raise ServiceError(error["status"], error["field"], error["message"])
+                if kind == "start":
+                    header = message
+                elif kind == "chunk":
+                    yield decode_chunk(header, message)
+                    ws.send(msgpack.packb({"type": "ack", "chunk": message["chunk"]}))
+                elif kind == "end":
+                    return
 
 
 class AsyncClient:

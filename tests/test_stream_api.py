@@ -214,3 +214,21 @@ def test_sigterm_closes_streams_with_1001(tmp_path: Path, herd: np.ndarray) -> N
     finally:
         if proc.poll() is None:
             proc.kill()
+
+
+def test_python_client_streams_the_motion_synthesize_returns(server: str, herd: np.ndarray) -> None:
+    from api_schemas.client import Client, ServiceError
+
+    with Client(server) as client:
+        motion = client.synthesize(herd[:3], seed=9, encoding="i16")
+        chunks = list(client.stream(herd[:3], seed=9, encoding="i16", chunk_frames=64))
+        assert [c.start for c in chunks] == [0, 64, 128, 192, 256] and chunks[0].header["chunks"] == 5
+        rotations = np.concatenate([c.rotations for c in chunks], axis=1)
+        contacts = np.concatenate([c.contacts for c in chunks], axis=1)
+        for c, ch in enumerate(motion.characters):
+            assert np.array_equal(rotations[c], ch.rotations) and np.array_equal(contacts[c], ch.contacts)
+        bad = herd[:2].copy()
+        bad[1, 5] = np.inf
+        with pytest.raises(ServiceError) as refused:
+            list(client.stream(bad))
+        assert refused.value.status == 422 and refused.value.field == "characters[1].points"
