@@ -194,6 +194,14 @@ def _bench(args: argparse.Namespace, extra: list[str]) -> int:
     return 0
 
 
+def _bench_service(args: argparse.Namespace, extra: list[str]) -> int:
+    from quadsynth.bench_service import run
+
+    figures = run(args.url, args.repeats)
+    print(json.dumps(figures) if args.json else json.dumps(figures, indent=2))
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="quadsynth", description=__doc__)
     sub = parser.add_subparsers(dest="command", required=True)
@@ -279,6 +287,12 @@ def build_parser() -> argparse.ArgumentParser:
     be.add_argument("--quick", action="store_true", help="stop at 1,000 characters / 1,000 frames")
     be.add_argument("--json", action="store_true", help="one JSON object on one line")
     be.set_defaults(func=_bench, passthrough=False)
+
+    bs = sub.add_parser("bench-service", help="REST and WebSocket speed over loopback (JSON)")
+    bs.add_argument("--url", default=None, help="a running service (default: start one on a free port)")
+    bs.add_argument("--repeats", type=int, default=4, help="runs per figure; the best counts")
+    bs.add_argument("--json", action="store_true", help="one JSON object on one line")
+    bs.set_defaults(func=_bench_service, passthrough=False)
     return parser
 
 
