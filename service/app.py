@@ -174,7 +174,9 @@ def create_app(directory: Path | None = None, settings: Settings | None = None) 
     app = FastAPI(title="QuadSynth", version="0.1.0", lifespan=lifespan,
                   description="Fast motion synthesis for massive herds of quadrupeds (Sung 2011). "
                               "Bodies are msgpack (application/vnd.msgpack) or JSON; arrays travel "
-                              "as binary blobs -- see docs/wire-format.md.")
+                              "as binary blobs -- see docs/wire-format.md. WebSocket /v1/stream (not "
+                              "listed below: OpenAPI has no WebSockets) streams a batch in chunks "
+                              "as it is made -- see docs/streaming.md.")
     app.state.quadsynth = state
     app.add_middleware(MetricsMiddleware, metrics=state.metrics)
     app.add_exception_handler(ApiError, handle_api_error)
