@@ -111,6 +111,9 @@ class Session:
         elif kind == "cancel":
             self.cancel.set()
         elif kind == "synthesize":
+            if self.requests.qsize() >= 1:  # each may be max_body_bytes: do not hoard them
+                raise Closing(POLICY, ApiError(422, "type", "a batch is already waiting behind the one "
+                                                            "streaming; send the next after its end"))
             self.requests.put_nowait(body)
         else:
             raise Closing(INVALID_DATA, ApiError(422, "type", f"unknown message type {kind!r}; expected "
@@ -195,18 +198,18 @@ class Session:
             "skipped": jobs.skipped(job, stream)})
         windows: Iterator[Window] = stream.windows()
         self.acked, sent = -1, 0
-        t0 = time.perf_counter()
+        self.state.metrics.syntheses += 1
         while sent < count:
             await self.wait_for_room(sent)
             self.check()
             if self.gone.is_set() or self.cancel.is_set():
                 break
+            t0 = time.perf_counter()
             window = await self.in_pool(next, windows)
+            self.state.metrics.synthesis_seconds += time.perf_counter() - t0
             await self.send(chunk_message(number, sent, window, req.encoding))
             self.state.metrics.character_frames += len(ids) * (window.stop - window.start)
             sent += 1
-        self.state.metrics.synthesis_seconds += time.perf_counter() - t0
-        self.state.metrics.syntheses += 1
         cancelled = self.cancel.is_set()
         self.cancel.clear()
         await self.send({"type": "end", "batch": number, "chunks": sent, "cancelled": cancelled})

@@ -232,3 +232,15 @@ def test_python_client_streams_the_motion_synthesize_returns(server: str, herd: 
         with pytest.raises(ServiceError) as refused:
             list(client.stream(bad))
         assert refused.value.status == 422 and refused.value.field == "characters[1].points"
+
+
+def test_one_batch_waits_at_most(server: str, herd: np.ndarray) -> None:
+    with connect(ws_url(server)) as ws:
+        for _ in range(3):  # one streams, one may wait, the third is refused
+            send(ws, {"type": "synthesize", **batch(herd), "chunk_frames": 1})
+        while (m := receive(ws))["type"] in ("start", "chunk"):
+            pass
+        assert m["type"] == "error" and m["error"]["field"] == "type" and "already waiting" in m["error"]["message"]
+        with pytest.raises(ConnectionClosed) as closed:
+            ws.recv(timeout=10)
+        assert closed.value.rcvd is not None and closed.value.rcvd.code == 1008
