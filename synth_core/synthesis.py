@@ -310,9 +310,10 @@ def plan(bank: Bank, prep: Prepared, h: Floats, keys: NDArray[np.uint64], margin
          frames: int | None = None) -> Plan:
     """Schedule every character's pieces and find the rows each frame blends (see the module doc).
 
-    ``frames``: plan only the first ``frames`` frames -- exactly as the whole plan has them: every
-    decision looks one segment ahead, so the schedule runs that much further, and headings and
-    speeds come from the whole path. (A streamed batch's first window needs no more.)"""
+    ``frames``: plan only the first ``frames`` frames (all, when that is hardly fewer) -- exactly as
+    the whole plan has them: every decision looks one segment ahead, so the schedule runs that much
+    further, and headings and speeds come from the whole path. (A streamed batch's first window
+    needs no more.)"""
     path = prep.positions
     C, T = path.shape[:2]
     kinds = _kinds(bank)
