@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 import time
 from collections.abc import Callable, Sequence
@@ -27,10 +28,15 @@ def _serve(args: argparse.Namespace, extra: list[str]) -> int:
 
     grace = [] if any(a.startswith("--timeout-graceful-shutdown") for a in extra) else [
         "--timeout-graceful-shutdown", str(int(Settings.from_env().drain_grace_s))]
+    # One worker process per core unless told (--workers N, or uvicorn's WEB_CONCURRENCY): the
+    # event loop, body decoding and packing are single-threaded per process; synthesis kernels
+    # use every core in each process, so one busy worker still has the whole machine.
+    given = any(a == "--workers" or a.startswith("--workers=") for a in extra)
+    workers = [] if given or os.environ.get("WEB_CONCURRENCY") else ["--workers", str(os.cpu_count() or 1)]
     argv = ["service.app:create_app", "--factory", "--host", args.host, "--port", str(args.port),
             "--ws", "websockets-sansio", "--ws-per-message-deflate", "false",
             "--ws-ping-interval", "20", "--ws-ping-timeout", "20",
-            "--ws-max-size", str(Settings.from_env().max_body_bytes), *grace, *extra]
+            "--ws-max-size", str(Settings.from_env().max_body_bytes), *grace, *workers, *extra]
     uvicorn.main.main(args=argv, prog_name="quadsynth serve")
     return 0
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import signal
 import socket
 import subprocess
 import sys
@@ -27,9 +28,14 @@ def quadsynth_command() -> list[str]:
     return [str(script)] if script.exists() else [sys.executable, "-m", "quadsynth.cli"]
 
 
-def start(args: list[str], tmp_path: Path, env: dict[str, str] | None = None) -> subprocess.Popen[bytes]:
+def start(args: list[str], tmp_path: Path, env: dict[str, str] | None = None,
+          workers: int | None = 1) -> subprocess.Popen[bytes]:
+    """`quadsynth serve` with `args`; one worker process unless told (tests that hold the workers or
+    count requests need them all in one process); workers=None keeps serve's default."""
     env = {**os.environ, "QUADSYNTH_LIBRARY_DIR": str(tmp_path / "library"), **(env or {})}
-    return subprocess.Popen([*quadsynth_command(), "serve", *args], env=env,
+    env.pop("WEB_CONCURRENCY", None)
+    more = [] if workers is None else ["--workers", str(workers)]
+    return subprocess.Popen([*quadsynth_command(), "serve", *more, *args], env=env,
                             stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
 
 
@@ -47,16 +53,36 @@ def wait_until_live(proc: subprocess.Popen[bytes], url: str) -> None:
 
 
 @pytest.fixture(scope="module")
-def server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
+def served(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[str, subprocess.Popen[bytes]]]:
+    """`quadsynth serve` with its defaults: one worker process per core."""
     port = free_port()
-    proc = start(["--port", str(port), "--log-level", "warning"], tmp_path_factory.mktemp("srv"))
+    proc = start(["--port", str(port), "--log-level", "warning"], tmp_path_factory.mktemp("srv"), workers=None)
     url = f"http://127.0.0.1:{port}"
     try:
         wait_until_live(proc, url)
-        yield url
+        yield url, proc
     finally:
         proc.terminate()
-        proc.wait(timeout=10)
+        assert proc.wait(timeout=30) in (0, -signal.SIGTERM)
+
+
+@pytest.fixture(scope="module")
+def server(served: tuple[str, subprocess.Popen[bytes]]) -> str:
+    return served[0]
+
+
+def worker_processes(pid: int) -> list[int]:
+    """uvicorn's worker processes under `pid` (multiprocessing spawn children; not its resource tracker)."""
+    children = Path(f"/proc/{pid}/task/{pid}/children").read_text().split()
+    return [int(c) for c in children if b"spawn_main" in Path(f"/proc/{c}/cmdline").read_bytes()]
+
+
+@pytest.mark.skipif(not Path("/proc/self/task").is_dir(), reason="needs Linux /proc to count processes")
+def test_serve_starts_one_worker_process_per_core_by_default(served: tuple[str, subprocess.Popen[bytes]]) -> None:
+    url, proc = served
+    cores = os.cpu_count() or 1
+    assert len(worker_processes(proc.pid)) == (cores if cores > 1 else 0)  # one core: no supervisor
+    assert httpx.get(f"{url}/livez").status_code == 200
 
 
 def test_livez(server: str) -> None:
