@@ -136,6 +136,11 @@ class Client:
         _raise_for(response.status_code, response.content)
         return dict(response.json())
 
+    def limits(self) -> dict[str, Any]:
+        response = self._http.get("/v1/limits")
+        _raise_for(response.status_code, response.content)
+        return dict(response.json())
+
     def synthesize(self, positions: ArrayLike, ids: Sequence[str] | None = None,
                    scales: Sequence[float | None] | None = None, **options: Any) -> Motion:
         """``options``: the request's fields (animal, fps, seed, sigma, encoding, skip_invalid, ...)."""

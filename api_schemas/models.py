@@ -92,6 +92,14 @@ class SynthesizeRequest(BaseModel):
     scale_min: float = Field(default=0.8, gt=0, le=100)
     scale_max: float = Field(default=1.2, gt=0, le=100)
     foot_lock: bool = Field(default=True, description="pin planted feet (synth_core.footlock)")
+    first_index: int = Field(default=0, ge=0, le=2**53,
+                             description="index of the first character in the whole herd: a herd sent "
+                                         "in several requests, each with its own first_index, draws "
+                                         "gaits and scales as one request would")
+    min_resample_rate: float = Field(default=1.0, ge=1, le=8,
+                                     description="resample the paths at least this much: send the "
+                                                 "highest resample_rate of a herd's requests so all "
+                                                 "keep the same frames (the formation)")
     characters: list[CharacterIn] = Field(min_length=1)
 
 
@@ -149,6 +157,8 @@ class LibraryDetail(BaseModel):
     joint_names: list[str]
     parents: list[int] = Field(description="parent joint index, -1 for the root; parents come first")
     offsets: list[list[float]] = Field(description="rest offset of each joint from its parent, metres")
+    end_sites: list[bool] = Field(description="joints that are end sites (BVH 'End Site': no rotation "
+                                              "of their own matters)")
     feet: dict[str, str] = Field(description="foot (LF, RF, LH, RH) -> end-effector joint name")
     gaits: list[GaitRange]
 

@@ -140,7 +140,6 @@ def _crowd_sim(args: argparse.Namespace, extra: list[str]) -> int:
 def _synth(args: argparse.Namespace, extra: list[str]) -> int:
     from synth_core import crowd_io
     from synth_core.bank import build_bank
-    from synth_core.export import write_bvh_files, write_glb
     from synth_core.synthesis import Options, synthesize
 
     traj = crowd_io.read(args.trajectories, args.fps)
@@ -151,23 +150,52 @@ def _synth(args: argparse.Namespace, extra: list[str]) -> int:
     result = synthesize(bank, traj.positions, traj.fps, options=options, ids=traj.ids,
                         progress=_progress("synthesizing"))
     ids = [traj.ids[c] for c in result.kept]
+    return _write_herd(args, bank.skeleton, result, ids, traj.ids, bank.fps, bank.hubs, library.animal)
+
+
+def _client_synth(args: argparse.Namespace, extra: list[str]) -> int:
+    import httpx
+
+    from api_schemas.client import ServiceError
+    from quadsynth import remote
+    from synth_core import crowd_io
+
+    traj = crowd_io.read(args.trajectories, args.fps)
+    try:
+        herd = remote.synthesize(args.url, traj.positions, traj.fps, traj.ids, animal=args.animal,
+                                 progress=_progress("requests"), seed=args.seed, sigma=args.sigma,
+                                 scale_min=args.scale_min, scale_max=args.scale_max,
+                                 skip_invalid=args.skip_invalid, encoding=args.encoding)
+    except ServiceError as exc:
+        raise ValueError(f"the service refused: {exc}") from None
+    except httpx.HTTPError as exc:
+        raise ValueError(f"cannot reach the service at {args.url}: {exc}") from None
+    print(f"{herd.requests} request(s) to {args.url}", file=sys.stderr)
+    return _write_herd(args, herd.skeleton, herd.result, herd.ids, traj.ids, herd.fps, herd.hubs, args.animal)
+
+
+def _write_herd(args: argparse.Namespace, skeleton: Any, result: Any, ids: list[str], all_ids: list[str],
+                fps: float, hubs: tuple[str, ...], animal: str) -> int:
+    """What `synth` and `client synth` write: motion.npz, summary.json, and BVH / glTF / GIF if asked."""
+    from synth_core.export import write_bvh_files, write_glb
+
     for c, why in sorted(result.rejected.items()):
-        print(f"skipped character {traj.ids[c]}: {why}", file=sys.stderr)
+        print(f"skipped character {all_ids[c]}: {why}", file=sys.stderr)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    summary = {"characters": len(ids), "frames": int(result.root_pos.shape[1]), "fps": bank.fps,
-               "resample_rate": result.resample_rate, "animal": library.animal,
-               "skipped": {traj.ids[c]: why for c, why in result.rejected.items()}}
+    summary = {"characters": len(ids), "frames": int(result.root_pos.shape[1]), "fps": fps,
+               "resample_rate": result.resample_rate, "animal": animal,
+               "skipped": {all_ids[c]: why for c, why in result.rejected.items()}}
     np.savez_compressed(out / "motion.npz", root_pos=result.root_pos, rotations=result.rotations,
                         gait=result.gait, contacts=result.contacts, scales=result.scales, ids=np.array(ids))
     if args.bvh:
-        write_bvh_files(bank.skeleton, result, ids, out, bank.fps, _progress("writing BVH"))
+        write_bvh_files(skeleton, result, ids, out, fps, _progress("writing BVH"))
     if args.glb:
-        print(write_glb(bank.skeleton, result, ids, args.glb, bank.fps))
+        print(write_glb(skeleton, result, ids, args.glb, fps))
     if args.preview:
         from quadsynth.herd_preview import render_herd
 
-        print(render_herd(bank.skeleton, result, args.preview, bank.fps, bank.hubs))
+        print(render_herd(skeleton, result, args.preview, fps, hubs))
     (out / "summary.json").write_text(json.dumps(summary, indent=2))
     print(json.dumps(summary))
     return 0
@@ -206,6 +234,23 @@ def _bench_service(args: argparse.Namespace, extra: list[str]) -> int:
     figures = run(args.url, args.repeats)
     print(json.dumps(figures) if args.json else json.dumps(figures, indent=2))
     return 0
+
+
+def _herd_arguments(parser: argparse.ArgumentParser) -> None:
+    """The options `synth` and `client synth` share."""
+    parser.add_argument("--trajectories", required=True, help="traj.npz (positions (C, F, 3)) or traj.csv "
+                        "(header id,frame,x,y,z in any order)")
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--fps", type=float, default=None, help="trajectory frame rate (default: the "
+                        "file's, CSV 60)")
+    parser.add_argument("--sigma", type=float, default=4.0, help="trajectory smoothing, frames (default 4)")
+    parser.add_argument("--scale-min", type=float, default=0.8)
+    parser.add_argument("--scale-max", type=float, default=1.2)
+    parser.add_argument("--skip-invalid", action="store_true", help="skip bad characters instead of failing")
+    parser.add_argument("--out", required=True, help="output directory: motion.npz, summary.json, BVH files")
+    parser.add_argument("--bvh", action="store_true", help="write DIR/<id>.bvh per character (centimetres)")
+    parser.add_argument("--glb", help="write the herd as one glTF 2.0 binary FILE.glb")
+    parser.add_argument("--preview", help="write a herd preview FILE.gif")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -262,22 +307,20 @@ def build_parser() -> argparse.ArgumentParser:
     sim.set_defaults(func=_crowd_sim, passthrough=False)
 
     syn = sub.add_parser("synth", help="synthesize a herd's motion from trajectories (.npz or .csv)")
-    syn.add_argument("--trajectories", required=True, help="traj.npz (positions (C, F, 3)) or traj.csv "
-                     "(header id,frame,x,y,z in any order)")
     syn.add_argument("--animal", default="horse", help="built-in animal: horse or dog (default horse)")
     syn.add_argument("--library", help="a library file (.qslib.npz) instead of a built-in animal")
-    syn.add_argument("--seed", type=int, default=0)
-    syn.add_argument("--fps", type=float, default=None, help="trajectory frame rate (default: the file's, "
-                     "CSV 60)")
-    syn.add_argument("--sigma", type=float, default=4.0, help="trajectory smoothing, frames (default 4)")
-    syn.add_argument("--scale-min", type=float, default=0.8)
-    syn.add_argument("--scale-max", type=float, default=1.2)
-    syn.add_argument("--skip-invalid", action="store_true", help="skip bad characters instead of failing")
-    syn.add_argument("--out", required=True, help="output directory: motion.npz, summary.json, BVH files")
-    syn.add_argument("--bvh", action="store_true", help="write DIR/<id>.bvh per character (centimetres)")
-    syn.add_argument("--glb", help="write the herd as one glTF 2.0 binary FILE.glb")
-    syn.add_argument("--preview", help="write a herd preview FILE.gif")
+    _herd_arguments(syn)
     syn.set_defaults(func=_synth, passthrough=False)
+
+    client = sub.add_parser("client", help="use a running QuadSynth service")
+    client_sub = client.add_subparsers(dest="client_command", required=True)
+    csyn = client_sub.add_parser("synth", help="`synth` done by the service at --url (same outputs)")
+    csyn.add_argument("--url", required=True, help="the service, e.g. http://127.0.0.1:8000")
+    csyn.add_argument("--animal", default="horse", help="a library the service has (default horse)")
+    csyn.add_argument("--encoding", default="f32", choices=["f32", "i16", "s48"],
+                      help="rotations on the wire (default f32: the files get full precision)")
+    _herd_arguments(csyn)
+    csyn.set_defaults(func=_client_synth, passthrough=False)
 
     ev = sub.add_parser("eval", help="quality figures of the standard scenario (JSON)")
     ev.add_argument("--animal", action="append", choices=["horse", "dog", "mann_dog"],

@@ -221,6 +221,7 @@ def create_app(directory: Path | None = None, settings: Settings | None = None) 
         return LibraryDetail(animal=animal, skeleton_id=skeleton_id(animal, sk), fps=bank.fps,
                              joint_names=list(sk.names), parents=[int(p) for p in sk.parents],
                              offsets=sk.offsets.astype(float).tolist(),
+                             end_sites=[bool(e) for e in sk.end_site],
                              feet={f.name: sk.names[f.end_effector] for f in sk.feet}, gaits=gaits)
 
     @app.get("/v1/limits", response_model=Limits, tags=["libraries"])

@@ -29,10 +29,11 @@ def _mix(x: NDArray[np.uint64]) -> NDArray[np.uint64]:
         return np.asarray(x ^ (x >> np.uint64(31)))
 
 
-def character_keys(seed: int, n: int, seeds: ArrayLike | None = None) -> NDArray[np.uint64]:
+def character_keys(seed: int, n: int, seeds: ArrayLike | None = None, first: int = 0) -> NDArray[np.uint64]:
     """One key per character: from its own seed where ``seeds`` gives one (``-1``: none), else
-    from the batch ``seed`` and its index."""
-    index = np.arange(n, dtype=np.uint64)
+    from the batch ``seed`` and its index, counted from ``first`` (a herd sent in several
+    batches, each with its own ``first``, draws as one batch would)."""
+    index = np.arange(first, first + n, dtype=np.uint64)
     with np.errstate(over="ignore"):
         batch = _mix(np.array([seed & 0xFFFFFFFFFFFFFFFF], np.uint64))
         keys = _mix(batch + index * _GOLDEN)

@@ -60,6 +60,9 @@ class Options:
     foot_lock: bool = True
     skip_invalid: bool = False
     backend: str = "auto"  # "numba" (compiled kernels), "numpy" (the reference), "auto": numba if installed
+    first_index: int = 0  # the batch's first character's index in the herd (its draws' counter)
+    min_resample_rate: float = 1.0  # resample at least this much (a herd split into batches: the
+    # rate of the batch with the fastest character, so every batch keeps the same frames)
 
 
 @dataclass(frozen=True, eq=False)
@@ -417,7 +420,9 @@ def prepare_batch(bank: Bank, positions: ArrayLike, fps: float | None, scales: A
     n = np.shape(positions)[0] if np.ndim(positions) >= 1 else 0
     if seeds is not None and np.shape(seeds) != (n,):
         raise TrajectoryError(f"seeds: expected {n} values (one per character), got shape {np.shape(seeds)}")
-    keys = character_keys(options.seed, n, seeds)
+    if not (isinstance(options.first_index, int) and 0 <= options.first_index < 2**62):
+        raise TrajectoryError(f"first_index: must be an integer >= 0, got {options.first_index}")
+    keys = character_keys(options.seed, n, seeds, options.first_index)
     h_min, h_max = options.scale_range
     if not (0 < h_min <= h_max and np.isfinite(h_max)):
         raise TrajectoryError(f"scale_range: need 0 < min <= max, got {options.scale_range}")
@@ -434,7 +439,7 @@ def prepare_batch(bank: Bank, positions: ArrayLike, fps: float | None, scales: A
     if options.backend not in BACKENDS:
         raise TrajectoryError(f"backend: must be one of {BACKENDS}, got {options.backend!r}")
     prep = prepare(positions, fps, bank.fps, bank.top_speed, bank.mean_cycle, all_scales,
-                   options.sigma, options.skip_invalid, ids)
+                   options.sigma, options.skip_invalid, ids, options.min_resample_rate)
     return prep, all_scales[prep.kept], keys[prep.kept]
 
 

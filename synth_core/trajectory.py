@@ -30,6 +30,7 @@ Floats = NDArray[np.float64]
 
 DEFAULT_SIGMA = 4.0  # frames of Gaussian smoothing at the library's frame rate
 TELEPORT_M = 5.0  # a jump longer than this between two frames is not locomotion
+ALL_INVALID = "every character was invalid"  # the refusal when skip_invalid leaves none
 MAX_RESAMPLE = 8.0  # refuse trajectories needing more than 8x the frames
 _GROUND = [0, 2]
 
@@ -134,11 +135,15 @@ def segment_speeds(positions: Floats, m: int, fps: float) -> Floats:
 
 def prepare(positions: ArrayLike, fps: float, library_fps: float, top_speed: float, segment: int,
             scales: NDArray[np.floating], sigma: float = DEFAULT_SIGMA,
-            skip_invalid: bool = False, ids: list[str] | None = None) -> Prepared:
-    """Validate, bring to the library's frame rate, smooth, resample if needed, segment."""
+            skip_invalid: bool = False, ids: list[str] | None = None,
+            min_rate: float = 1.0) -> Prepared:
+    """Validate, bring to the library's frame rate, smooth, resample if needed (at least by
+    ``min_rate``), segment."""
     arr = check(positions, fps, ids)
     if not (np.isfinite(sigma) and 0 <= sigma <= 100):
         raise TrajectoryError(f"sigma: must be within [0, 100] frames, got {sigma}")
+    if not (np.isfinite(min_rate) and 1.0 <= min_rate <= MAX_RESAMPLE):
+        raise TrajectoryError(f"min_resample_rate: must be within [1, {MAX_RESAMPLE:g}], got {min_rate}")
     scales = np.asarray(scales, dtype=np.float64)
     names = ids or [str(c) for c in range(len(arr))]
     bad = problems(arr, fps)
@@ -149,7 +154,7 @@ def prepare(positions: ArrayLike, fps: float, library_fps: float, top_speed: flo
         raise TrajectoryError(bad[worst], names[worst])
     kept = np.array([c for c in range(len(arr)) if c not in bad], dtype=np.int64)
     if len(kept) == 0:
-        raise TrajectoryError("every character was invalid: " +
+        raise TrajectoryError(ALL_INVALID + ": " +
                               "; ".join(f"{names[c]}: {why}" for c, why in sorted(bad.items())))
     arr = retime(arr[kept], fps, library_fps)
     smoothed = smooth(arr, sigma)
@@ -161,8 +166,10 @@ def prepare(positions: ArrayLike, fps: float, library_fps: float, top_speed: flo
         raise TrajectoryError(
             f"positions: moves at {fastest:.1f} m/s for its scale, more than {MAX_RESAMPLE:g}x the "
             f"library's fastest {top_speed:.2f} m/s (check the unit: metres, and the fps)", names[fast])
+    rate = max(rate, min_rate)
     if rate > 1.0:
-        n = int(np.ceil((arr.shape[1] - 1) * rate)) + 1
+        # A rate reported by another batch, (n - 1) / (F - 1), must give back n here: hence the slack.
+        n = int(np.ceil((arr.shape[1] - 1) * rate - 1e-9)) + 1
         rate = (n - 1) / (arr.shape[1] - 1)  # what it really is after rounding to whole frames
         arr = resample(arr, n)
         smoothed = smooth(arr, sigma)

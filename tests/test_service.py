@@ -56,7 +56,8 @@ def wait_until_live(proc: subprocess.Popen[bytes], url: str) -> None:
 def served(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[str, subprocess.Popen[bytes]]]:
     """`quadsynth serve` with its defaults: one worker process per core."""
     port = free_port()
-    proc = start(["--port", str(port), "--log-level", "warning"], tmp_path_factory.mktemp("srv"), workers=None)
+    proc = start(["--port", str(port), "--log-level", "warning"], tmp_path_factory.mktemp("srv"),
+                 workers=None)
     url = f"http://127.0.0.1:{port}"
     try:
         wait_until_live(proc, url)
@@ -78,7 +79,8 @@ def worker_processes(pid: int) -> list[int]:
 
 
 @pytest.mark.skipif(not Path("/proc/self/task").is_dir(), reason="needs Linux /proc to count processes")
-def test_serve_starts_one_worker_process_per_core_by_default(served: tuple[str, subprocess.Popen[bytes]]) -> None:
+def test_serve_starts_one_worker_process_per_core_by_default(
+        served: tuple[str, subprocess.Popen[bytes]]) -> None:
     url, proc = served
     cores = os.cpu_count() or 1
     assert len(worker_processes(proc.pid)) == (cores if cores > 1 else 0)  # one core: no supervisor

@@ -91,3 +91,17 @@ def test_whole_batch_errors() -> None:
         prepare(line(100, 0.9 * TELEPORT_M * 60)[None], 60.0, 60.0, 10.0, 40, ones)
     with pytest.raises(TrajectoryError, match="every character was invalid"):
         prepare(np.full((2, 10, 3), np.inf), 60.0, 60.0, 10.0, 40, np.ones(2), skip_invalid=True)
+
+
+def test_a_rate_reported_by_one_batch_gives_another_batch_the_same_frames() -> None:
+    t = np.arange(200) / 60.0
+    fast = np.stack([3.0 * t, 0 * t, 0 * t], axis=-1)[None]  # 3 m/s
+    slow = np.stack([0.5 * t, 0 * t, 0 * t], axis=-1)[None]
+    first = prepare(fast, 60.0, 60.0, 2.2, 40, np.ones(1), sigma=0.0)
+    assert first.resample_rate > 1.0
+    second = prepare(slow, 60.0, 60.0, 2.2, 40, np.ones(1), sigma=0.0, min_rate=first.resample_rate)
+    assert second.resample_rate == first.resample_rate
+    assert second.positions.shape == first.positions.shape
+    assert prepare(slow, 60.0, 60.0, 2.2, 40, np.ones(1), sigma=0.0).resample_rate == 1.0
+    with pytest.raises(TrajectoryError, match=r"min_resample_rate: must be within \[1, 8\], got 0.5"):
+        prepare(slow, 60.0, 60.0, 2.2, 40, np.ones(1), min_rate=0.5)

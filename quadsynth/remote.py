@@ -1,0 +1,126 @@
+"""``quadsynth client synth``: a herd synthesized by a running service, as ``quadsynth synth`` makes it.
+
+The herd goes in as many requests as the service's published limits need (characters, body
+bytes, character-frames). Two request fields make the pieces one herd again: ``first_index``
+(each character draws its gait and scale as in one request) and ``min_resample_rate`` (a piece
+whose paths were resampled less than the fastest piece's is sent again at that rate, so every
+character keeps the same frames and the formation holds). Same file, seed and options: the motion
+``quadsynth synth`` makes locally, whatever the cut.
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from api_schemas.client import CharacterMotion, Client, Motion, ServiceError
+from synth_core.motion_graph import HUBS
+from synth_core.skeleton import Skeleton
+from synth_core.synthesis import Result
+from synth_core.trajectory import ALL_INVALID, resample
+
+RATE_ALLOWANCE = 2.0  # output frames a piece is sized for: the retimed frames x this (resampling)
+BODY_SLACK = 64 * 1024  # request bytes besides the characters (options, msgpack framing)
+CHARACTER_BYTES = 256  # a character's bytes besides its float32 points: id (<= 128), keys, dtype, shape
+
+
+@dataclass(frozen=True)
+class Remote:
+    """A herd made by the service: what ``quadsynth synth`` writes from."""
+
+    result: Result
+    skeleton: Skeleton
+    hubs: tuple[str, ...]
+    fps: float
+    ids: list[str]  # of the characters kept, in result order
+    requests: int
+
+
+def skeleton_of(detail: dict[str, Any]) -> Skeleton:
+    """The library's skeleton from ``GET /v1/libraries/{animal}``."""
+    skeleton = Skeleton(tuple(detail["joint_names"]), np.array(detail["parents"]),
+                        np.array(detail["offsets"], np.float32), np.array(detail["end_sites"]),
+                        name=detail["skeleton_id"])
+    return skeleton.with_feet(detail["feet"])
+
+
+def piece_size(limits: dict[str, Any], points: int, out_frames: int) -> int:
+    """Characters per request that keep within every published limit (at least 1)."""
+    by_frames = limits["max_character_frames"] // max(1, int(out_frames * RATE_ALLOWANCE))
+    by_body = (limits["max_body_bytes"] - BODY_SLACK) // (points * 12 + CHARACTER_BYTES)
+    return int(max(1, min(limits["max_characters"], by_frames, by_body)))
+
+
+def _global_field(error: ServiceError, first: int) -> ServiceError:
+    """The error with ``characters[k]`` counted in the whole herd, not in the request."""
+    field = re.sub(r"^characters\[(\d+)\]", lambda m: f"characters[{int(m[1]) + first}]", error.field)
+    return ServiceError(error.status, field, error.message)
+
+
+def synthesize(url: str, positions: NDArray[np.floating], fps: float, ids: list[str], *,
+               animal: str = "horse", progress: Callable[[int, int], None] | None = None,
+               timeout: float = 600.0, **options: Any) -> Remote:
+    """``positions`` (C, F, 3) at ``fps`` through the service at ``url``; ``options``: the
+    request's fields (seed, sigma, scale_min, scale_max, skip_invalid, encoding, foot_lock)."""
+    C, F = positions.shape[:2]
+    with Client(url, timeout=timeout) as client:
+        limits, detail = client.limits(), client.library(animal)
+        out_frames = int(np.ceil((F - 1) * detail["fps"] / fps)) + 1
+        size = piece_size(limits, F, out_frames)
+        pieces = [(a, min(a + size, C)) for a in range(0, C, size)]
+        done: dict[tuple[int, int], Motion] = {}
+
+        def send(a: int, b: int, rate: float) -> None:
+            try:
+                done[(a, b)] = client.synthesize(positions[a:b], ids[a:b], animal=animal, fps=fps,
+                                                 first_index=a, min_resample_rate=rate, **options)
+            except ServiceError as exc:
+                if not (options.get("skip_invalid") and exc.status == 422 and ALL_INVALID in exc.message):
+                    raise _global_field(exc, a) from None
+                # Every character of this piece was bad: skipped, as they would be in one request.
+                done[(a, b)] = Motion(animal, detail["skeleton_id"], detail["fps"], 1.0, [],
+                                      [{"index": i, "reason": exc.message} for i in range(b - a)])
+            sent.append((a, b))
+            if progress:
+                progress(len(sent), len(pieces) + len(slower))
+
+        sent: list[tuple[int, int]] = []
+        slower: list[tuple[int, int]] = []
+        for a, b in pieces:
+            send(a, b, 1.0)
+        rate = max(m.resample_rate for m in done.values())
+        slower += [p for p, m in done.items() if m.resample_rate < rate and m.characters]
+        for a, b in slower:  # the formation: every piece at the fastest piece's rate
+            send(a, b, rate)
+        requests = len(sent)
+
+    kept: list[int] = []
+    characters: list[CharacterMotion] = []
+    rejected: dict[int, str] = {}
+    for (a, b), motion in sorted(done.items()):
+        skipped = {int(s["index"]): str(s["reason"]) for s in motion.skipped}
+        rejected.update({a + i: why for i, why in skipped.items()})
+        kept += [a + i for i in range(b - a) if i not in skipped]
+        characters += motion.characters
+    lengths = {len(ch.root) for ch in characters}
+    if len(lengths) != 1:
+        raise ValueError(f"characters came back with different frame counts {sorted(lengths)}: "
+                         "give every character the same number of points")
+    T = lengths.pop()
+    kept_idx = np.array(kept, np.int64)
+    result = Result(
+        root_pos=np.stack([ch.root for ch in characters]),
+        rotations=np.stack([ch.rotations for ch in characters]),
+        gait=np.stack([ch.gait for ch in characters]),
+        contacts=np.stack([ch.contacts for ch in characters]),
+        stitches=np.zeros((len(characters), T), bool),
+        scales=np.array([ch.scale for ch in characters]),
+        path=resample(np.asarray(positions[kept_idx], np.float64), T),  # the ground under each root
+        resample_rate=rate, kept=kept_idx, rejected=rejected)
+    return Remote(result, skeleton_of(detail), tuple(HUBS), float(detail["fps"]),
+                  [ch.id for ch in characters], requests)

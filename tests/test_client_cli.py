@@ -1,0 +1,102 @@
+"""`quadsynth client synth` against a real service with small limits: the herd goes in several
+requests and comes back as the motion `quadsynth synth` makes locally, with the same files."""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Iterator
+from pathlib import Path
+
+import httpx
+import numpy as np
+import pytest
+
+from quadsynth.cli import main
+from synth_core import bvh, crowd, crowd_io
+from tests.test_service import free_port, start, wait_until_live
+
+LIMITS = {"QUADSYNTH_MAX_CHARACTERS": "8", "QUADSYNTH_MAX_CHARACTER_FRAMES": "20000"}
+
+
+@pytest.fixture(scope="module")
+def server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
+    port = free_port()
+    proc = start(["--port", str(port), "--log-level", "warning"], tmp_path_factory.mktemp("cli"), LIMITS)
+    url = f"http://127.0.0.1:{port}"
+    try:
+        wait_until_live(proc, url)
+        while httpx.get(f"{url}/readyz").status_code != 200:
+            pass
+        yield url
+    finally:
+        proc.terminate()
+        proc.wait(timeout=30)
+
+
+@pytest.fixture(scope="module")
+def herd() -> np.ndarray:
+    """20 horses, one of them (17, in the last request) too fast for the library: resampled."""
+    positions = crowd.simulate(20, 300, seed=1)
+    positions[17] = positions[17, :1] + (positions[17] - positions[17, :1]) * 3.0
+    return positions.astype(np.float32)
+
+
+def run(*argv: str, capsys: pytest.CaptureFixture[str]) -> tuple[int, dict[str, object], str]:
+    code = main(list(argv))
+    out, err = capsys.readouterr()
+    lines = out.strip().splitlines()
+    return code, json.loads(lines[-1]) if code == 0 else {}, err
+
+
+def same_motion(a: Path, b: Path) -> None:
+    remote, local = np.load(a / "motion.npz"), np.load(b / "motion.npz")
+    assert remote["rotations"].shape == local["rotations"].shape
+    for key in ("gait", "contacts", "ids", "scales"):
+        np.testing.assert_array_equal(remote[key], local[key], err_msg=key)
+    for key in ("root_pos", "rotations"):
+        np.testing.assert_allclose(remote[key], local[key], atol=1e-5, err_msg=key)
+
+
+def test_client_synth_cuts_the_herd_and_gets_the_local_motion(server: str, herd: np.ndarray, tmp_path: Path,
+                                                               capsys: pytest.CaptureFixture[str]) -> None:
+    traj = crowd_io.write_npz(tmp_path / "traj.npz", herd, 60.0)
+    code, summary, err = run("client", "synth", "--url", server, "--trajectories", str(traj), "--seed", "7",
+                             "--out", str(tmp_path / "remote"), "--bvh", "--glb", str(tmp_path / "r.glb"),
+                             capsys=capsys)
+    assert code == 0, err
+    assert "5 request(s)" in err  # 8 + 8 + 4 characters, then the first two again at the last's rate
+    code, local, err = run("synth", "--trajectories", str(traj), "--seed", "7",
+                           "--out", str(tmp_path / "local"), capsys=capsys)
+    assert code == 0, err
+    assert summary == local and float(summary["resample_rate"]) > 1.0  # type: ignore[arg-type]
+    same_motion(tmp_path / "remote", tmp_path / "local")
+    files = sorted(p.name for p in (tmp_path / "remote").glob("*.bvh"))
+    assert files == sorted(f"{c}.bvh" for c in range(20))
+    motion = bvh.read(tmp_path / "remote" / "17.bvh", feet=None)
+    assert motion.n_frames == summary["frames"] and (tmp_path / "r.glb").read_bytes()[:4] == b"glTF"
+
+
+def test_client_synth_skips_or_names_a_bad_character_by_its_place_in_the_herd(
+        server: str, herd: np.ndarray, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    bad = herd[:12].copy()
+    bad[9, 40] = np.nan  # the second request's second character
+    traj = crowd_io.write_npz(tmp_path / "bad.npz", bad, 60.0)
+    code, _, err = run("client", "synth", "--url", server, "--trajectories", str(traj),
+                       "--out", str(tmp_path / "refused"), capsys=capsys)
+    assert code == 2 and "characters[9]" in err and "NaN" in err, err
+    code, summary, err = run("client", "synth", "--url", server, "--trajectories", str(traj),
+                             "--skip-invalid", "--out", str(tmp_path / "remote"), capsys=capsys)
+    assert code == 0 and summary["characters"] == 11, (summary, err)
+    assert list(summary["skipped"]) == ["9"]  # type: ignore[call-overload]
+    code, local, err = run("synth", "--trajectories", str(traj), "--skip-invalid",
+                           "--out", str(tmp_path / "local"), capsys=capsys)
+    assert code == 0 and summary == local
+    same_motion(tmp_path / "remote", tmp_path / "local")
+
+
+def test_client_synth_says_when_the_service_cannot_be_reached(herd: np.ndarray, tmp_path: Path,
+                                                              capsys: pytest.CaptureFixture[str]) -> None:
+    traj = crowd_io.write_npz(tmp_path / "traj.npz", herd[:2], 60.0)
+    code, _, err = run("client", "synth", "--url", f"http://127.0.0.1:{free_port()}",
+                       "--trajectories", str(traj), "--out", str(tmp_path / "o"), capsys=capsys)
+    assert code == 2 and "cannot reach the service" in err
