@@ -19,7 +19,9 @@ from typing import Any
 
 from fastapi import FastAPI, Request, WebSocket
 from fastapi.exceptions import RequestValidationError
+from fastapi.openapi.utils import get_openapi
 from fastapi.responses import JSONResponse, PlainTextResponse, Response
+from pydantic.json_schema import models_json_schema
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
 from api_schemas import (
@@ -54,6 +56,23 @@ def _binary_body(model: type, description: str) -> dict[str, Any]:
     ref = {"$ref": f"#/components/schemas/{model.__name__}"}
     return {"description": description,
             "content": {MSGPACK: {"schema": ref}, body.JSON: {"schema": ref}}}
+
+
+def _with_body_schemas(app: FastAPI) -> None:
+    """The OpenAPI document with the models of the bodies that routes read and write themselves
+    (msgpack or JSON, not through FastAPI's parameters), so their ``$ref``s resolve."""
+    def openapi() -> dict[str, Any]:
+        if app.openapi_schema is None:
+            spec = get_openapi(title=app.title, version=app.version, description=app.description,
+                               routes=app.routes)
+            _, defs = models_json_schema([(SynthesizeRequest, "validation"),
+                                          (SynthesizeResponse, "serialization")],
+                                         ref_template="#/components/schemas/{model}")
+            spec.setdefault("components", {}).setdefault("schemas", {}).update(defs["$defs"])
+            app.openapi_schema = spec
+        return app.openapi_schema
+
+    app.openapi = openapi  # type: ignore[method-assign]
 
 
 class State:
@@ -178,6 +197,7 @@ def create_app(directory: Path | None = None, settings: Settings | None = None) 
                               "listed below: OpenAPI has no WebSockets) streams a batch in chunks "
                               "as it is made -- see docs/streaming.md.")
     app.state.quadsynth = state
+    _with_body_schemas(app)
     app.add_middleware(MetricsMiddleware, metrics=state.metrics)
     app.add_exception_handler(ApiError, handle_api_error)
     app.add_exception_handler(RequestValidationError, handle_validation_error)

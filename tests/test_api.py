@@ -209,6 +209,11 @@ def test_libraries_and_docs(server: str) -> None:
     spec = httpx.get(f"{server}/openapi.json").json()
     route = spec["paths"]["/v1/synthesize"]["post"]
     assert set(route["requestBody"]["content"]) == {MSGPACK, "application/json"}
+    schemas = spec["components"]["schemas"]  # every body's $ref resolves, down to the blobs
+    for ref in (route["requestBody"]["content"][MSGPACK]["schema"]["$ref"],
+                route["responses"]["200"]["content"][MSGPACK]["schema"]["$ref"]):
+        assert ref.rsplit("/", 1)[1] in schemas
+    assert {"CharacterIn", "CharacterOut", "Blob", "PackedRotations"} <= set(schemas)
     assert {"200", "413", "415", "422", "503", "504"} <= set(route["responses"])
     assert {"/v1/limits", "/v1/libraries/{animal}", "/metrics", "/readyz", "/livez"} <= set(spec["paths"])
     assert httpx.get(f"{server}/docs").status_code == 200
