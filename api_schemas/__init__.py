@@ -15,6 +15,8 @@ from api_schemas.models import (
     LibraryDetail,
     LibrarySummary,
     Limits,
+    LiveCharacter,
+    LiveRequest,
     PackedRotations,
     Readiness,
     Skipped,
@@ -23,5 +25,6 @@ from api_schemas.models import (
 )
 
 __all__ = ["Blob", "CharacterIn", "CharacterOut", "ErrorDetail", "ErrorResponse", "GaitRange", "Health",
-           "LibrariesResponse", "LibraryDetail", "LibrarySummary", "Limits", "PackedRotations", "Readiness",
+           "LibrariesResponse", "LibraryDetail", "LibrarySummary", "Limits", "LiveCharacter",
+           "LiveRequest", "PackedRotations", "Readiness",
            "Skipped", "SynthesizeRequest", "SynthesizeResponse"]

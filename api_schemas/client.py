@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import json
 from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -179,6 +180,75 @@ class Client:
                     ws.send(msgpack.packb({"type": "ack", "chunk": message["chunk"]}))
                 elif kind == "end":
                     return
+
+
+    @contextmanager
+    def live(self, ids: Sequence[str], fps: float = 60.0, scales: Sequence[float | None] | None = None,
+             **options: Any) -> Iterator[LiveSession]:
+        """Open a live session for characters ``ids`` whose points come at ``fps``; ``options``:
+        animal, seed, sigma, encoding, foot_lock, heading, scale_min, scale_max."""
+        from websockets.sync.client import connect
+
+        url = str(self._http.base_url).rstrip("/").replace("http", "ws", 1) + "/v1/stream"
+        characters = [{"id": i, **({"scale": float(scales[c])} if scales and scales[c] is not None else {})}
+                      for c, i in enumerate(ids)]
+        with connect(url, compression=None, max_size=None) as ws:
+            ws.send(msgpack.packb({"type": "live", "fps": fps, **options, "characters": characters},
+                                  use_bin_type=True))
+            session = LiveSession(ws, {})
+            message = msgpack.unpackb(ws.recv())
+            session._take(message, [])
+            session.header = message
+            yield session
+
+
+class LiveSession:
+    """A live session over WebSocket ``/v1/stream`` (docs/streaming.md): :meth:`push` every
+    character's next points as the simulation runs, get back the chunks ready so far;
+    :meth:`finish` when the trajectories end. ``header``: the session's ``start`` message (ids,
+    scales, output fps, ``latency_frames``)."""
+
+    def __init__(self, ws: Any, header: dict[str, Any]) -> None:
+        self.ws, self.header = ws, header
+        self.ended = False
+
+    def _take(self, message: dict[str, Any], out: list[Chunk]) -> None:
+        kind = message["type"]
+        if kind == "error":
+            error = message["error"]
+            raise ServiceError(error["status"], error["field"], error["message"])
+        if kind == "chunk":
+            out.append(decode_chunk(self.header, message))
+            self.ws.send(msgpack.packb({"type": "ack", "chunk": message["chunk"]}))
+        elif kind == "end":
+            self.ended = True
+
+    def _receive(self, timeout: float | None) -> list[Chunk]:
+        from websockets.exceptions import ConnectionClosed
+
+        out: list[Chunk] = []
+        while not self.ended:
+            try:
+                raw = self.ws.recv(timeout=timeout)
+            except TimeoutError:
+                break
+            except ConnectionClosed as exc:
+                raise ServiceError(exc.rcvd.code if exc.rcvd else 1006, "", "the session closed") from None
+            self._take(msgpack.unpackb(raw), out)
+        return out
+
+    def push(self, points: ArrayLike, wait: float = 0.0) -> list[Chunk]:
+        """Send ``points (characters, n, 3)``; the chunks that arrived meanwhile (waiting up to
+        ``wait`` seconds for the first)."""
+        arr = np.ascontiguousarray(points, np.float32)
+        self.ws.send(msgpack.packb({"type": "points", "points": blob(arr)}, use_bin_type=True))
+        out = self._receive(wait) if wait > 0 else []
+        return out + self._receive(0)
+
+    def finish(self) -> list[Chunk]:
+        """The trajectories end here: every chunk still to come, up to the session's end."""
+        self.ws.send(msgpack.packb({"type": "finish"}))
+        return self._receive(None)
 
 
 class AsyncClient:

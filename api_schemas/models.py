@@ -103,6 +103,35 @@ class SynthesizeRequest(BaseModel):
     characters: list[CharacterIn] = Field(min_length=1)
 
 
+class LiveCharacter(BaseModel):
+    model_config = _STRICT
+    id: str = Field(min_length=1, max_length=128)
+    scale: float | None = Field(default=None, gt=0, le=100, description="as in SynthesizeRequest")
+    seed: int | None = Field(default=None, ge=0, le=2**63 - 1, description="as in SynthesizeRequest")
+
+
+class LiveRequest(BaseModel):
+    """Opens a live session on WebSocket /v1/stream (docs/streaming.md): the characters, then
+    ``points`` messages with every character's next trajectory points."""
+
+    model_config = _STRICT
+    type: str = Field(default="live", pattern="^live$")
+    animal: str = Field(default="horse")
+    fps: float = Field(default=60.0, gt=0, le=1000, description="rate of the points sent; frames come "
+                                                                   "back at it where the library's rate "
+                                                                   "is a whole multiple of it")
+    seed: int = Field(default=0, ge=0, le=2**63 - 1)
+    sigma: float = Field(default=4.0, ge=0, le=100)
+    encoding: Encoding = Field(default="s48")
+    scale_min: float = Field(default=0.8, gt=0, le=100)
+    scale_max: float = Field(default=1.2, gt=0, le=100)
+    foot_lock: bool = Field(default=True)
+    heading: float = Field(default=0.0, ge=-7, le=7, description="radians about +Y (0 = +Z) a character "
+                                                                 "faces while it stands before its first "
+                                                                 "move is known")
+    characters: list[LiveCharacter] = Field(min_length=1)
+
+
 class CharacterOut(BaseModel):
     id: str
     scale: float = Field(description="the scale used (given or drawn)")

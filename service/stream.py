@@ -1,5 +1,6 @@
 """WebSocket ``/v1/stream``: a batch's motion in chunks of K frames, each sent as soon as it is
-made (docs/streaming.md has the protocol).
+made; or a live session, its frames sent as the points that settle them arrive
+(docs/streaming.md has the protocol).
 
 One session, two tasks: a reader that takes every client message as it comes (acks, pings,
 cancel, the next batch) and notices a disconnect at once -- even while the writer is blocked
@@ -22,10 +23,11 @@ import msgpack
 from starlette.websockets import WebSocket, WebSocketDisconnect, WebSocketState
 
 from api_schemas.wire import blob, packed_dtype
-from service import jobs
+from service import jobs, live
 from service.errors import ApiError, error_body
 from service.packing import contact_bits, pack_rotations, skeleton_id
 from synth_core.streaming import BatchStream, Window
+from synth_core.trajectory import TrajectoryError
 
 if TYPE_CHECKING:
     from service.app import State
@@ -34,6 +36,7 @@ log = logging.getLogger("quadsynth.stream")
 
 GOING_AWAY, INVALID_DATA, POLICY, TOO_BIG, INTERNAL, TRY_LATER = 1001, 1007, 1008, 1009, 1011, 1013
 MAX_CHUNK_FRAMES = 600
+LIVE_INBOX = 64  # points messages waiting for synthesis, at most: a client further ahead gets 1013
 CLOSE_TIMEOUT_S = 1.0
 # HTTP status of an error -> the close code after it.
 CLOSE_FOR = {413: TOO_BIG, 415: INVALID_DATA, 422: INVALID_DATA, 503: TRY_LATER, 504: TRY_LATER}
@@ -71,6 +74,8 @@ class Session:
         self.failure: Closing | None = None  # a protocol error the reader found
         self.send_lock = asyncio.Lock()
         self.batches = 0
+        self.inbox: asyncio.Queue[dict[str, Any]] = asyncio.Queue()  # a live session's points, finish
+        self.live_open = False  # a live session was asked for and has not finished
 
     # --- reading -------------------------------------------------------------------------------
 
@@ -110,14 +115,26 @@ class Session:
             asyncio.get_running_loop().create_task(self.pong(body.get("time")))
         elif kind == "cancel":
             self.cancel.set()
-        elif kind == "synthesize":
+        elif kind in ("synthesize", "live"):
             if self.requests.qsize() >= 1:  # each may be max_body_bytes: do not hoard them
                 raise Closing(POLICY, ApiError(422, "type", "a batch is already waiting behind the one "
                                                             "streaming; send the next after its end"))
+            if kind == "live":
+                self.live_open = True
             self.requests.put_nowait(body)
+        elif kind in ("points", "finish"):
+            if not self.live_open:
+                raise Closing(POLICY, ApiError(422, "type", f"{kind} without a live session: send "
+                                                            "{type: live, characters: [...]} first"))
+            if self.inbox.qsize() >= LIVE_INBOX:
+                raise Closing(TRY_LATER, ApiError(503, "points", f"{LIVE_INBOX} points messages wait for "
+                                                                 "synthesis: sent faster than they are made"))
+            self.live_open = kind == "points"
+            self.inbox.put_nowait(body)
         else:
             raise Closing(INVALID_DATA, ApiError(422, "type", f"unknown message type {kind!r}; expected "
-                                                              "synthesize, ack, ping or cancel"))
+                                                              "synthesize, live, points, finish, ack, ping "
+                                                              "or cancel"))
 
     # --- writing -------------------------------------------------------------------------------
 
@@ -214,6 +231,69 @@ class Session:
         self.cancel.clear()
         await self.send({"type": "end", "batch": number, "chunks": sent, "cancelled": cancelled})
 
+    async def next_live(self) -> dict[str, Any] | None:
+        """The live session's next points (or finish) message; None once the client goes or cancels."""
+        waits = {asyncio.ensure_future(e.wait()) for e in (self.gone, self.cancel, self.state.drain)}
+        get = asyncio.ensure_future(self.inbox.get())
+        try:
+            await asyncio.wait({get, *waits}, return_when=asyncio.FIRST_COMPLETED)
+        finally:
+            for w in waits:
+                w.cancel()
+        self.check()
+        if not get.done():
+            get.cancel()
+            return None
+        return get.result()
+
+    async def live(self, body: dict[str, Any]) -> None:
+        """A live session: frames for the points as they come, until finish."""
+        settings, registry = self.settings, self.state.registry
+        self.batches += 1
+        number = self.batches
+        req, synth = live.open_live(body, settings, registry.banks)
+        bank = registry.banks[req.animal]
+        C = len(req.characters)
+        out_fps = bank.fps / synth.out_step
+        await self.send({
+            "type": "start", "batch": number, "mode": "live", "animal": req.animal,
+            "skeleton_id": skeleton_id(req.animal, registry.libraries[req.animal].skeleton),
+            "fps": out_fps, "library_fps": bank.fps, "encoding": req.encoding, "resample_rate": 1.0,
+            "latency_frames": -(-synth.latency_frames // synth.out_step),
+            "latency_s": synth.latency_frames / bank.fps,
+            "characters": [{"id": c.id, "scale": float(h)} for c, h in zip(req.characters, synth.scales,
+                                                                          strict=True)]})
+        self.acked, sent = -1, 0
+        self.state.metrics.syntheses += 1
+        while True:
+            message = await self.next_live()
+            if message is None:
+                break
+            finishing = message.get("type") == "finish"
+            t0 = time.perf_counter()
+            try:
+                if finishing:
+                    window = await self.in_pool(synth.finish)
+                else:
+                    window = await self.in_pool(synth.append, live.points(message, C, settings))
+            except TrajectoryError as exc:
+                raise live.live_error(exc, "points") from None
+            self.state.metrics.synthesis_seconds += time.perf_counter() - t0
+            if window is not None and window.stop > window.start:
+                await self.wait_for_room(sent)
+                self.check()
+                await self.send(chunk_message(number, sent, window, req.encoding))
+                self.state.metrics.character_frames += C * (window.stop - window.start)
+                sent += 1
+            if finishing:
+                break
+        cancelled = self.cancel.is_set()
+        self.cancel.clear()
+        self.live_open = False
+        while not self.inbox.empty():  # points sent after a cancel
+            self.inbox.get_nowait()
+        await self.send({"type": "end", "batch": number, "chunks": sent, "cancelled": cancelled})
+
     async def serve(self) -> None:
         reader = asyncio.get_running_loop().create_task(self.read())
         drain = asyncio.get_running_loop().create_task(self.state.drain.wait())  # SIGTERM
@@ -225,8 +305,12 @@ class Session:
                     nxt.cancel()
                     self.check()
                     return  # the client went away
+                request = nxt.result()
                 try:
-                    await self.batch(nxt.result())
+                    if request.get("type") == "live":
+                        await self.live(request)
+                    else:
+                        await self.batch(request)
                 except ApiError as exc:
                     raise Closing(CLOSE_FOR.get(exc.status, POLICY), exc) from None
                 if self.gone.is_set():

@@ -411,6 +411,22 @@ def render(bank: Bank, p: Plan, foot_lock: bool = True) -> tuple[NDArray[np.floa
                      bends=bank.bends)
 
 
+def character_scales(keys: NDArray[np.uint64], scales: ArrayLike | None,
+                     scale_range: tuple[float, float]) -> Floats:
+    """Each character's scale: given, or (None, NaN) drawn from its key in ``scale_range``."""
+    n = len(keys)
+    h_min, h_max = scale_range
+    if not (0 < h_min <= h_max and np.isfinite(h_max)):
+        raise TrajectoryError(f"scale_range: need 0 < min <= max, got {scale_range}")
+    drawn = h_min + (h_max - h_min) * uniform(keys, SCALE_STREAM)[:, 0]
+    if scales is None:
+        return np.asarray(drawn)
+    given = np.asarray(scales, dtype=np.float64)
+    if given.shape != (n,):
+        raise TrajectoryError(f"scales: expected {n} values (one per character), got shape {given.shape}")
+    return np.where(np.isnan(given), drawn, given)  # NaN: "draw one for me"
+
+
 def prepare_batch(bank: Bank, positions: ArrayLike, fps: float | None, scales: ArrayLike | None,
                   options: Options, ids: list[str] | None, seeds: ArrayLike | None = None
                   ) -> tuple[Prepared, Floats, NDArray[np.uint64]]:
@@ -423,17 +439,7 @@ def prepare_batch(bank: Bank, positions: ArrayLike, fps: float | None, scales: A
     if not (isinstance(options.first_index, int) and 0 <= options.first_index < 2**62):
         raise TrajectoryError(f"first_index: must be an integer >= 0, got {options.first_index}")
     keys = character_keys(options.seed, n, seeds, options.first_index)
-    h_min, h_max = options.scale_range
-    if not (0 < h_min <= h_max and np.isfinite(h_max)):
-        raise TrajectoryError(f"scale_range: need 0 < min <= max, got {options.scale_range}")
-    drawn = h_min + (h_max - h_min) * uniform(keys, SCALE_STREAM)[:, 0]
-    if scales is None:
-        all_scales = drawn
-    else:
-        given = np.asarray(scales, dtype=np.float64)
-        if given.shape != (n,):
-            raise TrajectoryError(f"scales: expected {n} values (one per character), got shape {given.shape}")
-        all_scales = np.where(np.isnan(given), drawn, given)  # NaN: "draw one for me"
+    all_scales = character_scales(keys, scales, options.scale_range)
     if not (isinstance(options.margin, int) and 0 <= options.margin <= 60):
         raise TrajectoryError(f"margin: must be an integer within [0, 60] frames, got {options.margin}")
     if options.backend not in BACKENDS:

@@ -1,0 +1,542 @@
+"""Live synthesis: trajectory points arrive a few at a time (a crowd simulation as it runs) and
+poses come back for every frame the plan can settle -- :func:`synth_core.synthesis.plan` made
+incrementally, frame block by frame block, with its state carried between blocks.
+
+Every step of the batch plan is causal but for a bounded look-ahead, which is the latency:
+
+- smoothing reads ``radius`` points ahead (4 sigma);
+- a frame's speed is interpolated between segment centres, so it waits for the segment after
+  its own (up to 1.5 segments ahead), and a gait is chosen on the speed ``LOOKAHEAD`` segments
+  ahead of its decision;
+- a transition ends where the character has covered its distance -- found as the path arrives.
+
+So a frame is planned about ``m (LOOKAHEAD + 1.5) + radius`` frames after its point arrived
+and sent ``lock_lag`` frames later (:attr:`LiveSynth.latency_frames`; horse, 60 fps:
+56 x 2.5 + 16 + 2 + 20 = 178 frames, 3.0 s), and then it is exactly the frame the batch plan of
+the whole trajectory has (tested, foot lock off), but for:
+
+- the heading of a character standing before it first moves: the batch turns it to where it
+  will go; live does that only if the move is already known, else keeps ``heading``;
+- the last two segments' frames, once :meth:`LiveSynth.finish` says the trajectory ends (the
+  end is smoothed as the batch's is, but the batch's speeds there read its last, shorter segment);
+- no resampling (r = 1): live cannot slow time down, so a character faster than the library's
+  fastest gait plays it up to MAX_RATE times faster, as in a batch, and slides beyond that.
+
+The foot lock pins a plant at its average position, which needs the plant's end: frames are
+sent ``lock_lag`` frames after they are planned (``LOCK_LAG``, a third of a second) and locked over
+every frame planned so far, so most plants a frame is in have ended; one still going on is pinned
+at its average so far and moves by the difference in the next block. Measured on 24 horses
+(tests/test_live.py): 95th-percentile skate as the batch's (0.01 mm), mean 1.6 mm against the
+batch's 1.1 (no lag: 0.7 mm p95, 2.0 mm mean).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+from scipy.ndimage import gaussian_filter1d
+
+from synth_core import kernels
+from synth_core.bank import STATIC, Bank
+from synth_core.draws import SCHEDULE_STREAM, character_keys, uniform
+from synth_core.footlock import EASE_FRAMES
+from synth_core.streaming import PAD, Window, lock_context
+from synth_core.synthesis import (
+    LOOKAHEAD,
+    MARGIN,
+    MAX_RATE,
+    MIN_TURN_SPEED,
+    N_HUBS,
+    Floats,
+    Plan,
+    _choose,
+    _kinds,
+    _rows,
+    character_scales,
+    render,
+)
+from synth_core.trajectory import _GROUND, DEFAULT_SIGMA, TELEPORT_M, TrajectoryError
+
+NEVER = np.iinfo(np.int64).max // 4
+SLOTS = 4  # pieces per character: the one before, the one playing, a transition, the gait after it
+KEEP_PLANS = 3  # of the slowest cycle: planned frames kept as the foot lock's context
+LOCK_LAG = 20  # frames planned but not yet sent, so that most plants a frame is in have ended
+
+
+@dataclass
+class _Pieces:
+    """Per character (C, SLOTS), chronological: start frame, kind, first clip frame, the clock of
+    its kind at its start, the distance travelled (unscaled) at its start; ``valid`` slot 0."""
+
+    start: NDArray[np.int64]
+    kind: NDArray[np.int64]
+    first: NDArray[np.int64]
+    clock0: Floats
+    trav0: Floats
+    before: NDArray[np.bool_]  # slot 0 holds a piece (the first piece has none before it)
+
+
+class LiveSynth:
+    """Characters whose trajectories grow: :meth:`append` points, get back the new frames.
+
+    All characters advance together (a simulation steps every agent each tick): each ``append``
+    brings the same number of points for every character, at ``fps``. Frames come back at the
+    library's frame rate -- or at ``fps``, every k-th frame, where the library's rate is k times it.
+    """
+
+    def __init__(self, bank: Bank, n_characters: int, fps: float | None = None, *,
+                 scales: ArrayLike | None = None, seed: int = 0, seeds: ArrayLike | None = None,
+                 scale_range: tuple[float, float] = (1.0, 1.0), sigma: float = DEFAULT_SIGMA,
+                 margin: int = MARGIN, foot_lock: bool = True, backend: str = "auto",
+                 heading: float = 0.0, lock_lag: int = LOCK_LAG) -> None:
+        if not (isinstance(n_characters, int) and n_characters >= 1):
+            raise TrajectoryError(f"characters: need at least one, got {n_characters}")
+        fps = bank.fps if fps is None else float(fps)
+        if not (np.isfinite(fps) and 0 < fps <= bank.fps):
+            raise TrajectoryError(f"fps: must be within (0, {bank.fps:g}] (the library's), got {fps}")
+        if not (np.isfinite(sigma) and 0 <= sigma <= 100):
+            raise TrajectoryError(f"sigma: must be within [0, 100] frames, got {sigma}")
+        C = n_characters
+        self.bank, self.fps, self.sigma, self.margin = bank, fps, float(sigma), margin
+        self.foot_lock, self.heading = foot_lock, float(heading)
+        self.lock_lag = lock_lag if foot_lock else 0
+        self.rendered = 0  # library frames rendered
+        self.compiled = backend == "numba" or (backend == "auto" and kernels.AVAILABLE)
+        self.keys = character_keys(seed, C, seeds)
+        self.scales = character_scales(self.keys, scales, scale_range)
+        if not (np.isfinite(self.scales) & (self.scales > 0)).all():
+            bad = int(np.flatnonzero(~(np.isfinite(self.scales) & (self.scales > 0)))[0])
+            raise TrajectoryError(f"scale: must be a positive number, got {self.scales[bad]}", bad)
+        ratio = bank.fps / fps
+        self.out_step = int(round(ratio)) if abs(ratio - round(ratio)) < 1e-9 else 1
+        self.kinds = _kinds(bank)
+        self.m = bank.mean_cycle
+        self.step = max(1, self.m // 2)
+        self.pad = int(np.ceil(4 * sigma)) if sigma > 0 else 0
+        self.radius = int(4.0 * sigma + 0.5) if sigma > 0 else 0
+        self.top = np.full(N_HUBS, np.inf)
+        for hub, s in bank.speeds.items():
+            self.top[hub] = s[-1]
+        self.total = np.zeros(len(self.kinds.frames))
+        for (a, b), d in bank.progress.items():
+            self.total[self.kinds.tr_kind[a, b]] = d[-1]
+        # Input (at fps) and the library-rate points made from it.
+        self.inputs = np.zeros((C, 0, 3))
+        self.inputs_start = 0  # global index of inputs[:, 0]
+        self.n_inputs = 0
+        self.made = 0  # library-rate points made from the inputs
+        self.first_points = np.zeros((C, 0, 3))  # until the head can be made from them
+        self.longer = np.zeros((C, 0, 3))  # head reflection + raw points at the library's rate
+        self.longer_start = 0
+        self.n_raw = 0  # raw points in `longer` (after its head)
+        self.ended = False
+        # Smoothed path, segment speeds, and what the plan carries from block to block.
+        self.path = np.zeros((C, 0, 3))
+        self.path_start = 0
+        self.n_path = 0
+        self.seg = np.zeros((C, 0))  # segment speeds / scale
+        self.seg_start = 0
+        self.n_seg = 0
+        self.walked = np.zeros(C)  # unscaled distance along the path up to the next frame planned
+        self.clock = np.zeros((N_HUBS + 1, C))  # each kind's clock at the next frame planned
+        self.last_dir = np.zeros((C, 2))
+        self.moved = np.zeros(C, bool)
+        self.current = np.zeros(C, np.int64)
+        self.busy = np.zeros(C, np.int64)
+        self.decisions = 0
+        self.planned = 0
+        self.emitted = 0
+        start = np.full((C, SLOTS), NEVER, np.int64)
+        start[:, 1] = 0  # standing: the idle from frame 0
+        self.pieces = _Pieces(start, np.zeros((C, SLOTS), np.int64), np.zeros((C, SLOTS), np.int64),
+                              np.zeros((C, SLOTS)), np.zeros((C, SLOTS)), np.zeros(C, bool))
+        self.buffer: Plan | None = None  # planned frames kept as the foot lock's context
+        self.buffer_start = 0
+
+    @property
+    def latency_frames(self) -> int:
+        """Library frames between a point arriving and its frame being sent, at most."""
+        return int(self.m * (LOOKAHEAD + 1.5) + self.radius + 2) + self.lock_lag
+
+    # -- input -------------------------------------------------------------------------------
+
+    def append(self, points: ArrayLike) -> Window | None:
+        """Points ``(C, n, 3)`` (n >= 1) at ``fps``, the next of every character's trajectory;
+        the frames this settles (None: none yet)."""
+        if self.ended:
+            raise TrajectoryError("points: the trajectories have ended (finish was called)")
+        arr = np.asarray(points, np.float64)
+        C = len(self.scales)
+        if arr.ndim != 3 or arr.shape[0] != C or arr.shape[2] != 3 or arr.shape[1] < 1:
+            raise TrajectoryError(f"points: expected shape ({C}, n >= 1, 3), got {arr.shape}")
+        finite = np.isfinite(arr).all(axis=(1, 2))
+        if not finite.all():
+            c = int(np.flatnonzero(~finite)[0])
+            frame = int(np.flatnonzero(~np.isfinite(arr[c]).all(axis=-1))[0])
+            raise TrajectoryError(f"points: NaN or Inf at its point {frame} of this message", c)
+        joined = np.concatenate([self.inputs[:, -1:], arr], axis=1)
+        jump = np.linalg.norm(np.diff(joined, axis=1), axis=-1)
+        if jump.size and jump.max() > TELEPORT_M:
+            c = int(jump.max(axis=1).argmax())
+            raise TrajectoryError(f"points: jumps {jump[c].max():.1f} m in one frame (limit {TELEPORT_M} m: "
+                                  "a teleport, not locomotion)", c)
+        self.inputs = np.concatenate([self.inputs, arr], axis=1)
+        self.n_inputs += arr.shape[1]
+        self._retime()
+        return self._advance()
+
+    def finish(self) -> Window | None:
+        """The trajectories end with the points given: the rest of the frames."""
+        if self.ended:
+            return None
+        if self.made < 2:
+            raise TrajectoryError(f"points: a trajectory needs at least 2 points, got {self.n_inputs}")
+        self.ended = True
+        if self.n_raw == 0:  # fewer points than the head needs: the batch's shorter head
+            self.pad = self.made - 1
+            self._raw(np.zeros((len(self.scales), 0, 3)))
+        # As the batch does at the end: the path goes on as it went (point reflection)...
+        end = self.n_raw
+        last = self.longer[:, -1:]
+        k = min(self.pad, self.longer.shape[1] - 1)
+        tail = 2 * last - self.longer[:, -2:-2 - k:-1] if k else last[:, :0]
+        # ... and on, standing, until every decision that reads it is made.
+        hold = np.repeat(tail[:, -1:] if tail.shape[1] else last, self.latency_frames + self.m, axis=1)
+        self._raw(np.concatenate([tail, hold], axis=1))
+        out = self._advance(limit=end)
+        return out
+
+    def _retime(self) -> None:
+        """Library-rate points from the inputs so far (linear, as :func:`trajectory.retime`)."""
+        ratio = self.fps / self.bank.fps
+        if ratio == 1.0:
+            new = self.inputs[:, self.made - self.inputs_start:]
+        else:
+            last = int(np.floor((self.n_inputs - 1) / ratio + 1e-9))
+            j = np.arange(self.made, last + 1)
+            t = j * ratio
+            i0 = np.clip(np.floor(t + 1e-9).astype(np.int64), 0, max(self.n_inputs - 2, 0))
+            w = np.clip(t - i0, 0.0, 1.0)[None, :, None]
+            base = self.inputs_start
+            a = self.inputs[:, i0 - base]
+            b = self.inputs[:, np.minimum(i0 + 1, self.n_inputs - 1) - base]
+            new = a * (1 - w) + b * w
+        self.made += new.shape[1]
+        self._raw(new)
+        keep = max(self.n_inputs - 2, 0)  # the inputs the next points may interpolate from
+        self.inputs = self.inputs[:, keep - self.inputs_start:]
+        self.inputs_start = keep
+
+    def _raw(self, new: Floats) -> None:
+        """Library-rate points into `longer`, behind the head the batch makes of the first ones."""
+        if self.n_raw == 0:
+            first = np.concatenate([self.first_points, new], axis=1)
+            if first.shape[1] < self.pad + 1:
+                self.first_points = first
+                return
+            head = 2 * first[:, :1] - first[:, self.pad:0:-1]
+            self.longer = np.concatenate([head, first], axis=1)
+            self.n_raw = first.shape[1]
+            self.first_points = first[:, :0]
+            return
+        self.longer = np.concatenate([self.longer, new], axis=1)
+        self.n_raw += new.shape[1]
+
+    # -- planning ------------------------------------------------------------------------------
+
+    def _smooth(self) -> None:
+        """Smoothed path for every frame whose Gaussian window has arrived."""
+        # Frame t reads `longer` (head first) up to t + pad + radius.
+        ready = self.longer_start + self.longer.shape[1] - self.pad - self.radius if self.n_raw else 0
+        if ready <= self.n_path:
+            return
+        if self.sigma > 0:
+            lo = max(self.n_path + self.pad - self.radius, 0)  # in `longer` coordinates
+            hi = ready + self.pad + self.radius
+            part = self.longer[:, lo - self.longer_start:hi - self.longer_start]
+            smooth = gaussian_filter1d(part, self.sigma, axis=1, mode="nearest")
+            new = smooth[:, self.n_path + self.pad - lo:ready + self.pad - lo]
+        else:
+            new = self.longer[:, self.n_path - self.longer_start:ready - self.longer_start]
+        self.path = np.concatenate([self.path, new], axis=1)
+        self.n_path = ready
+        drop = max(self.n_path + self.pad - self.radius - 1, 0) - self.longer_start
+        if drop > 0:
+            self.longer = self.longer[:, drop:]
+            self.longer_start += drop
+        # Segment speeds (m/s in each character's own unit), for every whole segment.
+        m = self.m
+        whole = (self.n_path - 1) // m
+        if whole > self.n_seg:
+            a, b = self.n_seg * m, whole * m + 1
+            pts = self.path[:, a - self.path_start:b - self.path_start]
+            step = np.linalg.norm(np.diff(pts[..., _GROUND], axis=1), axis=-1)
+            counts = np.full(whole - self.n_seg, m)  # as segment_speeds divides, for the same bits
+            speeds = step.reshape(len(step), -1, m).sum(axis=2) / counts * self.bank.fps
+            self.seg = np.concatenate([self.seg, speeds / self.scales[:, None]], axis=1)
+            self.n_seg = whole
+
+    def _speeds(self, t: NDArray[np.int64]) -> Floats:
+        """(C, len(t)) speed at frames t (interpolated between segment centres)."""
+        m = self.m
+        pos = (t - (m - 1) / 2) / m
+        k0 = np.maximum(np.floor(pos).astype(np.int64), 0)
+        k1 = k0 + 1
+        f = np.clip(pos - k0, 0.0, 1.0)
+        s = self.seg_start
+        return np.asarray(self.seg[:, k0 - s] * (1 - f) + self.seg[:, k1 - s] * f)
+
+    def _speed_ready(self) -> int:
+        """Frames [0, n) whose speed is known."""
+        # Frame t reads segment floor((t - (m-1)/2) / m) + 1 (and at least segment 1).
+        m = self.m
+        return int(np.ceil((self.n_seg - 1) * m + (m - 1) / 2)) if self.n_seg >= 2 else 0
+
+    def _advance(self, limit: int | None = None) -> Window | None:
+        self._smooth()
+        start = self.rendered
+        while True:
+            t0 = self.planned
+            a = self.decisions * self.step
+            v_ready = self._speed_ready()
+            ready = min(v_ready, self.n_path - 1)  # a heading reads the next point
+            if limit is not None:
+                ready = min(ready, limit)
+            if t0 >= ready:
+                break
+            if t0 == a:
+                ahead = a + LOOKAHEAD * self.m
+                if limit is not None:
+                    ahead = min(ahead, limit - 1)  # the batch's decisions read its last frame there
+                if ahead >= v_ready:
+                    break
+                self._decide(a, self._speeds(np.array([ahead]))[:, 0])
+            t1 = min(ready, (self.decisions) * self.step)
+            if t1 <= t0:
+                break
+            self._plan_block(t0, t1)
+        stop = self.planned if limit is not None else self.planned - self.lock_lag
+        if stop <= start:
+            return None
+        self.rendered = stop
+        return self._emit(start, stop)
+
+    def _decide(self, a: int, speed: Floats) -> None:
+        """Decision k at frame a (as :func:`synthesis.schedule`'s loop body)."""
+        k = self.decisions
+        self.decisions += 1
+        # A transition ending right at a frees its character for this decision (as in the batch,
+        # which knows every end beforehand).
+        self._end_transitions(a, 1, self.walked[:, None], self.clock[:, :, None])
+        self._normalize(a)
+        draws = uniform(self.keys, SCHEDULE_STREAM + k, N_HUBS)
+        nxt = _choose(self.bank, self.current, speed, draws)
+        go = np.flatnonzero((self.busy <= a) & (nxt != self.current))
+        if len(go) == 0:
+            return
+        P, kinds = self.pieces, self.kinds
+        cur, new = self.current[go], nxt[go]
+        frames = kinds.frames[cur]
+        played = self.clock[cur, go] - P.clock0[go, 1]
+        phase = np.floor(P.first[go, 1] + played + 0.5).astype(np.int64) % frames
+        wait = np.where(cur == STATIC, 0, (kinds.entry[cur, new] - phase) % frames)
+        P.start[go, 2], P.kind[go, 2], P.first[go, 2] = a + wait, kinds.tr_kind[cur, new], 0
+        P.clock0[go, 2] = (a + wait).astype(np.float64)  # a transition's clock is time
+        resume = np.where(new == STATIC, 0, (kinds.exit[cur, new] + 1) % kinds.frames[new])
+        P.start[go, 3], P.kind[go, 3], P.first[go, 3] = NEVER, new, resume
+        self.busy[go] = NEVER
+        self.current[go] = new
+
+    def _end_transitions(self, t0: int, n: int, walked: Floats, clocks: Floats) -> None:
+        """Transitions under way (their gait's start not found yet; the transition is in slot 1
+        once playing, else 2) that end within frames ``[t0, t0 + n)``: at the first frame after
+        its start where its distance is covered. ``walked (C, >= n)``, ``clocks (kinds, C, >= n)``:
+        from frame t0 on."""
+        P, h = self.pieces, self.scales
+        pc = np.flatnonzero(self.busy == NEVER)
+        j = np.where(P.start[pc, 2] == NEVER, 1, 2)
+        b = P.start[pc, j]
+        pc, j, b = pc[b < t0 + n], j[b < t0 + n], b[b < t0 + n]
+        if len(pc) == 0:
+            return
+        tt = np.arange(t0, t0 + n)[None, :]
+        dist = (walked[pc, :n] / h[pc, None] - P.trav0[pc, j, None] / h[pc, None]) \
+            + self.bank.creep * (tt - b[:, None])
+        done = (dist >= self.total[P.kind[pc, j]][:, None]) & (tt > b[:, None])
+        hit = done.any(axis=1)
+        ec, ej, et = pc[hit], j[hit] + 1, done[hit].argmax(axis=1)
+        P.start[ec, ej] = t0 + et
+        P.clock0[ec, ej] = clocks[np.minimum(P.kind[ec, ej], N_HUBS), ec, et]
+        P.trav0[ec, ej] = walked[ec, et]
+        self.busy[ec] = t0 + et
+
+    def _normalize(self, t: int) -> None:
+        """Slots shifted so slot 1 is the piece playing at frame t."""
+        P = self.pieces
+        for _ in range(2):
+            shift = P.start[:, 2] <= t
+            if not shift.any():
+                return
+            for arr in (P.start, P.kind, P.first, P.clock0, P.trav0):
+                arr[shift, :-1] = arr[shift, 1:]
+            P.start[shift, -1] = NEVER
+            P.before[shift] = True
+
+    def _plan_block(self, t0: int, t1: int) -> None:
+        """Frames [t0, t1): no decision falls inside."""
+        self._normalize(t0)
+        bank, kinds, P = self.bank, self.kinds, self.pieces
+        C, n = len(self.scales), t1 - t0
+        t = np.arange(t0, t1)
+        v = self._speeds(t)
+        # Clocks and distance at frames t0..t1 (one more: the next block starts from it).
+        clocks = np.empty((N_HUBS + 1, C, n + 1))
+        clocks[:] = np.arange(t0, t1 + 1, dtype=np.float64)
+        for hub in bank.speeds:
+            rate = np.clip(v / self.top[hub], 1.0, MAX_RATE)
+            clocks[hub] = np.cumsum(np.concatenate([self.clock[hub][:, None], rate], axis=1), axis=1)
+        pts = self.path[:, t0 - self.path_start:t1 + 1 - self.path_start]
+        step = np.linalg.norm(np.diff(pts[..., _GROUND], axis=1), axis=-1)
+        walked = np.cumsum(np.concatenate([self.walked[:, None], step], axis=1), axis=1)  # (C, n+1)
+        h = self.scales[:, None]
+        c_all = np.arange(C)
+        # Pieces starting in this block: the distance travelled at their start.
+        at = (P.start[:, 1:] >= t0) & (P.start[:, 1:] < t1)
+        sc, sj = np.nonzero(at)
+        P.trav0[sc, sj + 1] = walked[sc, P.start[sc, sj + 1] - t0]
+        self._end_transitions(t0, n, walked, clocks)
+        # Which slot plays each frame, and the slot before it.
+        e = 1 + (t[None, :] >= P.start[:, 2, None]).astype(np.int64) + (t[None, :] >= P.start[:, 3, None])
+        cc = c_all[:, None]
+        kind, first = P.kind[cc, e], P.first[cc, e]
+        start, clock0, trav0 = P.start[cc, e], P.clock0[cc, e], P.trav0[cc, e]
+        tt = np.broadcast_to(np.arange(n)[None, :], (C, n))
+        local = np.floor(first + clocks[np.minimum(kind, N_HUBS), cc, tt] - clock0 + 0.5).astype(np.int64)
+        walked_since = (walked[:, :n] / h - trav0 / h) + bank.creep * local
+        r0, r1, w = _rows(bank, kinds, kind, local, v, walked_since)
+        rows = np.empty((C, n, 4), np.int32)
+        weights = np.zeros((C, n, 3), np.float32)
+        rows[..., 0], rows[..., 1], weights[..., 0] = r0, r1, w
+        rows[..., 2], rows[..., 3], weights[..., 1] = r0, r1, w
+        since = t[None, :] - start
+        has_before = (e >= 2) | P.before[:, None]
+        fading = has_before & (since < self.margin)
+        if fading.any():
+            fc, ft = np.nonzero(fading)
+            pe = e[fc, ft] - 1
+            p_kind = P.kind[fc, pe]
+            p_local = np.floor(P.first[fc, pe] + clocks[np.minimum(p_kind, N_HUBS), fc, ft]
+                               - P.clock0[fc, pe] + 0.5).astype(np.int64)
+            p_local = np.where(kinds.cyclic[p_kind], p_local, np.iinfo(np.int32).max)
+            p0, p1, pw = _rows(bank, kinds, p_kind, p_local, v[fc, ft])
+            u = (since[fc, ft] + 1) / (self.margin + 1)
+            rows[fc, ft, 2], rows[fc, ft, 3], weights[fc, ft, 1] = p0, p1, pw
+            weights[fc, ft, 2] = 1 - u * u * (3 - 2 * u)
+        stitches = (t[None, :] >= 1) & ((P.start[:, 1:, None] == t[None, None, :]).any(axis=1))
+        first_half = (r0 - kinds.offset[kind]) < kinds.frames[kind] // 2
+        gait = np.where(first_half, kinds.source[kind], kinds.target[kind]).astype(np.int8)
+        block = Plan(rows, weights, self._headings(t0, t1), pts[:, :n].copy(), self.scales,
+                     bank.contacts[r0], stitches, gait)
+        self.clock = clocks[:, :, n].copy()
+        self.walked = walked[:, n].copy()
+        self.planned = t1
+        self._keep(block, t0)
+
+    def _headings(self, t0: int, t1: int) -> Floats:
+        """(C, n) yaw as :func:`synthesis.headings` (gradient; held while slow; before the first
+        move, the heading of the first move -- where it is known yet, else ``heading``)."""
+        lo = max(t0 - 1, 0)
+        hi = min(t1 + 1, self.n_path)
+        pts = self.path[:, lo - self.path_start:hi - self.path_start][..., _GROUND]
+        d = np.gradient(pts, axis=1) if pts.shape[1] > 1 else np.zeros_like(pts)
+        if lo == 0 and pts.shape[1] > 1:
+            d[:, 0] = pts[:, 1] - pts[:, 0]
+        d = d[:, t0 - lo:t0 - lo + (t1 - t0)]
+        moving = np.linalg.norm(d, axis=-1) * self.bank.fps >= MIN_TURN_SPEED
+        n = t1 - t0
+        idx = np.maximum.accumulate(np.where(moving, np.arange(n), -1), axis=1)
+        held = np.where(idx[..., None] >= 0, np.take_along_axis(d, np.maximum(idx, 0)[..., None], axis=1),
+                        self.last_dir[:, None, :])
+        yaw = np.arctan2(held[..., 0], held[..., 1])
+        never = ~self.moved & ~moving.any(axis=1)  # not moved yet by t1: where will it go?
+        if never.any():
+            ahead = self._first_move(never, t1)
+            yaw[never] = ahead[:, None]
+        early = ~self.moved & moving.any(axis=1)  # starts moving in this block: before, face that way
+        if early.any():
+            ec = np.flatnonzero(early)
+            f = moving[ec].argmax(axis=1)
+            first_yaw = np.arctan2(d[ec, f, 0], d[ec, f, 1])
+            before = np.arange(n)[None, :] < f[:, None]
+            yaw[ec] = np.where(before, first_yaw[:, None], yaw[ec])
+        last = moving.any(axis=1)
+        self.last_dir[last] = d[last, n - 1 - moving[last, ::-1].argmax(axis=1)]
+        self.moved |= last
+        return np.asarray(yaw)
+
+    def _first_move(self, who: NDArray[np.bool_], t1: int) -> Floats:
+        """Yaw of each `who` character's first moving frame at or after t1 in the known path,
+        else ``heading``."""
+        pts = self.path[who][:, t1 - 1 - self.path_start:][..., _GROUND]
+        yaw = np.full(int(who.sum()), self.heading)
+        if pts.shape[1] < 3:
+            return yaw
+        d = np.gradient(pts, axis=1)[:, 1:-1]  # frames t1 .. n_path - 2: central differences
+        moving = np.linalg.norm(d, axis=-1) * self.bank.fps >= MIN_TURN_SPEED
+        has = moving.any(axis=1)
+        f = moving.argmax(axis=1)
+        dd = d[np.arange(len(d)), f]
+        yaw[has] = np.arctan2(dd[has, 0], dd[has, 1])
+        return yaw
+
+    def _keep(self, block: Plan, t0: int) -> None:
+        """The planned frames kept for the foot lock's context: the last few cycles."""
+        if self.buffer is None:
+            self.buffer, self.buffer_start = block, t0
+        else:
+            b = self.buffer
+
+            def cat(x: NDArray[Any], y: NDArray[Any]) -> NDArray[Any]:
+                return np.concatenate([x, y], axis=1)
+            self.buffer = Plan(cat(b.rows, block.rows), cat(b.weights, block.weights), cat(b.yaw, block.yaw),
+                               cat(b.path, block.path), self.scales, cat(b.contacts, block.contacts),
+                               cat(b.stitches, block.stitches), cat(b.gait, block.gait))
+
+    def _emit(self, start: int, stop: int) -> Window:
+        """Render planned frames [start, stop) (every ``out_step``-th frame of the library's)."""
+        assert self.buffer is not None
+        buf, b0 = self.buffer, self.buffer_start
+        lo, hi = start - b0, stop - b0
+        if self.foot_lock:
+            begin, end = lock_context(buf.contacts, lo, hi)
+        else:
+            C = len(self.scales)
+            begin, end = np.full(C, lo), np.full(C, hi)
+        if self.compiled:
+            root, rot = kernels.render_window(self.bank, buf, lo, hi, begin, end, self.foot_lock)
+        else:
+            cb, ce = int(begin.min()), int(end.max())
+            root, rot = render(self.bank, buf.window(cb, ce), self.foot_lock)
+            root, rot = root[:, lo - cb:hi - cb], rot[:, lo - cb:hi - cb]
+        pick = np.flatnonzero(np.arange(start, stop) % self.out_step == 0)
+        window = Window(self.emitted, root[:, pick], rot[:, pick], buf.gait[:, lo:hi][:, pick],
+                        buf.contacts[:, lo:hi][:, pick])
+        self.emitted += len(pick)
+        # Keep the context the next frames' lock may read: whole plants reaching back past PAD,
+        # at most KEEP_PLANS of the slowest cycle.
+        keep_from = max(stop - PAD - EASE_FRAMES - KEEP_PLANS * int(self.kinds.frames[1:N_HUBS].max()), 0)
+        if keep_from > b0:
+            self.buffer = buf.window(keep_from - b0, buf.yaw.shape[1])
+            self.buffer_start = keep_from
+        drop = max(self.planned - 2, 0) - self.path_start  # the path the next block and heading read
+        if drop > 0:
+            self.path = self.path[:, drop:]
+            self.path_start += drop
+        first_seg = max(int(np.floor((self.planned - self.m / 2) / self.m)) - 1, 0)  # the speeds still read
+        if first_seg > self.seg_start:
+            self.seg = self.seg[:, first_seg - self.seg_start:]
+            self.seg_start = first_seg
+        return window

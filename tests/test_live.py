@@ -1,0 +1,125 @@
+"""Live synthesis (synth_core.live): points a few at a time, frames back within the documented
+latency -- the batch plan's own frames, made incrementally."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from synth_core import crowd
+from synth_core.bank import Bank
+from synth_core.live import LiveSynth
+from synth_core.metrics import foot_skate
+from synth_core.skeleton import forward_kinematics
+from synth_core.streaming import Window
+from synth_core.synthesis import Options, synthesize
+from synth_core.trajectory import TrajectoryError
+
+
+def feed(live: LiveSynth, positions: np.ndarray, seed: int = 0) -> tuple[list[Window], list[int]]:
+    """Points in random-sized pieces, then finish; the windows, and after each piece how many
+    library frames lag behind the points given."""
+    rng = np.random.default_rng(seed)
+    windows, lags = [], []
+    i = 0
+    while i < positions.shape[1]:
+        n = int(rng.integers(1, 45))
+        w = live.append(positions[:, i:i + n])
+        i = min(i + n, positions.shape[1])
+        if w is not None:
+            windows.append(w)
+        lags.append(round(i * live.bank.fps / live.fps) - live.rendered)
+    last = live.finish()
+    if last is not None:
+        windows.append(last)
+    return windows, lags
+
+
+def joined(windows: list[Window]) -> tuple[np.ndarray, ...]:
+    starts = [w.start for w in windows]
+    assert starts == [0] + list(np.cumsum([w.stop - w.start for w in windows])[:-1])  # in order, no gap
+    return tuple(np.concatenate([getattr(w, f) for w in windows], axis=1)
+                 for f in ("root_pos", "rotations", "gait", "contacts"))
+
+
+@pytest.fixture(scope="module")
+def herd() -> np.ndarray:
+    return crowd.simulate(24, 700, seed=3)
+
+
+@pytest.mark.parametrize("backend", ["numba", "numpy"])
+def test_live_frames_are_the_batch_plans_frames(bank: Bank, herd: np.ndarray, backend: str) -> None:
+    if backend == "numba":
+        pytest.importorskip("numba")
+    batch = synthesize(bank, herd, 60.0, options=Options(seed=5, scale_range=(0.8, 1.2), foot_lock=False,
+                                                         backend=backend))
+    assert batch.resample_rate == 1.0  # live cannot resample: compare where the batch did not either
+    live = LiveSynth(bank, len(herd), 60.0, seed=5, scale_range=(0.8, 1.2), foot_lock=False, backend=backend)
+    windows, lags = feed(live, herd)
+    root, rot, gait, contacts = joined(windows)
+    assert root.shape == batch.root_pos.shape and np.array_equal(live.scales, batch.scales)
+    # All but the last two segments: there the batch's speeds read its last, shorter segment.
+    t = slice(0, root.shape[1] - 2 * bank.mean_cycle)
+    np.testing.assert_array_equal(gait[:, t], batch.gait[:, t])
+    np.testing.assert_array_equal(contacts[:, t], batch.contacts[:, t])
+    np.testing.assert_allclose(root[:, t], batch.root_pos[:, t], atol=1e-6)
+    np.testing.assert_allclose(rot[:, t], batch.rotations[:, t], atol=1e-6)
+    assert max(lags) <= live.latency_frames  # the documented latency, never more
+    assert len(set(gait.ravel().tolist())) == 5  # standing and every gait: the test covers them
+
+
+def test_points_at_30_fps_come_back_at_30_fps(bank: Bank) -> None:
+    herd = crowd.simulate(8, 400, seed=4, fps=30.0)
+    batch = synthesize(bank, herd, 30.0, options=Options(seed=1, foot_lock=False))
+    live = LiveSynth(bank, len(herd), 30.0, seed=1, foot_lock=False)
+    root, rot, gait, _ = joined(feed(live, herd, seed=2)[0])
+    assert root.shape[1] == 400 and batch.root_pos.shape[1] == 799  # every other library frame
+    t = slice(0, 400 - bank.mean_cycle)
+    np.testing.assert_array_equal(gait[:, t], batch.gait[:, ::2][:, t])
+    np.testing.assert_allclose(root[:, t], batch.root_pos[:, ::2][:, t], atol=1e-4)
+
+
+def skate_mm(bank: Bank, scales: np.ndarray, root: np.ndarray, rot: np.ndarray,
+             contacts: np.ndarray) -> tuple[float, float]:
+    offsets = bank.skeleton.offsets[None, None] * scales[:, None, None, None].astype(np.float32)
+    pos, _ = forward_kinematics(bank.skeleton, root, rot, offsets)
+    stats = foot_skate(np.asarray(pos)[..., bank.skeleton.foot_joints, :], contacts)
+    return stats.mean_mm, stats.p95_mm
+
+
+def test_live_foot_lock_keeps_feet_nearly_as_still_as_the_batchs(bank: Bank, herd: np.ndarray) -> None:
+    """A plant still going on at a block's end is pinned at its average so far, and moves to
+    its whole average in the next block: a small step now and then, measured here."""
+    batch = synthesize(bank, herd, 60.0, options=Options(seed=5, scale_range=(0.8, 1.2)))
+    live = LiveSynth(bank, len(herd), 60.0, seed=5, scale_range=(0.8, 1.2))
+    root, rot, gait, contacts = joined(feed(live, herd)[0])
+    live_mean, live_p95 = skate_mm(bank, live.scales, root, rot, contacts)
+    batch_mean, batch_p95 = skate_mm(bank, batch.scales, batch.root_pos, batch.rotations, batch.contacts)
+    unlocked = LiveSynth(bank, len(herd), 60.0, seed=5, scale_range=(0.8, 1.2), foot_lock=False)
+    f_root, f_rot, _, f_contacts = joined(feed(unlocked, herd)[0])
+    free = skate_mm(bank, unlocked.scales, f_root, f_rot, f_contacts)
+    assert live_p95 <= batch_p95 + 0.1 and live_mean <= 1.8, (live_mean, live_p95, batch_mean, batch_p95)
+    assert live_mean < free[0] / 3  # the lock does its work live too
+
+
+def test_bad_points_are_refused_naming_the_character(bank: Bank) -> None:
+    live = LiveSynth(bank, 3, 60.0)
+    ok = np.zeros((3, 5, 3))
+    with pytest.raises(TrajectoryError, match=r"expected shape \(3, n >= 1, 3\), got \(2, 5, 3\)"):
+        live.append(ok[:2])
+    bad = ok.copy()
+    bad[1, 2, 0] = np.nan
+    with pytest.raises(TrajectoryError, match="character 1: points: NaN or Inf at its point 2"):
+        live.append(bad)
+    live.append(ok)
+    jump = ok.copy()
+    jump[2, 0] = [9.0, 0.0, 0.0]  # from the last point given: 9 m in one frame
+    with pytest.raises(TrajectoryError, match="character 2: points: jumps 9.0 m in one frame"):
+        live.append(jump)
+    assert live.finish() is not None
+    with pytest.raises(TrajectoryError, match="the trajectories have ended"):
+        live.append(ok)
+    with pytest.raises(TrajectoryError, match="at least 2 points"):
+        LiveSynth(bank, 1, 60.0).finish()
+    with pytest.raises(TrajectoryError, match=r"fps: must be within \(0, 60\]"):
+        LiveSynth(bank, 1, 120.0)
