@@ -190,8 +190,10 @@ class Client:
         from websockets.sync.client import connect
 
         url = str(self._http.base_url).rstrip("/").replace("http", "ws", 1) + "/v1/stream"
-        characters = [{"id": i, **({"scale": float(scales[c])} if scales and scales[c] is not None else {})}
-                      for c, i in enumerate(ids)]
+        characters: list[dict[str, Any]] = [{"id": i} for i in ids]
+        for entry, scale in zip(characters, scales or [None] * len(ids), strict=True):
+            if scale is not None:
+                entry["scale"] = float(scale)
         with connect(url, compression=None, max_size=None) as ws:
             ws.send(msgpack.packb({"type": "live", "fps": fps, **options, "characters": characters},
                                   use_bin_type=True))

@@ -9,7 +9,12 @@ directory) and stops it after. Figures (500 horses, crowd-sim, seed 0, msgpack, 
 - ``ws_first_chunk_ms``: from sending a 500-character ``synthesize`` on ``/v1/stream`` to
   receiving its first 30-frame chunk, best of ``repeats`` (the session already open);
 - ``ws_char_frames_per_s``: the same stream to its ``end``, acking every chunk;
-- ``live_characters_30fps``: null -- live mode is not built yet;
+- ``live_characters_30fps``: a live session of 4,000 horses fed 10 s of 30 fps points in
+  half-second ticks as fast as the service takes them: the characters it would keep at 30 fps
+  (4,000 x simulated seconds / wall seconds; the cost is linear in characters);
+  ``live_latency_s_max``: with 70% of that many (at most 4,000) fed in real time, the longest
+  from sending a frame's point to receiving its pose: the planner's look-ahead (bounded by the
+  session's ``latency_frames``) plus the processing;
 - ``bytes_per_joint_frame``: s48, measured on the answer.
 """
 
@@ -33,6 +38,7 @@ from api_schemas.wire import blob
 from synth_core import crowd
 
 CHARACTERS, FRAMES = 500, 500
+LIVE_CHARACTERS, LIVE_SECONDS, LIVE_TICK = 4000, 10.0, 15  # a tick: half a second of 30 fps points
 
 
 @contextmanager
@@ -102,6 +108,62 @@ def stream(url: str, body: dict[str, Any], repeats: int) -> tuple[float, float]:
     return first, whole
 
 
+def tick(paths: np.ndarray, i: int) -> np.ndarray:
+    return np.ascontiguousarray(paths[:, i:i + LIVE_TICK])
+
+
+def live(url: str, characters: int = LIVE_CHARACTERS, seconds: float = LIVE_SECONDS,
+         paced: bool = False) -> tuple[float, float]:
+    """A live session of ``characters`` fed ``seconds`` of 30 fps points, LIVE_TICK at a time --
+    as fast as the service takes them, or ``paced`` as a simulation makes them -- acking every
+    chunk, not decoding it (the client must not take the cores it measures). Returns
+    (characters it keeps at 30 fps, the longest from sending a frame's point to getting its pose)."""
+    from websockets.sync.client import connect
+
+    F = int(seconds * 30) + 1
+    paths = crowd.simulate(characters, F, seed=0, fps=30.0).astype(np.float32)
+    ticks = [msgpack.packb({"type": "points", "points": blob(tick(paths, i))},
+                           use_bin_type=True)
+             for i in range(0, F, LIVE_TICK)]
+    opening = {"type": "live", "fps": 30, "seed": 1, "encoding": "s48",
+               "characters": [{"id": f"h{c}"} for c in range(characters)]}
+    sent_at: list[float] = []
+    worst, frames = 0.0, 0
+    with connect(url.replace("http://", "ws://") + "/v1/stream", compression=None, max_size=None) as ws:
+        ws.send(msgpack.packb(opening, use_bin_type=True))
+        header = msgpack.unpackb(ws.recv(timeout=300))
+        if header["type"] != "start":
+            raise SystemExit(f"bench-service: the live session failed: {header}")
+        settled = F - header["latency_frames"]  # frames sure to come before finish
+        t0 = time.perf_counter()
+        while True:
+            due = t0 + len(sent_at) * LIVE_TICK / 30 if paced else 0.0
+            if len(sent_at) < len(ticks) and time.perf_counter() >= due:
+                ws.send(ticks[len(sent_at)])
+                sent_at.append(time.perf_counter())
+                if len(sent_at) == len(ticks) and not paced:
+                    ws.send(msgpack.packb({"type": "finish"}))
+                continue
+            try:
+                message = msgpack.unpackb(ws.recv(timeout=0.01 if len(sent_at) < len(ticks) else 300))
+            except TimeoutError:
+                continue
+            if message["type"] == "chunk":
+                frames += message["frames"]
+                # From sending the point of this chunk's last frame to having its pose.
+                sent = sent_at[min((frames - 1) // LIVE_TICK, len(sent_at) - 1)]
+                worst = max(worst, time.perf_counter() - sent)
+                ws.send(msgpack.packb({"type": "ack", "chunk": message["chunk"]}))
+                if paced and frames >= settled:
+                    break
+            elif message["type"] == "end":
+                break
+            else:
+                raise SystemExit(f"bench-service: the live session failed: {message}")
+        wall = time.perf_counter() - t0
+    return characters * (F / 30) / wall, worst
+
+
 def run(url: str | None = None, repeats: int = 4) -> dict[str, Any]:
     if url is None:
         with local_service() as local:
@@ -115,9 +177,13 @@ def run(url: str | None = None, repeats: int = 4) -> dict[str, Any]:
     rotations = answer["characters"][0]["rotations"]
     joints = rotations["shape"][1]
     first, whole = stream(url, body, repeats)
+    live_rate, _ = live(url)
+    paced = min(LIVE_CHARACTERS, int(0.7 * live_rate))
+    _, live_latency = live(url, paced, paced=True)
     return {"rest_char_frames_per_s": round(CHARACTERS * FRAMES / seconds),
             "ws_first_chunk_ms": round(first * 1e3, 1),
             "ws_char_frames_per_s": round(CHARACTERS * FRAMES / whole),
-            "live_characters_30fps": None,
+            "live_characters_30fps": round(live_rate),
+            "live_paced_characters": paced, "live_latency_s_max": round(live_latency, 3),
             "bytes_per_joint_frame": len(rotations["data"]) / (frames * joints),
             "rest_seconds": round(seconds, 3), "response_bytes": len(content)}

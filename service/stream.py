@@ -37,6 +37,7 @@ log = logging.getLogger("quadsynth.stream")
 GOING_AWAY, INVALID_DATA, POLICY, TOO_BIG, INTERNAL, TRY_LATER = 1001, 1007, 1008, 1009, 1011, 1013
 MAX_CHUNK_FRAMES = 600
 LIVE_INBOX = 64  # points messages waiting for synthesis, at most: a client further ahead gets 1013
+LIVE_INBOX_BODIES = 4  # ... and at most this many max_body_bytes of them
 CLOSE_TIMEOUT_S = 1.0
 # HTTP status of an error -> the close code after it.
 CLOSE_FOR = {413: TOO_BIG, 415: INVALID_DATA, 422: INVALID_DATA, 503: TRY_LATER, 504: TRY_LATER}
@@ -76,6 +77,7 @@ class Session:
         self.batches = 0
         self.inbox: asyncio.Queue[dict[str, Any]] = asyncio.Queue()  # a live session's points, finish
         self.live_open = False  # a live session was asked for and has not finished
+        self.inbox_bytes = 0
 
     # --- reading -------------------------------------------------------------------------------
 
@@ -126,10 +128,15 @@ class Session:
             if not self.live_open:
                 raise Closing(POLICY, ApiError(422, "type", f"{kind} without a live session: send "
                                                             "{type: live, characters: [...]} first"))
-            if self.inbox.qsize() >= LIVE_INBOX:
-                raise Closing(TRY_LATER, ApiError(503, "points", f"{LIVE_INBOX} points messages wait for "
-                                                                 "synthesis: sent faster than they are made"))
+            room = LIVE_INBOX_BODIES * self.settings.max_body_bytes
+            if self.inbox.qsize() >= LIVE_INBOX or self.inbox_bytes + len(raw) > room:
+                raise Closing(TRY_LATER, ApiError(503, "points", f"{self.inbox.qsize()} points messages "
+                                                                 f"({self.inbox_bytes} bytes) wait for synthesis, "
+                                                                 f"at most {LIVE_INBOX} and {room}: sent faster "
+                                                                 "than they are made"))
             self.live_open = kind == "points"
+            self.inbox_bytes += len(raw)
+            body["_bytes"] = len(raw)
             self.inbox.put_nowait(body)
         else:
             raise Closing(INVALID_DATA, ApiError(422, "type", f"unknown message type {kind!r}; expected "
@@ -244,7 +251,9 @@ class Session:
         if not get.done():
             get.cancel()
             return None
-        return get.result()
+        message = get.result()
+        self.inbox_bytes -= message.pop("_bytes", 0)
+        return message
 
     async def live(self, body: dict[str, Any]) -> None:
         """A live session: frames for the points as they come, until finish."""
@@ -291,7 +300,7 @@ class Session:
         self.cancel.clear()
         self.live_open = False
         while not self.inbox.empty():  # points sent after a cancel
-            self.inbox.get_nowait()
+            self.inbox_bytes -= self.inbox.get_nowait().pop("_bytes", 0)
         await self.send({"type": "end", "batch": number, "chunks": sent, "cancelled": cancelled})
 
     async def serve(self) -> None:

@@ -62,7 +62,7 @@ from synth_core.trajectory import _GROUND, DEFAULT_SIGMA, TELEPORT_M, Trajectory
 
 NEVER = np.iinfo(np.int64).max // 4
 SLOTS = 4  # pieces per character: the one before, the one playing, a transition, the gait after it
-KEEP_PLANS = 3  # of the slowest cycle: planned frames kept as the foot lock's context
+KEEP_PLANS = 1  # of the slowest cycle: planned frames kept as the foot lock's context
 LOCK_LAG = 20  # frames planned but not yet sent, so that most plants a frame is in have ended
 
 
@@ -77,6 +77,13 @@ class _Pieces:
     clock0: Floats
     trav0: Floats
     before: NDArray[np.bool_]  # slot 0 holds a piece (the first piece has none before it)
+
+
+def _every(p: Plan, first: int, k: int) -> Plan:
+    """Frames ``first, first + k, ...`` of a plan."""
+    t = slice(first, None, k)
+    return Plan(p.rows[:, t], p.weights[:, t], p.yaw[:, t], p.path[:, t], p.scales, p.contacts[:, t],
+                p.stitches[:, t], p.gait[:, t])
 
 
 class LiveSynth:
@@ -508,8 +515,12 @@ class LiveSynth:
     def _emit(self, start: int, stop: int) -> Window:
         """Render planned frames [start, stop) (every ``out_step``-th frame of the library's)."""
         assert self.buffer is not None
-        buf, b0 = self.buffer, self.buffer_start
-        lo, hi = start - b0, stop - b0
+        k, b0 = self.out_step, self.buffer_start
+        # Only the frames sent are rendered -- the foot lock too works on them alone (a plant's
+        # average over its frames sent), so 30 fps out costs half of 60.
+        first = (-b0) % k
+        buf = self.buffer if k == 1 else _every(self.buffer, first, k)
+        lo, hi = -(-(start - b0 - first) // k), -(-(stop - b0 - first) // k)
         if self.foot_lock:
             begin, end = lock_context(buf.contacts, lo, hi)
         else:
@@ -521,10 +532,9 @@ class LiveSynth:
             cb, ce = int(begin.min()), int(end.max())
             root, rot = render(self.bank, buf.window(cb, ce), self.foot_lock)
             root, rot = root[:, lo - cb:hi - cb], rot[:, lo - cb:hi - cb]
-        pick = np.flatnonzero(np.arange(start, stop) % self.out_step == 0)
-        window = Window(self.emitted, root[:, pick], rot[:, pick], buf.gait[:, lo:hi][:, pick],
-                        buf.contacts[:, lo:hi][:, pick])
-        self.emitted += len(pick)
+        window = Window(self.emitted, root, rot, buf.gait[:, lo:hi], buf.contacts[:, lo:hi])
+        self.emitted += hi - lo
+        buf = self.buffer
         # Keep the context the next frames' lock may read: whole plants reaching back past PAD,
         # at most KEEP_PLANS of the slowest cycle.
         keep_from = max(stop - PAD - EASE_FRAMES - KEEP_PLANS * int(self.kinds.frames[1:N_HUBS].max()), 0)

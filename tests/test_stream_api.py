@@ -6,6 +6,7 @@ from __future__ import annotations
 import signal
 import time
 from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -16,8 +17,11 @@ import pytest
 from websockets.exceptions import ConnectionClosed
 from websockets.sync.client import ClientConnection, connect
 
+from api_schemas.client import Client
 from api_schemas.wire import blob, unblob
 from synth_core import crowd
+from synth_core.bank import Bank
+from synth_core.live import LiveSynth
 from tests.test_api import LIMITS, post
 from tests.test_service import free_port, start, wait_until_live
 
@@ -251,3 +255,73 @@ def test_one_batch_waits_at_most(server: str, herd: np.ndarray) -> None:
         with pytest.raises(ConnectionClosed) as closed:
             ws.recv(timeout=10)
         assert closed.value.rcvd is not None and closed.value.rcvd.code == 1008
+
+
+def test_live_session_sends_the_frames_live_synthesis_makes(server: str, bank: Bank) -> None:
+
+    herd = crowd.simulate(6, 240, seed=5, fps=30.0).astype(np.float32)
+    chunks = []
+    with Client(server) as client, client.live([f"h{c}" for c in range(6)], fps=30, seed=4,
+                                               encoding="f32") as session:
+        header = session.header
+        assert header["mode"] == "live" and header["fps"] == 30.0 and header["library_fps"] == 60.0
+        for i in range(0, 240, 12):
+            chunks += session.push(herd[:, i:i + 12], wait=0.2)
+            frames = sum(c.root.shape[1] for c in chunks)
+            assert frames >= (i + 12) - header["latency_frames"] - 1  # within the documented latency
+        chunks += session.finish()
+    assert [c.start for c in chunks] == list(np.cumsum([0] + [c.root.shape[1] for c in chunks[:-1]]))
+    local = LiveSynth(bank, 6, 30.0, seed=4, scale_range=(0.8, 1.2))  # the server's built-in horse
+    assert [c["scale"] for c in header["characters"]] == local.scales.tolist()
+    windows = [w for i in range(0, 240, 12) if (w := local.append(herd[:, i:i + 12])) is not None]
+    windows.append(local.finish())
+    want_root = np.concatenate([w.root_pos for w in windows], axis=1)
+    want_rot = np.concatenate([w.rotations for w in windows], axis=1)
+    got_root = np.concatenate([c.root for c in chunks], axis=1)
+    got_rot = np.concatenate([c.rotations for c in chunks], axis=1)
+    assert got_root.shape == want_root.shape == (6, 240, 3)
+    np.testing.assert_allclose(got_root, want_root, atol=1e-5)
+    np.testing.assert_allclose(got_rot, want_rot, atol=1e-5)
+    np.testing.assert_array_equal(np.concatenate([c.gait for c in chunks], axis=1),
+                                  np.concatenate([w.gait for w in windows], axis=1))
+
+
+@contextmanager
+def live_open(server: str, characters: int = 3) -> Iterator[ClientConnection]:
+    with connect(ws_url(server), compression=None) as ws:
+        send(ws, {"type": "live", "characters": [{"id": f"c{c}"} for c in range(characters)]})
+        assert receive(ws)["type"] == "start"
+        yield ws
+
+
+def test_live_refusals_name_the_field(server: str) -> None:
+    with connect(ws_url(server), compression=None) as ws:
+        send(ws, {"type": "points", "points": blob(np.zeros((1, 2, 3), np.float32))})
+        closed_with(ws, 1008, 422, "type", "without a live session")
+    with connect(ws_url(server), compression=None) as ws:
+        send(ws, {"type": "live", "animal": "cat", "characters": [{"id": "a"}]})
+        closed_with(ws, 1007, 422, "animal", "unknown animal 'cat'")
+    with connect(ws_url(server), compression=None) as ws:
+        send(ws, {"type": "live", "characters": [{"id": f"c{c}"} for c in range(41)]})
+        closed_with(ws, 1007, 422, "characters", "41 characters", "max_characters")
+    with live_open(server) as ws:
+        send(ws, {"type": "points", "points": blob(np.zeros((2, 4, 3), np.float32))})
+        closed_with(ws, 1007, 422, "points.shape", "expected (3, n >= 1, 3)")
+    with live_open(server) as ws:
+        bad = np.zeros((3, 4, 3), np.float32)
+        bad[1, 2] = np.nan
+        send(ws, {"type": "points", "points": blob(bad)})
+        closed_with(ws, 1007, 422, "points[1]", "NaN or Inf")
+
+
+def test_live_cancel_ends_the_session_and_the_next_can_start(server: str) -> None:
+    with live_open(server) as ws:
+        path = np.cumsum(np.full((3, 400, 3), [0.02, 0.0, 0.0], np.float32), axis=1)
+        send(ws, {"type": "points", "points": blob(path[:, :200])})
+        send(ws, {"type": "cancel"})
+        while (message := receive(ws))["type"] != "end":
+            assert message["type"] == "chunk"
+            send(ws, {"type": "ack", "chunk": message["chunk"]})
+        assert message["cancelled"] is True
+        send(ws, {"type": "live", "characters": [{"id": "again"}]})
+        assert receive(ws)["type"] == "start"
