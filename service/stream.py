@@ -130,9 +130,9 @@ class Session:
                                                             "{type: live, characters: [...]} first"))
             room = LIVE_INBOX_BODIES * self.settings.max_body_bytes
             if self.inbox.qsize() >= LIVE_INBOX or self.inbox_bytes + len(raw) > room:
-                raise Closing(TRY_LATER, ApiError(503, "points", f"{self.inbox.qsize()} points messages "
-                                                                 f"({self.inbox_bytes} bytes) wait for synthesis, "
-                                                                 f"at most {LIVE_INBOX} and {room}: sent faster "
+                waiting = f"{self.inbox.qsize()} points messages ({self.inbox_bytes} bytes)"
+                raise Closing(TRY_LATER, ApiError(503, "points", f"{waiting} wait for synthesis, at most "
+                                                                 f"{LIVE_INBOX} and {room} bytes: sent faster "
                                                                  "than they are made"))
             self.live_open = kind == "points"
             self.inbox_bytes += len(raw)
