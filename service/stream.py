@@ -131,9 +131,8 @@ class Session:
             room = LIVE_INBOX_BODIES * self.settings.max_body_bytes
             if self.inbox.qsize() >= LIVE_INBOX or self.inbox_bytes + len(raw) > room:
                 waiting = f"{self.inbox.qsize()} points messages ({self.inbox_bytes} bytes)"
-                raise Closing(TRY_LATER, ApiError(503, "points", f"{waiting} wait for synthesis, at most "
-                                                                 f"{LIVE_INBOX} and {room} bytes: sent faster "
-                                                                 "than they are made"))
+                why = f"{waiting} wait, at most {LIVE_INBOX} and {room} bytes: sent faster than made"
+                raise Closing(TRY_LATER, ApiError(503, "points", why))
             self.live_open = kind == "points"
             self.inbox_bytes += len(raw)
             body["_bytes"] = len(raw)
