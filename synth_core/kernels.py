@@ -462,6 +462,17 @@ def _render_windows(poses: Any, height: Any, surge: Any, rows: Any, weights: Any
             out_root[c] = root[start - b:start - b + n]
 
 
+def _plan_arrays(plan: Plan) -> tuple[Any, Any, Any, Any, Any, Any]:
+    """rows, weights, yaw, path, scales, contacts: C-contiguous, whatever view the plan holds.
+
+    One memory layout, so each kernel is compiled once: numba compiles a view ('A' layout) and a
+    contiguous array ('C') separately, and fastmath code for the two may round differently --
+    a window of a batch would then differ from the whole in the last bits."""
+    c = np.ascontiguousarray
+    return (c(plan.rows), c(plan.weights), c(plan.yaw), c(plan.path), c(plan.scales, np.float64),
+            c(plan.contacts))
+
+
 def _skeleton_tables(bank: Bank) -> tuple[Any, Any, Any, Any, Any, float]:
     """The skeleton's arrays as the kernels take them: parents, offsets, the joints above the
     feet (FK needs no others), the legs' rig table, bend axes, the sink limit."""
@@ -492,8 +503,7 @@ def render_window(bank: Bank, plan: Plan, start: int, stop: int, begin: NDArray[
     out_root = np.empty((C, stop - start, 3), np.float64)
     out_rot = np.empty((C, stop - start, J, 4), np.float32)
     _render_windows(bank.poses, bank.height.astype(np.float64), bank.surge.astype(np.float64),
-                    plan.rows, plan.weights, plan.yaw, plan.path, plan.scales.astype(np.float64),
-                    plan.contacts, *_skeleton_tables(bank), foot_lock, numba.get_num_threads(),
+                    *_plan_arrays(plan), *_skeleton_tables(bank), foot_lock, numba.get_num_threads(),
                     np.asarray(begin, np.int64), np.asarray(end, np.int64), start, out_rot, out_root)
     return out_root.astype(np.float32), out_rot
 
@@ -510,8 +520,8 @@ def render(bank: Bank, plan: Plan, foot_lock: bool = True,
     out_root = np.empty((C, T, 3), np.float64)
     out_rot = np.empty((C, T, J, 4), np.float32) if out is None else out[1]
     _render_all(bank.poses, bank.height.astype(np.float64), bank.surge.astype(np.float64),
-                plan.rows, plan.weights, plan.yaw, plan.path, plan.scales.astype(np.float64),
-                plan.contacts, *_skeleton_tables(bank), foot_lock, numba.get_num_threads(), out_rot, out_root)
+                *_plan_arrays(plan), *_skeleton_tables(bank), foot_lock, numba.get_num_threads(), out_rot,
+                out_root)
     assert UP_AXIS == 1  # the kernels index Y directly
     if out is None:
         return out_root.astype(np.float32), out_rot
