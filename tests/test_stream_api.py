@@ -113,13 +113,7 @@ def test_stream_gives_the_motion_rest_gives(server: str, herd: np.ndarray) -> No
         for name in joined:
             expected = unblob(ch[name]["dtype"], ch[name]["shape"], ch[name]["data"])
             got = joined[name][c, :ch["frames"]]
-            if name in ("gait", "contacts"):
-                assert np.array_equal(got, expected), name
-            else:
-                # In one process the windows are bit for bit the batch (tests/test_streaming.py);
-                # across the server's two kernels one fresh CI run saw float rounding differences,
-                # not yet explained (issue 6 note), so this holds them to 1e-5 instead.
-                assert np.abs(got - expected).max() <= 1e-5, name
+            assert np.array_equal(got, expected), name  # bit for bit (f32 rotations)
 
 
 def test_ping_pong_and_cancel(server: str, herd: np.ndarray) -> None:
