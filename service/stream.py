@@ -72,6 +72,7 @@ class Session:
         self.ack = asyncio.Event()
         self.cancel = asyncio.Event()
         self.gone = asyncio.Event()  # the client disconnected
+        self.reader_done = asyncio.Event()  # the reader stopped: the client left or broke the protocol
         self.failure: Closing | None = None  # a protocol error the reader found
         self.send_lock = asyncio.Lock()
         self.batches = 0
@@ -97,6 +98,7 @@ class Session:
             if self.failure is None:
                 self.gone.set()
             self.ack.set()  # wake a writer waiting for acks
+            self.reader_done.set()  # ... or for a live session's points
 
     def take(self, message: MutableMapping[str, Any]) -> None:
         raw = message.get("bytes")
@@ -122,6 +124,9 @@ class Session:
                 raise Closing(POLICY, ApiError(422, "type", "a batch is already waiting behind the one "
                                                             "streaming; send the next after its end"))
             if kind == "live":
+                if self.live_open:
+                    raise Closing(POLICY, ApiError(422, "type", "a live session is open: finish or "
+                                                                "cancel it before the next"))
                 self.live_open = True
             self.requests.put_nowait(body)
         elif kind in ("points", "finish"):
@@ -239,7 +244,8 @@ class Session:
 
     async def next_live(self) -> dict[str, Any] | None:
         """The live session's next points (or finish) message; None once the client goes or cancels."""
-        waits = {asyncio.ensure_future(e.wait()) for e in (self.gone, self.cancel, self.state.drain)}
+        events = (self.reader_done, self.cancel, self.state.drain)
+        waits = {asyncio.ensure_future(e.wait()) for e in events}
         get = asyncio.ensure_future(self.inbox.get())
         try:
             await asyncio.wait({get, *waits}, return_when=asyncio.FIRST_COMPLETED)

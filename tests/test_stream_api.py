@@ -302,6 +302,9 @@ def test_live_refusals_name_the_field(server: str) -> None:
         send(ws, {"type": "points", "points": blob(np.zeros((2, 4, 3), np.float32))})
         closed_with(ws, 1007, 422, "points.shape", "expected (3, n >= 1, 3)")
     with live_open(server) as ws:
+        send(ws, {"type": "live", "characters": [{"id": "b"}]})
+        closed_with(ws, 1008, 422, "type", "a live session is open")
+    with live_open(server) as ws:
         bad = np.zeros((3, 4, 3), np.float32)
         bad[1, 2] = np.nan
         send(ws, {"type": "points", "points": blob(bad)})
