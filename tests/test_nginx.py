@@ -1,6 +1,6 @@
 """deploy/nginx.conf for real: nginx (installed from Debian by scripts/ensure-nginx if missing) in
-front of two `quadsynth serve` processes on loopback. Requests and a WebSocket stream pass
-through and spread over both; a replica that answers 503 or is gone is retried on the other;
+front of two `quadsynth serve` processes on loopback. Requests, a WebSocket stream and a live
+session pass through and spread over both; a replica that answers 503 or is gone is retried on the other;
 an oversized body is refused by nginx in the service's error format.
 
 The config is the deployed file with only what Docker provides rewritten: the two replicas'
@@ -146,6 +146,10 @@ def test_requests_and_a_stream_pass_through_and_spread_over_both_replicas(
     assert sum(chunk.root.shape[1] for chunk in chunks) == len(rest.characters[0].root)
     streamed = np.concatenate([chunk.gait for chunk in chunks], axis=1)
     np.testing.assert_array_equal(streamed, np.stack([ch.gait for ch in rest.characters]))
+
+    with Client(url) as client, client.live([f"h{c}" for c in range(len(herd))], fps=60, seed=1) as session:
+        live = session.push(herd[:, :60]) + session.push(herd[:, 60:]) + session.finish()
+    assert sum(chunk.root.shape[1] for chunk in live) == herd.shape[1]  # a live session too
 
 
 def test_an_oversized_body_is_refused_by_nginx_in_the_services_format(cluster: Cluster) -> None:
