@@ -6,13 +6,13 @@ from __future__ import annotations
 import threading
 import time
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, TypeVar
 
 import numpy as np
 from numpy.typing import NDArray
 from pydantic import ValidationError
 
-from api_schemas import SynthesizeRequest
+from api_schemas import LiveRequest, SynthesizeRequest
 from api_schemas.wire import WireError, unblob
 from service.errors import ApiError, from_validation
 from service.settings import Settings
@@ -38,8 +38,12 @@ class Job:
         return [c.id for c in self.request.characters]
 
 
-def parse(body: Any, settings: Settings, banks: dict[str, Bank]) -> Job:
-    """422 naming the field and the problem for anything the synthesis could not use."""
+Checked = TypeVar("Checked", SynthesizeRequest, LiveRequest)
+
+
+def validate(model: type[Checked], body: Any, settings: Settings, banks: dict[str, Bank]) -> Checked:
+    """What a synthesize request and a live session share: a map within max_characters, the
+    model's own checks, a loaded animal, a scale range, unique ids -- 422 naming the field."""
     if not isinstance(body, dict):
         raise ApiError(422, "body", f"expected an object (a map), got {type(body).__name__}")
     characters = body.get("characters")
@@ -47,7 +51,7 @@ def parse(body: Any, settings: Settings, banks: dict[str, Bank]) -> Job:
         raise ApiError(422, "characters", f"{len(characters)} characters is over the limit of "
                                           f"{settings.max_characters} per request (max_characters)")
     try:
-        req = SynthesizeRequest.model_validate(body)
+        req = model.model_validate(body)
     except ValidationError as exc:
         raise from_validation(exc) from None
     if req.animal not in banks:
@@ -55,12 +59,19 @@ def parse(body: Any, settings: Settings, banks: dict[str, Bank]) -> Job:
     if req.scale_min > req.scale_max:
         raise ApiError(422, "scale_min", f"must not exceed scale_max ({req.scale_min} > {req.scale_max})")
     seen: dict[str, int] = {}
-    paths = []
     for i, ch in enumerate(req.characters):
-        where = f"characters[{i}].points"
         if ch.id in seen:
             raise ApiError(422, f"characters[{i}].id", f"{ch.id!r} is also character {seen[ch.id]}'s id")
         seen[ch.id] = i
+    return req
+
+
+def parse(body: Any, settings: Settings, banks: dict[str, Bank]) -> Job:
+    """422 naming the field and the problem for anything the synthesis could not use."""
+    req = validate(SynthesizeRequest, body, settings, banks)
+    paths = []
+    for i, ch in enumerate(req.characters):
+        where = f"characters[{i}].points"
         if ch.points.dtype not in ("<f4", "<f8"):
             raise ApiError(422, f"{where}.dtype", f"points must be float32 ('<f4') or float64 ('<f8'), "
                                                   f"got {ch.points.dtype!r}")

@@ -8,11 +8,11 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-from pydantic import ValidationError
 
 from api_schemas import LiveRequest
 from api_schemas.wire import WireError, unblob
-from service.errors import ApiError, from_validation
+from service.errors import ApiError
+from service.jobs import validate
 from service.settings import Settings
 from synth_core.bank import Bank
 from synth_core.live import LiveSynth
@@ -21,23 +21,7 @@ from synth_core.trajectory import TrajectoryError
 
 def open_live(body: Any, settings: Settings, banks: dict[str, Bank]) -> tuple[LiveRequest, LiveSynth]:
     """The session's request and synthesizer; 422 naming the field for anything unusable."""
-    characters = body.get("characters") if isinstance(body, dict) else None
-    if isinstance(characters, list) and len(characters) > settings.max_characters:
-        raise ApiError(422, "characters", f"{len(characters)} characters is over the limit of "
-                                          f"{settings.max_characters} per session (max_characters)")
-    try:
-        req = LiveRequest.model_validate(body)
-    except ValidationError as exc:
-        raise from_validation(exc) from None
-    if req.animal not in banks:
-        raise ApiError(422, "animal", f"unknown animal {req.animal!r}; loaded: {', '.join(sorted(banks))}")
-    if req.scale_min > req.scale_max:
-        raise ApiError(422, "scale_min", f"must not exceed scale_max ({req.scale_min} > {req.scale_max})")
-    seen: dict[str, int] = {}
-    for i, ch in enumerate(req.characters):
-        if ch.id in seen:
-            raise ApiError(422, f"characters[{i}].id", f"{ch.id!r} is also character {seen[ch.id]}'s id")
-        seen[ch.id] = i
+    req = validate(LiveRequest, body, settings, banks)
     bank = banks[req.animal]
     if req.fps > bank.fps:
         raise ApiError(422, "fps", f"live points come at most at the library's {bank.fps:g} fps, "

@@ -19,7 +19,7 @@ import pytest
 
 from api_schemas.wire import ENCODING_ERROR, blob, decode_rotations, rotation_angle, unblob
 from synth_core import crowd
-from tests.test_service import free_port, start, wait_until_live
+from tests.test_service import free_port, running, start, wait_until_live
 
 MSGPACK = "application/vnd.msgpack"
 LIMITS = {"QUADSYNTH_MAX_BODY_BYTES": str(1024 * 1024), "QUADSYNTH_MAX_CHARACTERS": "40",
@@ -30,17 +30,8 @@ LIMITS = {"QUADSYNTH_MAX_BODY_BYTES": str(1024 * 1024), "QUADSYNTH_MAX_CHARACTER
 
 @pytest.fixture(scope="module")
 def server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
-    port = free_port()
-    proc = start(["--port", str(port), "--log-level", "warning"], tmp_path_factory.mktemp("api"), LIMITS)
-    url = f"http://127.0.0.1:{port}"
-    try:
-        wait_until_live(proc, url)
-        while httpx.get(f"{url}/readyz").status_code != 200:
-            time.sleep(0.1)
+    with running(tmp_path_factory.mktemp("api"), LIMITS) as (url, _):
         yield url
-    finally:
-        proc.terminate()
-        proc.wait(timeout=30)
 
 
 @pytest.fixture(scope="module")

@@ -7,30 +7,20 @@ import json
 from collections.abc import Iterator
 from pathlib import Path
 
-import httpx
 import numpy as np
 import pytest
 
 from quadsynth.cli import main
 from synth_core import bvh, crowd, crowd_io
-from tests.test_service import free_port, start, wait_until_live
+from tests.test_service import free_port, running
 
 LIMITS = {"QUADSYNTH_MAX_CHARACTERS": "8", "QUADSYNTH_MAX_CHARACTER_FRAMES": "20000"}
 
 
 @pytest.fixture(scope="module")
 def server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
-    port = free_port()
-    proc = start(["--port", str(port), "--log-level", "warning"], tmp_path_factory.mktemp("cli"), LIMITS)
-    url = f"http://127.0.0.1:{port}"
-    try:
-        wait_until_live(proc, url)
-        while httpx.get(f"{url}/readyz").status_code != 200:
-            pass
+    with running(tmp_path_factory.mktemp("cli"), LIMITS) as (url, _):
         yield url
-    finally:
-        proc.terminate()
-        proc.wait(timeout=30)
 
 
 @pytest.fixture(scope="module")

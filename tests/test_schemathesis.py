@@ -10,10 +10,9 @@ import sys
 from collections.abc import Iterator
 from pathlib import Path
 
-import httpx
 import pytest
 
-from tests.test_service import free_port, start, wait_until_live
+from tests.test_service import running
 
 HOOKS = Path(__file__).with_name("schemathesis_hooks.py")
 LIMITS = {"QUADSYNTH_MAX_CHARACTERS": "4", "QUADSYNTH_MAX_FRAMES": "400",
@@ -23,17 +22,8 @@ CHECKS = "not_a_server_error,status_code_conformance,content_type_conformance,re
 
 @pytest.fixture(scope="module")
 def server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
-    port = free_port()
-    proc = start(["--port", str(port), "--log-level", "warning"], tmp_path_factory.mktemp("st"), LIMITS)
-    url = f"http://127.0.0.1:{port}"
-    try:
-        wait_until_live(proc, url)
-        while httpx.get(f"{url}/readyz").status_code != 200:
-            pass
+    with running(tmp_path_factory.mktemp("st"), LIMITS) as (url, _):
         yield url
-    finally:
-        proc.terminate()
-        proc.wait(timeout=30)
 
 
 def test_schemathesis_finds_no_server_error_and_no_answer_off_the_spec(server: str, tmp_path: Path) -> None:

@@ -9,6 +9,7 @@ import subprocess
 import sys
 import time
 from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 import httpx
@@ -50,6 +51,24 @@ def wait_until_live(proc: subprocess.Popen[bytes], url: str) -> None:
         except httpx.TransportError:
             time.sleep(0.1)
     raise AssertionError(f"server did not answer /livez within {STARTUP_TIMEOUT_S} s")
+
+
+@contextmanager
+def running(tmp_path: Path,
+            env: dict[str, str] | None = None) -> Iterator[tuple[str, subprocess.Popen[bytes]]]:
+    """A `quadsynth serve` (one worker) on a free port, ready (/readyz 200): (url, process)."""
+    port = free_port()
+    proc = start(["--port", str(port), "--log-level", "warning"], tmp_path, env)
+    url = f"http://127.0.0.1:{port}"
+    try:
+        wait_until_live(proc, url)
+        while httpx.get(f"{url}/readyz").status_code != 200:
+            time.sleep(0.1)
+        yield url, proc
+    finally:
+        if proc.poll() is None:
+            proc.terminate()
+            proc.wait(timeout=30)
 
 
 @pytest.fixture(scope="module")

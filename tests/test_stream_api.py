@@ -23,7 +23,7 @@ from synth_core import crowd
 from synth_core.bank import Bank
 from synth_core.live import LiveSynth
 from tests.test_api import LIMITS, post
-from tests.test_service import free_port, start, wait_until_live
+from tests.test_service import free_port, running, start, wait_until_live
 
 STREAM_LIMITS = {**LIMITS, "QUADSYNTH_WS_WINDOW": "2", "QUADSYNTH_WS_SEND_TIMEOUT_S": "1.5"}
 
@@ -40,12 +40,8 @@ def launch(tmp: Path, env: dict[str, str]) -> tuple[Any, str]:
 
 @pytest.fixture(scope="module")
 def server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
-    proc, url = launch(tmp_path_factory.mktemp("ws"), STREAM_LIMITS)
-    try:
+    with running(tmp_path_factory.mktemp("ws"), STREAM_LIMITS) as (url, _):
         yield url
-    finally:
-        proc.terminate()
-        proc.wait(timeout=30)
 
 
 @pytest.fixture(scope="module")
