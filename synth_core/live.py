@@ -40,23 +40,26 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.ndimage import gaussian_filter1d
 
 from synth_core import kernels
-from synth_core.bank import STATIC, Bank
+from synth_core.bank import Bank
 from synth_core.draws import SCHEDULE_STREAM, character_keys, uniform
 from synth_core.footlock import EASE_FRAMES
 from synth_core.streaming import PAD, Window, lock_context
 from synth_core.synthesis import (
     LOOKAHEAD,
     MARGIN,
-    MAX_RATE,
     MIN_TURN_SPEED,
     N_HUBS,
     Floats,
     Plan,
     _choose,
     _kinds,
-    _rows,
+    blend_rows,
     character_scales,
+    distance_since,
     render,
+    stride_clocks,
+    switch,
+    transition_distances,
 )
 from synth_core.trajectory import _GROUND, DEFAULT_SIGMA, TELEPORT_M, TrajectoryError
 
@@ -69,7 +72,7 @@ LOCK_LAG = 20  # frames planned but not yet sent, so that most plants a frame is
 @dataclass
 class _Pieces:
     """Per character (C, SLOTS), chronological: start frame, kind, first clip frame, the clock of
-    its kind at its start, the distance travelled (unscaled) at its start; ``valid`` slot 0."""
+    its kind at its start, the distance travelled (unscaled) at its start."""
 
     start: NDArray[np.int64]
     kind: NDArray[np.int64]
@@ -77,13 +80,6 @@ class _Pieces:
     clock0: Floats
     trav0: Floats
     before: NDArray[np.bool_]  # slot 0 holds a piece (the first piece has none before it)
-
-
-def _every(p: Plan, first: int, k: int) -> Plan:
-    """Frames ``first, first + k, ...`` of a plan."""
-    t = slice(first, None, k)
-    return Plan(p.rows[:, t], p.weights[:, t], p.yaw[:, t], p.path[:, t], p.scales, p.contacts[:, t],
-                p.stitches[:, t], p.gait[:, t])
 
 
 class LiveSynth:
@@ -124,12 +120,7 @@ class LiveSynth:
         self.step = max(1, self.m // 2)
         self.pad = int(np.ceil(4 * sigma)) if sigma > 0 else 0
         self.radius = int(4.0 * sigma + 0.5) if sigma > 0 else 0
-        self.top = np.full(N_HUBS, np.inf)
-        for hub, s in bank.speeds.items():
-            self.top[hub] = s[-1]
-        self.total = np.zeros(len(self.kinds.frames))
-        for (a, b), d in bank.progress.items():
-            self.total[self.kinds.tr_kind[a, b]] = d[-1]
+        self.total = transition_distances(bank, self.kinds)
         # Input (at fps) and the library-rate points made from it.
         self.inputs = np.zeros((C, 0, 3))
         self.inputs_start = 0  # global index of inputs[:, 0]
@@ -213,8 +204,7 @@ class LiveSynth:
         # ... and on, standing, until every decision that reads it is made.
         hold = np.repeat(tail[:, -1:] if tail.shape[1] else last, self.latency_frames + self.m, axis=1)
         self._raw(np.concatenate([tail, hold], axis=1))
-        out = self._advance(limit=end)
-        return out
+        return self._advance(limit=end)
 
     def _retime(self) -> None:
         """Library-rate points from the inputs so far (linear, as :func:`trajectory.retime`)."""
@@ -344,15 +334,11 @@ class LiveSynth:
         go = np.flatnonzero((self.busy <= a) & (nxt != self.current))
         if len(go) == 0:
             return
-        P, kinds = self.pieces, self.kinds
+        P = self.pieces
         cur, new = self.current[go], nxt[go]
-        frames = kinds.frames[cur]
-        played = self.clock[cur, go] - P.clock0[go, 1]
-        phase = np.floor(P.first[go, 1] + played + 0.5).astype(np.int64) % frames
-        wait = np.where(cur == STATIC, 0, (kinds.entry[cur, new] - phase) % frames)
-        P.start[go, 2], P.kind[go, 2], P.first[go, 2] = a + wait, kinds.tr_kind[cur, new], 0
+        wait, tr, resume = switch(self.kinds, cur, new, P.first[go, 1], self.clock[cur, go] - P.clock0[go, 1])
+        P.start[go, 2], P.kind[go, 2], P.first[go, 2] = a + wait, tr, 0
         P.clock0[go, 2] = (a + wait).astype(np.float64)  # a transition's clock is time
-        resume = np.where(new == STATIC, 0, (kinds.exit[cur, new] + 1) % kinds.frames[new])
         P.start[go, 3], P.kind[go, 3], P.first[go, 3] = NEVER, new, resume
         self.busy[go] = NEVER
         self.current[go] = new
@@ -369,10 +355,9 @@ class LiveSynth:
         pc, j, b = pc[b < t0 + n], j[b < t0 + n], b[b < t0 + n]
         if len(pc) == 0:
             return
-        tt = np.arange(t0, t0 + n)[None, :]
-        dist = (walked[pc, :n] / h[pc, None] - P.trav0[pc, j, None] / h[pc, None]) \
-            + self.bank.creep * (tt - b[:, None])
-        done = (dist >= self.total[P.kind[pc, j]][:, None]) & (tt > b[:, None])
+        dist = distance_since(walked[pc, :n] / h[pc, None], self.bank.creep, b, t0,
+                              at=P.trav0[pc, j, None] / h[pc, None])
+        done = (dist >= self.total[P.kind[pc, j]][:, None]) & (np.arange(t0, t0 + n)[None, :] > b[:, None])
         hit = done.any(axis=1)
         ec, ej, et = pc[hit], j[hit] + 1, done[hit].argmax(axis=1)
         P.start[ec, ej] = t0 + et
@@ -400,11 +385,7 @@ class LiveSynth:
         t = np.arange(t0, t1)
         v = self._speeds(t)
         # Clocks and distance at frames t0..t1 (one more: the next block starts from it).
-        clocks = np.empty((N_HUBS + 1, C, n + 1))
-        clocks[:] = np.arange(t0, t1 + 1, dtype=np.float64)
-        for hub in bank.speeds:
-            rate = np.clip(v / self.top[hub], 1.0, MAX_RATE)
-            clocks[hub] = np.cumsum(np.concatenate([self.clock[hub][:, None], rate], axis=1), axis=1)
+        clocks = stride_clocks(bank, kinds, v, t0, self.clock)
         pts = self.path[:, t0 - self.path_start:t1 + 1 - self.path_start]
         step = np.linalg.norm(np.diff(pts[..., _GROUND], axis=1), axis=-1)
         walked = np.cumsum(np.concatenate([self.walked[:, None], step], axis=1), axis=1)  # (C, n+1)
@@ -423,30 +404,17 @@ class LiveSynth:
         tt = np.broadcast_to(np.arange(n)[None, :], (C, n))
         local = np.floor(first + clocks[np.minimum(kind, N_HUBS), cc, tt] - clock0 + 0.5).astype(np.int64)
         walked_since = (walked[:, :n] / h - trav0 / h) + bank.creep * local
-        r0, r1, w = _rows(bank, kinds, kind, local, v, walked_since)
-        rows = np.empty((C, n, 4), np.int32)
-        weights = np.zeros((C, n, 3), np.float32)
-        rows[..., 0], rows[..., 1], weights[..., 0] = r0, r1, w
-        rows[..., 2], rows[..., 3], weights[..., 1] = r0, r1, w
         since = t[None, :] - start
-        has_before = (e >= 2) | P.before[:, None]
-        fading = has_before & (since < self.margin)
-        if fading.any():
-            fc, ft = np.nonzero(fading)
-            pe = e[fc, ft] - 1
-            p_kind = P.kind[fc, pe]
-            p_local = np.floor(P.first[fc, pe] + clocks[np.minimum(p_kind, N_HUBS), fc, ft]
-                               - P.clock0[fc, pe] + 0.5).astype(np.int64)
-            p_local = np.where(kinds.cyclic[p_kind], p_local, np.iinfo(np.int32).max)
-            p0, p1, pw = _rows(bank, kinds, p_kind, p_local, v[fc, ft])
-            u = (since[fc, ft] + 1) / (self.margin + 1)
-            rows[fc, ft, 2], rows[fc, ft, 3], weights[fc, ft, 1] = p0, p1, pw
-            weights[fc, ft, 2] = 1 - u * u * (3 - 2 * u)
+        fc, ft = np.nonzero(((e >= 2) | P.before[:, None]) & (since < self.margin))  # a piece before
+        pe = e[fc, ft] - 1
+        p_kind = P.kind[fc, pe]
+        p_local = np.floor(P.first[fc, pe] + clocks[np.minimum(p_kind, N_HUBS), fc, ft]
+                           - P.clock0[fc, pe] + 0.5).astype(np.int64)
+        rows, weights, gait = blend_rows(bank, kinds, self.margin, kind, local, v, walked_since, since,
+                                         (fc, ft), p_kind, p_local)
         stitches = (t[None, :] >= 1) & ((P.start[:, 1:, None] == t[None, None, :]).any(axis=1))
-        first_half = (r0 - kinds.offset[kind]) < kinds.frames[kind] // 2
-        gait = np.where(first_half, kinds.source[kind], kinds.target[kind]).astype(np.int8)
         block = Plan(rows, weights, self._headings(t0, t1), pts[:, :n].copy(), self.scales,
-                     bank.contacts[r0], stitches, gait)
+                     bank.contacts[rows[..., 0]], stitches, gait)
         self.clock = clocks[:, :, n].copy()
         self.walked = walked[:, n].copy()
         self.planned = t1
@@ -519,7 +487,7 @@ class LiveSynth:
         # Only the frames sent are rendered -- the foot lock too works on them alone (a plant's
         # average over its frames sent), so 30 fps out costs half of 60.
         first = (-b0) % k
-        buf = self.buffer if k == 1 else _every(self.buffer, first, k)
+        buf = self.buffer.window(first, self.buffer.yaw.shape[1], k)
         lo, hi = -(-(start - b0 - first) // k), -(-(stop - b0 - first) // k)
         if self.foot_lock:
             begin, end = lock_context(buf.contacts, lo, hi)

@@ -132,27 +132,54 @@ def _choose(bank: Bank, current: NDArray[np.int64], speed: Floats,
     return np.asarray(current + np.sign(target - current))
 
 
-def distance_since(travelled: Floats, creep: float, begin: NDArray[np.int64]) -> Floats:
-    """(n, T) distance covered from frame ``begin`` (per row) on, plus the creep; < 0 before it."""
+def distance_since(travelled: Floats, creep: float, begin: NDArray[np.int64], t0: int = 0,
+                   at: Floats | None = None) -> Floats:
+    """(n, T) distance covered from frame ``begin`` (per row) on, plus the creep; < 0 before it.
+    ``travelled`` holds frames ``t0 ...``; ``at (n, 1)``: the distance at ``begin`` (default: read
+    from ``travelled``)."""
     T = travelled.shape[1]
-    at = np.take_along_axis(travelled, np.clip(begin, 0, T - 1)[:, None], axis=1)
-    return np.asarray(travelled - at + creep * (np.arange(T)[None, :] - begin[:, None]))
+    if at is None:
+        at = np.take_along_axis(travelled, np.clip(begin - t0, 0, T - 1)[:, None], axis=1)
+    return np.asarray(travelled - at + creep * ((t0 + np.arange(T))[None, :] - begin[:, None]))
 
 
-def stride_clocks(bank: Bank, kinds: _Kinds, speed: Floats) -> Floats:
+def transition_distances(bank: Bank, kinds: _Kinds) -> Floats:
+    """Per piece kind, the distance a transition covers (0 for the gaits)."""
+    total = np.zeros(len(kinds.frames))
+    for (a, b), d in bank.progress.items():
+        total[kinds.tr_kind[a, b]] = d[-1]
+    return total
+
+
+def stride_clocks(bank: Bank, kinds: _Kinds, speed: Floats, t0: int = 0,
+                  at: Floats | None = None) -> Floats:
     """(N_HUBS + 1, C, T+1): per hub, the stride frames played before each frame; the last row
-    (every transition's) is plain time.
+    (every transition's) is plain time. ``speed`` holds frames ``t0 ...``, and ``at (N_HUBS + 1,
+    C)`` the clocks at frame t0 (default 0: the clocks start there).
 
     One clip frame per output frame -- unless the character is asked for more speed than the
     gait's fastest clip has (a transition still under way, a sprint): then the stride plays up to
     MAX_RATE times faster, so the feet keep pace instead of sliding.
     """
     C, T = speed.shape
-    clocks = np.broadcast_to(np.arange(T + 1, dtype=np.float64), (N_HUBS + 1, C, T + 1)).copy()
+    clocks = np.broadcast_to(np.arange(t0, t0 + T + 1, dtype=np.float64), (N_HUBS + 1, C, T + 1)).copy()
     for hub, s in bank.speeds.items():
         rate = np.clip(speed / s[-1], 1.0, MAX_RATE)
-        clocks[hub, :, 1:] = np.cumsum(rate, axis=1)
+        begin = np.zeros(C) if at is None else at[hub]
+        clocks[hub] = np.cumsum(np.concatenate([begin[:, None], rate], axis=1), axis=1)
     return clocks
+
+
+def switch(kinds: _Kinds, cur: NDArray[np.int64], new: NDArray[np.int64], first: NDArray[np.int64],
+           played: Floats) -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.int64]]:
+    """A gait change from hub ``cur`` to ``new``, decided where the playing piece (from clip frame
+    ``first``) has played ``played`` stride frames: (frames to wait for the transition's entry
+    phase, the transition's kind, the clip frame the new gait resumes at)."""
+    frames = kinds.frames[cur]
+    phase = np.floor(first + played + 0.5).astype(np.int64) % frames
+    wait = np.where(cur == STATIC, 0, (kinds.entry[cur, new] - phase) % frames)
+    resume = np.where(new == STATIC, 0, (kinds.exit[cur, new] + 1) % kinds.frames[new])
+    return wait, kinds.tr_kind[cur, new], resume
 
 
 def schedule(bank: Bank, kinds: _Kinds, speed: Floats, m: int, travelled: Floats, clocks: Floats,
@@ -167,9 +194,7 @@ def schedule(bank: Bank, kinds: _Kinds, speed: Floats, m: int, travelled: Floats
     C, T = speed.shape
     step = max(1, m // 2)
     K = -(-T // step)
-    total = np.zeros(len(kinds.frames))
-    for (a, b), d in bank.progress.items():
-        total[kinds.tr_kind[a, b]] = d[-1]
+    total = transition_distances(bank, kinds)
     E = 1 + 2 * K
     never = np.iinfo(np.int64).max // 4
     start = np.full((C, E), never, np.int64)
@@ -188,19 +213,15 @@ def schedule(bank: Bank, kinds: _Kinds, speed: Floats, m: int, travelled: Floats
         if len(go) == 0:
             continue
         cur, new, last = current[go], nxt[go], count[go] - 1
-        frames = kinds.frames[cur]
         clock = clocks[cur, go]  # (n, T+1): the gait's stride clock of each of these characters
         played = clock[:, a] - clock[np.arange(len(go)), start[go, last]]
-        phase = np.floor(first[go, last] + played + 0.5).astype(np.int64) % frames
-        wait = np.where(cur == STATIC, 0, (kinds.entry[cur, new] - phase) % frames)
-        tr = kinds.tr_kind[cur, new]
+        wait, tr, resume = switch(kinds, cur, new, first[go, last], played)
         begin = a + wait
         # Played by distance: it ends where the character has covered the clip's distance.
         done = distance_since(travelled[go], bank.creep, begin) >= total[tr][:, None]
         done &= np.arange(T)[None, :] > begin[:, None]
         end = np.where(done.any(axis=1), done.argmax(axis=1), T + kinds.frames[tr])
         start[go, last + 1], kind[go, last + 1], first[go, last + 1] = begin, tr, 0
-        resume = np.where(new == STATIC, 0, (kinds.exit[cur, new] + 1) % kinds.frames[new])
         start[go, last + 2], kind[go, last + 2], first[go, last + 2] = end, new, resume
         count[go] += 2
         busy[go] = end
@@ -268,6 +289,32 @@ def _rows(bank: Bank, kinds: _Kinds, kind: NDArray[np.int64], local: NDArray[np.
     return base + clip0 * frames, base + step, weight
 
 
+def blend_rows(bank: Bank, kinds: _Kinds, margin: int, kind: NDArray[np.int64], local: NDArray[np.int64],
+               v: Floats, walked: Floats, since: NDArray[np.int64],
+               fading: tuple[NDArray[np.int64], NDArray[np.int64]], p_kind: NDArray[np.int64],
+               p_local: NDArray[np.int64]) -> tuple[NDArray[np.int32], NDArray[np.float32], NDArray[np.int8]]:
+    """A plan's ``rows (C, T, 4)``, ``weights (C, T, 3)`` and ``gait (C, T)``: the piece playing
+    (``kind`` at clip frame ``local``; ``since`` frames since it started), and at the frames
+    ``fading`` (characters, frames) the piece before it (``p_kind`` at ``p_local``) fading out."""
+    C, T = kind.shape
+    r0, r1, w = _rows(bank, kinds, kind, local, v, walked)
+    rows = np.empty((C, T, 4), np.int32)
+    weights = np.zeros((C, T, 3), np.float32)
+    rows[..., 0], rows[..., 1], weights[..., 0] = r0, r1, w
+    rows[..., 2], rows[..., 3], weights[..., 1] = r0, r1, w
+    fc, ft = fading
+    if len(fc):
+        # A finished transition stays at its end.
+        p_local = np.where(kinds.cyclic[p_kind], p_local, np.iinfo(np.int32).max)
+        p0, p1, pw = _rows(bank, kinds, p_kind, p_local, v[fc, ft])
+        u = (since[fc, ft] + 1) / (margin + 1)
+        rows[fc, ft, 2], rows[fc, ft, 3], weights[fc, ft, 1] = p0, p1, pw
+        weights[fc, ft, 2] = 1 - u * u * (3 - 2 * u)  # smoothstep out
+    first_half = (r0 - kinds.offset[kind]) < kinds.frames[kind] // 2
+    gait = np.where(first_half, kinds.source[kind], kinds.target[kind]).astype(np.int8)
+    return rows, weights, gait
+
+
 def headings(path: Floats, fps: float) -> Floats:
     """(C, T) yaw (about +Y, 0 = +Z) of the path's tangent, held where the character moves
     slower than MIN_TURN_SPEED (a standing animal does not spin with its trajectory's jitter);
@@ -302,9 +349,9 @@ class Plan:
     stitches: NDArray[np.bool_]  # (C, T)
     gait: NDArray[np.int8]  # (C, T)
 
-    def window(self, start: int, stop: int) -> Plan:
-        """Frames ``[start, stop)`` of every character."""
-        t = slice(start, stop)
+    def window(self, start: int, stop: int, step: int = 1) -> Plan:
+        """Frames ``[start, stop)`` (every ``step``-th) of every character."""
+        t = slice(start, stop, step)
         return Plan(self.rows[:, t], self.weights[:, t], self.yaw[:, t], self.path[:, t], self.scales,
                     self.contacts[:, t], self.stitches[:, t], self.gait[:, t])
 
@@ -346,31 +393,17 @@ def plan(bank: Bank, prep: Prepared, h: Floats, keys: NDArray[np.uint64], margin
     local = _local(clocks, kind, first_e[c, e], start[c, e])
     began = np.take_along_axis(travelled, np.clip(start[c, e], 0, T - 1), axis=1)
     walked = travelled - began + bank.creep * local
-    r0, r1, w = _rows(bank, kinds, kind, local, v, walked)
-    rows = np.empty((C, T, 4), np.int32)
-    weights = np.zeros((C, T, 3), np.float32)
-    rows[..., 0], rows[..., 1], weights[..., 0] = r0, r1, w
-    rows[..., 2], rows[..., 3], weights[..., 1] = r0, r1, w
-
     # Stitch: the piece before fades out over the margin after a new one starts.
     since = t - start[c, e]
-    fading = (e >= 1) & (since < margin)
-    if fading.any():
-        fc, ft = np.nonzero(fading)
-        pe = e[fc, ft] - 1
-        p_kind = kind_e[fc, pe]
-        p_local = _local(clocks, p_kind, first_e[fc, pe], start[fc, pe], (fc, ft))
-        # A finished transition stays at its end.
-        p_local = np.where(kinds.cyclic[p_kind], p_local, np.iinfo(np.int32).max)
-        p0, p1, pw = _rows(bank, kinds, p_kind, p_local, v[fc, ft])
-        u = (since[fc, ft] + 1) / (margin + 1)
-        rows[fc, ft, 2], rows[fc, ft, 3], weights[fc, ft, 1] = p0, p1, pw
-        weights[fc, ft, 2] = 1 - u * u * (3 - 2 * u)  # smoothstep out
+    fc, ft = np.nonzero((e >= 1) & (since < margin))
+    pe = e[fc, ft] - 1
+    p_kind = kind_e[fc, pe]
+    p_local = _local(clocks, p_kind, first_e[fc, pe], start[fc, pe], (fc, ft))
+    rows, weights, gait = blend_rows(bank, kinds, margin, kind, local, v, walked, since, (fc, ft), p_kind,
+                                     p_local)
     stitches = np.zeros((C, T), bool)
     stitches[:, 1:] = e[:, 1:] != e[:, :-1]
-    first_half = (r0 - kinds.offset[kind]) < kinds.frames[kind] // 2
-    gait = np.where(first_half, kinds.source[kind], kinds.target[kind]).astype(np.int8)
-    full = Plan(rows, weights, yaw, path, h, bank.contacts[r0], stitches, gait)
+    full = Plan(rows, weights, yaw, path, h, bank.contacts[rows[..., 0]], stitches, gait)
     return full if keep == T else full.window(0, keep)
 
 
