@@ -9,9 +9,13 @@ import sys
 import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from synth_core.skeleton import Skeleton
+    from synth_core.synthesis import Result
 
 
 def _serve(args: argparse.Namespace, extra: list[str]) -> int:
@@ -174,8 +178,8 @@ def _client_synth(args: argparse.Namespace, extra: list[str]) -> int:
     return _write_herd(args, herd.skeleton, herd.result, herd.ids, traj.ids, herd.fps, herd.hubs, args.animal)
 
 
-def _write_herd(args: argparse.Namespace, skeleton: Any, result: Any, ids: list[str], all_ids: list[str],
-                fps: float, hubs: tuple[str, ...], animal: str) -> int:
+def _write_herd(args: argparse.Namespace, skeleton: Skeleton, result: Result, ids: list[str],
+                all_ids: list[str], fps: float, hubs: tuple[str, ...], animal: str) -> int:
     """What `synth` and `client synth` write: motion.npz, summary.json, and BVH / glTF / GIF if asked."""
     from synth_core.export import write_bvh_files, write_glb
 
