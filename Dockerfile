@@ -14,7 +14,10 @@ COPY quadsynth ./quadsynth
 RUN pip install . \
     # The libraries (speed maps + motion graph) are built into the image, not at start-up.
     && python -c "from pathlib import Path; from service.libraries import ensure_builtin_libraries as e; e(Path('$QUADSYNTH_LIBRARY_DIR'))" \
-    && mkdir -p "$NUMBA_CACHE_DIR" && chown -R quadsynth "$NUMBA_CACHE_DIR"
+    && mkdir -p "$NUMBA_CACHE_DIR" \
+    # ... and the kernels compiled into numba's cache, so every worker runs the same code.
+    && python -c "from service.app import compile_kernels; compile_kernels()" \
+    && chown -R quadsynth "$NUMBA_CACHE_DIR"
 
 USER quadsynth
 EXPOSE 8000

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import subprocess
 import sys
 import time
 from collections.abc import Callable, Sequence
@@ -25,6 +26,10 @@ def _serve(args: argparse.Namespace, extra: list[str]) -> int:
 
     for path in ensure_builtin_libraries(library_dir()):
         print(f"built {path}", file=sys.stderr)
+    # Kernels into numba's cache first, in a process of their own: every worker then runs the
+    # same cached code (see service.app.compile_kernels).
+    subprocess.run([sys.executable, "-c", "from service.app import compile_kernels; compile_kernels()"],
+                   check=False)
 
     # Run uvicorn's own CLI so every uvicorn option (--workers, --log-level, ...) passes through.
     # In-flight requests get drain_grace_s after SIGTERM (uvicorn's default is to wait forever).

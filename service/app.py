@@ -155,6 +155,19 @@ def _install_drain(state: State) -> None:
         pass
 
 
+def compile_kernels(directory: Path | None = None) -> None:
+    """Compile (or load) every kernel the service uses, so numba's on-disk cache holds them.
+
+    ``quadsynth serve`` runs this in a process of its own before the workers start: then every
+    worker loads the same machine code from the cache. A kernel compiled in the process that
+    uses it and the same kernel loaded from the cache differ in the last bit of some leg
+    rotations (float32, measured), so without this the first process after an empty cache
+    would answer slightly differently from every later one."""
+    registry = LibraryRegistry(directory if directory is not None else library_dir())
+    registry.load()
+    warm_up(registry)
+
+
 def warm_up(registry: LibraryRegistry) -> None:
     """Load (or compile) the kernels and packers before /readyz says ready, so the first
     request does not pay for it."""
