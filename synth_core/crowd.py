@@ -16,6 +16,7 @@ from numpy.typing import NDArray
 
 STAND_SECONDS = 1.0
 ACCELERATION = 2.0  # m/s^2, up and down (a horse manages 3-5 from standing)
+DRIFT_RAMP_M = 10.0  # distance over which an agent's drift within its place grows to full
 
 
 def speed_profile(frames: int, fps: float, top: float) -> NDArray[np.float64]:
@@ -51,7 +52,9 @@ def simulate(characters: int, frames: int, seed: int = 0, fps: float = 60.0, top
     a, b = max(120.0, 6 * width), max(80.0, 4 * width)
     speed = speed_profile(frames, fps, top)
     distance = np.cumsum(speed) / fps  # (F,)
-    moving = np.clip(speed / 1.0, 0.0, 1.0)[None, :]  # standing agents stand still
+    # Standing agents stand still; the drift grows with the distance covered, not with speed, so
+    # it never outruns the herd (grown with speed, it pushed agents backwards as they started).
+    moving = np.clip(distance / DRIFT_RAMP_M, 0.0, 1.0)[None, :]
     drift_phase = rng.uniform(0, 2 * np.pi, (characters, 2))
     t = np.arange(frames) / fps
     drift = moving * 0.15 * spacing * np.sin(0.3 * t[None, :] + drift_phase[:, :1])  # slow, in place

@@ -69,3 +69,14 @@ def test_crowd_sim_stands_then_runs_up_to_gallop_and_back_keeping_separation() -
     gaps = np.linalg.norm(positions[:, None, :, [0, 2]] - positions[None, :, :, [0, 2]], axis=-1)
     gaps[np.arange(60), np.arange(60)] = np.inf
     assert gaps.min() > 1.0  # metres between any two, at every frame
+
+
+def test_crowd_sim_agents_never_step_backwards_as_they_start() -> None:
+    # Drift that grew with speed once pushed agents ~20 cm backwards as the herd set off: an animal
+    # would turn round for that and straight back (its feet sliding), not what a herd does.
+    positions = crowd.simulate(60, 500, seed=0).astype(np.float64)
+    step = np.diff(positions[..., [0, 2]], axis=1)
+    herd = step.mean(axis=0, keepdims=True)  # the herd's direction of travel each frame
+    herd /= np.maximum(np.linalg.norm(herd, axis=-1, keepdims=True), 1e-12)
+    along = np.sum(step * herd, axis=-1) * 60  # m/s along it
+    assert along.min() > -0.01
