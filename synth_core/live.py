@@ -7,12 +7,12 @@ Every step of the batch plan is causal but for a bounded look-ahead, which is th
 - smoothing reads ``radius`` points ahead (4 sigma);
 - a frame's speed is interpolated between segment centres, so it waits for the segment after
   its own (up to 1.5 segments ahead), and a gait is chosen on the speed ``LOOKAHEAD`` segments
-  ahead of its decision;
+  ahead of its decision, waiting up to a stride for its entry phase (``horizon``: the larger);
 - a transition ends where the character has covered its distance -- found as the path arrives.
 
-So a frame is planned about ``m (LOOKAHEAD + 1.5) + radius`` frames after its point arrived
-and sent ``lock_lag`` frames later (:attr:`LiveSynth.latency_frames`; horse, 60 fps:
-56 x 2.5 + 16 + 2 + 20 = 178 frames, 3.0 s), and then it is exactly the frame the batch plan of
+So a frame is planned about ``horizon + 1.5 m + radius`` frames after its point arrived and
+sent ``lock_lag`` frames later (:attr:`LiveSynth.latency_frames`; horse, 60 fps:
+112 + 84 + 16 + 2 + 20 = 234 frames, 3.9 s), and then it is exactly the frame the batch plan of
 the whole trajectory has (tested, foot lock off), but for:
 
 - the heading of a character standing before it first moves: the batch turns it to where it
@@ -55,7 +55,9 @@ from synth_core.synthesis import (
     _kinds,
     blend_rows,
     character_scales,
+    decision_step,
     distance_since,
+    entry_frame,
     render,
     stride_clocks,
     switch,
@@ -64,7 +66,8 @@ from synth_core.synthesis import (
 from synth_core.trajectory import _GROUND, DEFAULT_SIGMA, TELEPORT_M, TrajectoryError
 
 NEVER = np.iinfo(np.int64).max // 4
-SLOTS = 4  # pieces per character: the one before, the one playing, a transition, the gait after it
+SLOTS = 5  # pieces per character: the one before, the one playing, then up to a gait, a transition
+# and the gait after it (a decision made for a transition ending before the next one)
 KEEP_PLANS = 1  # of the slowest cycle: planned frames kept as the foot lock's context
 LOCK_LAG = 20  # frames planned but not yet sent, so that most plants a frame is in have ended
 
@@ -117,7 +120,10 @@ class LiveSynth:
         self.out_step = int(round(ratio)) if abs(ratio - round(ratio)) < 1e-9 else 1
         self.kinds = _kinds(bank)
         self.m = bank.mean_cycle
-        self.step = max(1, self.m // 2)
+        self.step = decision_step(self.m)
+        # Speeds a decision needs known: the one it reads, and those of every frame up to its
+        # gait's entry phase (the stride clock; decided up to a step early, a stride at most).
+        self.horizon = max(int(LOOKAHEAD * self.m), self.step + int(self.kinds.frames[1:N_HUBS].max()))
         self.pad = int(np.ceil(4 * sigma)) if sigma > 0 else 0
         self.radius = int(4.0 * sigma + 0.5) if sigma > 0 else 0
         self.total = transition_distances(bank, self.kinds)
@@ -157,7 +163,7 @@ class LiveSynth:
     @property
     def latency_frames(self) -> int:
         """Library frames between a point arriving and its frame being sent, at most."""
-        return int(self.m * (LOOKAHEAD + 1.5) + self.radius + 2) + self.lock_lag
+        return int(self.horizon + 1.5 * self.m + self.radius + 2) + self.lock_lag
 
     # -- input -------------------------------------------------------------------------------
 
@@ -305,12 +311,12 @@ class LiveSynth:
             if t0 >= ready:
                 break
             if t0 == a:
-                ahead = a + LOOKAHEAD * self.m
+                ahead = a + int(LOOKAHEAD * self.m)
                 if limit is not None:
                     ahead = min(ahead, limit - 1)  # the batch's decisions read its last frame there
-                if ahead >= v_ready:
+                if a + self.horizon >= v_ready:
                     break
-                self._decide(a, self._speeds(np.array([ahead]))[:, 0])
+                self._decide(a, ahead)
             t1 = min(ready, (self.decisions) * self.step)
             if t1 <= t0:
                 break
@@ -321,27 +327,48 @@ class LiveSynth:
         self.rendered = stop
         return self._emit(start, stop)
 
-    def _decide(self, a: int, speed: Floats) -> None:
-        """Decision k at frame a (as :func:`synthesis.schedule`'s loop body)."""
+    def _decide(self, a: int, ahead: int) -> None:
+        """Decision k at frame a on the speed at frame ``ahead`` (as :func:`synthesis.schedule`'s
+        loop body: for the characters free now or before the next decision)."""
         k = self.decisions
         self.decisions += 1
-        # A transition ending right at a frees its character for this decision (as in the batch,
-        # which knows every end beforehand).
-        self._end_transitions(a, 1, self.walked[:, None], self.clock[:, :, None])
+        # The clocks and distance of the frames up to the speed read (all known), so transitions
+        # ending before the next decision are found now (the batch knows every end beforehand),
+        # and a gait change can wait for its stride's entry phase.
+        t = np.arange(a, a + self.horizon + 1)
+        clocks = stride_clocks(self.bank, self.kinds, self._speeds(t), a, self.clock)
+        pts = self.path[:, a - self.path_start:a + self.step + 1 - self.path_start]
+        step = np.linalg.norm(np.diff(pts[..., _GROUND], axis=1), axis=-1)
+        walked = np.cumsum(np.concatenate([self.walked[:, None], step], axis=1), axis=1)
+        self._start_distances(a, self.step, walked)
+        self._end_transitions(a, self.step, walked, clocks)
         self._normalize(a)
         draws = uniform(self.keys, SCHEDULE_STREAM + k, N_HUBS)
-        nxt = _choose(self.bank, self.current, speed, draws)
-        go = np.flatnonzero((self.busy <= a) & (nxt != self.current))
+        nxt = _choose(self.bank, self.current, self._speeds(np.array([ahead]))[:, 0], draws)
+        go = np.flatnonzero((self.busy < a + self.step) & (nxt != self.current))
         if len(go) == 0:
             return
         P = self.pieces
         cur, new = self.current[go], nxt[go]
-        wait, tr, resume = switch(self.kinds, cur, new, P.first[go, 1], self.clock[cur, go] - P.clock0[go, 1])
-        P.start[go, 2], P.kind[go, 2], P.first[go, 2] = a + wait, tr, 0
-        P.clock0[go, 2] = (a + wait).astype(np.float64)  # a transition's clock is time
-        P.start[go, 3], P.kind[go, 3], P.first[go, 3] = NEVER, new, resume
+        d = np.maximum(a, self.busy[go])
+        j = 1 + (self.busy[go] > a)  # the slot of the gait playing from d
+        clock = clocks[cur, go]
+        n = np.arange(len(go))
+        wait, tr, resume = switch(self.kinds, cur, new, P.first[go, j], clock[n, d - a] - P.clock0[go, j])
+        begin = entry_frame(clock, d - a, wait) + a
+        assert (begin <= a + self.horizon).all(), "the horizon covers a stride from the decision on"
+        P.start[go, j + 1], P.kind[go, j + 1], P.first[go, j + 1] = begin, tr, 0
+        P.clock0[go, j + 1] = begin.astype(np.float64)  # a transition's clock is time
+        P.start[go, j + 2], P.kind[go, j + 2], P.first[go, j + 2] = NEVER, new, resume
         self.busy[go] = NEVER
         self.current[go] = new
+
+    def _start_distances(self, t0: int, n: int, walked: Floats) -> None:
+        """The distance travelled at their start of the pieces starting within frames ``[t0, t0 + n)``
+        (``walked (C, >= n)``: from frame t0 on)."""
+        P = self.pieces
+        sc, sj = np.nonzero((P.start[:, 1:] >= t0) & (P.start[:, 1:] < t0 + n))
+        P.trav0[sc, sj + 1] = walked[sc, P.start[sc, sj + 1] - t0]
 
     def _end_transitions(self, t0: int, n: int, walked: Floats, clocks: Floats) -> None:
         """Transitions under way (their gait's start not found yet; the transition is in slot 1
@@ -350,7 +377,7 @@ class LiveSynth:
         from frame t0 on."""
         P, h = self.pieces, self.scales
         pc = np.flatnonzero(self.busy == NEVER)
-        j = np.where(P.start[pc, 2] == NEVER, 1, 2)
+        j = (P.start[pc, 1:] == NEVER).argmax(axis=1)  # the slot before the gait not started
         b = P.start[pc, j]
         pc, j, b = pc[b < t0 + n], j[b < t0 + n], b[b < t0 + n]
         if len(pc) == 0:
@@ -368,7 +395,7 @@ class LiveSynth:
     def _normalize(self, t: int) -> None:
         """Slots shifted so slot 1 is the piece playing at frame t."""
         P = self.pieces
-        for _ in range(2):
+        for _ in range(SLOTS - 2):
             shift = P.start[:, 2] <= t
             if not shift.any():
                 return
@@ -391,13 +418,10 @@ class LiveSynth:
         walked = np.cumsum(np.concatenate([self.walked[:, None], step], axis=1), axis=1)  # (C, n+1)
         h = self.scales[:, None]
         c_all = np.arange(C)
-        # Pieces starting in this block: the distance travelled at their start.
-        at = (P.start[:, 1:] >= t0) & (P.start[:, 1:] < t1)
-        sc, sj = np.nonzero(at)
-        P.trav0[sc, sj + 1] = walked[sc, P.start[sc, sj + 1] - t0]
+        self._start_distances(t0, n, walked)
         self._end_transitions(t0, n, walked, clocks)
         # Which slot plays each frame, and the slot before it.
-        e = 1 + (t[None, :] >= P.start[:, 2, None]).astype(np.int64) + (t[None, :] >= P.start[:, 3, None])
+        e = 1 + (t[None, :, None] >= P.start[:, None, 2:]).sum(axis=2)
         cc = c_all[:, None]
         kind, first = P.kind[cc, e], P.first[cc, e]
         start, clock0, trav0 = P.start[cc, e], P.clock0[cc, e], P.trav0[cc, e]

@@ -47,7 +47,8 @@ CHUNK = 256  # characters planned and rendered at a time (the working set stays 
 BACKENDS = ("auto", "numba", "numpy")
 STAND_SHARE = 0.5  # below this share of the slowest clip's speed a character stands
 MIN_TURN_SPEED = 0.05  # m/s: slower than this the heading holds (a standing animal does not spin)
-LOOKAHEAD = 1  # segments: gaits are chosen on the speed this far ahead, as transitions take time
+LOOKAHEAD = 2  # segments: gaits are chosen on the speed this far ahead, as transitions take time
+DECISION_SHARE = 4  # gait decisions this many times a segment
 MAX_RATE = 1.6  # a gait asked to go faster than its fastest clip plays its stride up to this fast
 
 
@@ -182,17 +183,35 @@ def switch(kinds: _Kinds, cur: NDArray[np.int64], new: NDArray[np.int64], first:
     return wait, kinds.tr_kind[cur, new], resume
 
 
+def decision_step(m: int) -> int:
+    """Frames between gait decisions."""
+    return max(1, m // DECISION_SHARE)
+
+
+def entry_frame(clock: Floats, d: NDArray[np.int64], wait: NDArray[np.int64]) -> NDArray[np.int64]:
+    """Per row of ``clock (n, F)`` (a gait's stride clock), the first frame from ``d`` on where the
+    stride has played ``wait`` more stride frames -- the gait reaches a transition's entry phase
+    (it may play faster than a stride frame a frame); ``F`` where that is beyond the clock."""
+    n = np.arange(len(d))
+    due = clock[n, d] + wait - 1e-9
+    reach = (clock >= due[:, None]) & (np.arange(clock.shape[1])[None, :] >= d[:, None])
+    return np.asarray(np.where(reach.any(axis=1), reach.argmax(axis=1), clock.shape[1]))
+
+
 def schedule(bank: Bank, kinds: _Kinds, speed: Floats, m: int, travelled: Floats, clocks: Floats,
              keys: NDArray[np.uint64]) -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.int64]]:
     """Per character the pieces played: ``(start frame, kind, first clip frame)``, each (C, E).
 
-    Decisions every half segment, on the speed a segment ahead (``speed (C, T)``, m/s in the character's
-    unit). ``travelled (C, T)``: distance along the path from frame 0, same unit. ``keys``: each
-    character's random key (:mod:`synth_core.draws`); decision k draws its stream k, so a plan of
-    the first frames only decides them as the whole plan does.
+    Decisions every quarter segment (``DECISION_SHARE``), on the speed ``LOOKAHEAD`` segments ahead
+    (``speed (C, T)``, m/s in the character's unit), for every character free by the next one: one
+    whose transition ends before it decides as it ends -- a gait change waits for the stride's
+    entry phase, and deciding a few frames late can cost a whole stride. ``travelled (C, T)``:
+    distance along the path from frame 0, same unit. ``keys``: each character's random key
+    (:mod:`synth_core.draws`); decision k draws its stream k, so a plan of the first frames only
+    decides them as the whole plan does.
     """
     C, T = speed.shape
-    step = max(1, m // 2)
+    step = decision_step(m)
     K = -(-T // step)
     total = transition_distances(bank, kinds)
     E = 1 + 2 * K
@@ -208,15 +227,17 @@ def schedule(bank: Bank, kinds: _Kinds, speed: Floats, m: int, travelled: Floats
         a = k * step
         # Decided on the speed a segment ahead: transitions take time, so start them early.
         draws = uniform(keys, SCHEDULE_STREAM + k, N_HUBS)
-        nxt = _choose(bank, current, speed[:, min(a + LOOKAHEAD * m, T - 1)], draws)
-        go = np.flatnonzero((busy <= a) & (nxt != current))
+        nxt = _choose(bank, current, speed[:, min(a + int(LOOKAHEAD * m), T - 1)], draws)
+        go = np.flatnonzero((busy < a + step) & (nxt != current))
         if len(go) == 0:
             continue
         cur, new, last = current[go], nxt[go], count[go] - 1
+        d = np.maximum(a, busy[go])  # decided as its transition ends, if that comes first
+        n = np.arange(len(go))
         clock = clocks[cur, go]  # (n, T+1): the gait's stride clock of each of these characters
-        played = clock[:, a] - clock[np.arange(len(go)), start[go, last]]
+        played = clock[n, d] - clock[n, start[go, last]]
         wait, tr, resume = switch(kinds, cur, new, first[go, last], played)
-        begin = a + wait
+        begin = entry_frame(clock, d, wait)
         # Played by distance: it ends where the character has covered the clip's distance.
         done = distance_since(travelled[go], bank.creep, begin) >= total[tr][:, None]
         done &= np.arange(T)[None, :] > begin[:, None]
@@ -372,9 +393,9 @@ def plan(bank: Bank, prep: Prepared, h: Floats, keys: NDArray[np.uint64], margin
     v = _frame_speeds(speeds, m, T)
     yaw = headings(path, bank.fps)
     keep = T
-    if frames is not None and frames + LOOKAHEAD * m + 1 < T:
+    if frames is not None and frames + int(LOOKAHEAD * m) + 1 < T:
         keep = max(frames, 1)
-        T = keep + LOOKAHEAD * m + 1
+        T = keep + int(LOOKAHEAD * m) + 1
         path, v, yaw = path[:, :T], v[:, :T], yaw[:, :T]
     clocks = stride_clocks(bank, kinds, v)
     step = np.linalg.norm(np.diff(path[..., [0, 2]], axis=1), axis=-1)
