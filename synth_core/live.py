@@ -282,15 +282,17 @@ class LiveSynth:
             self.seg = np.concatenate([self.seg, speeds / self.scales[:, None]], axis=1)
             self.n_seg = whole
 
-    def _speeds(self, t: NDArray[np.int64]) -> Floats:
-        """(C, len(t)) speed at frames t (interpolated between segment centres)."""
+    def _speeds(self, t: NDArray[np.int64], who: NDArray[np.int64] | None = None) -> Floats:
+        """(C, len(t)) speed at frames t (interpolated between segment centres); of the
+        characters ``who`` only, if given."""
         m = self.m
         pos = (t - (m - 1) / 2) / m
         k0 = np.maximum(np.floor(pos).astype(np.int64), 0)
         k1 = k0 + 1
         f = np.clip(pos - k0, 0.0, 1.0)
         s = self.seg_start
-        return np.asarray(self.seg[:, k0 - s] * (1 - f) + self.seg[:, k1 - s] * f)
+        seg = self.seg if who is None else self.seg[who]
+        return np.asarray(seg[:, k0 - s] * (1 - f) + seg[:, k1 - s] * f)
 
     def _speed_ready(self) -> int:
         """Frames [0, n) whose speed is known."""
@@ -332,11 +334,10 @@ class LiveSynth:
         loop body: for the characters free now or before the next decision)."""
         k = self.decisions
         self.decisions += 1
-        # The clocks and distance of the frames up to the speed read (all known), so transitions
-        # ending before the next decision are found now (the batch knows every end beforehand),
-        # and a gait change can wait for its stride's entry phase.
-        t = np.arange(a, a + self.horizon + 1)
-        clocks = stride_clocks(self.bank, self.kinds, self._speeds(t), a, self.clock)
+        # The clocks and distance of the frames up to the next decision (known), so transitions
+        # ending before it are found now (the batch knows every end beforehand).
+        v = self._speeds(np.arange(a, a + self.step))
+        clocks = stride_clocks(self.bank, self.kinds, v, a, self.clock)
         pts = self.path[:, a - self.path_start:a + self.step + 1 - self.path_start]
         step = np.linalg.norm(np.diff(pts[..., _GROUND], axis=1), axis=-1)
         walked = np.cumsum(np.concatenate([self.walked[:, None], step], axis=1), axis=1)
@@ -352,8 +353,11 @@ class LiveSynth:
         cur, new = self.current[go], nxt[go]
         d = np.maximum(a, self.busy[go])
         j = 1 + (self.busy[go] > a)  # the slot of the gait playing from d
-        clock = clocks[cur, go]
         n = np.arange(len(go))
+        # The gait's stride clock on to its entry phase (these characters only: a stride ahead).
+        v = self._speeds(np.arange(a, a + self.horizon + 1), go)
+        ahead_clocks = stride_clocks(self.bank, self.kinds, v, a, self.clock[:, go])
+        clock = ahead_clocks[cur, n]
         wait, tr, resume = switch(self.kinds, cur, new, P.first[go, j], clock[n, d - a] - P.clock0[go, j])
         begin = entry_frame(clock, d - a, wait) + a
         assert (begin <= a + self.horizon).all(), "the horizon covers a stride from the decision on"
