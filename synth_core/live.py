@@ -45,7 +45,6 @@ from synth_core.draws import SCHEDULE_STREAM, character_keys, uniform
 from synth_core.footlock import EASE_FRAMES
 from synth_core.streaming import PAD, Window, lock_context
 from synth_core.synthesis import (
-    LOOKAHEAD,
     MARGIN,
     MIN_TURN_SPEED,
     N_HUBS,
@@ -58,6 +57,7 @@ from synth_core.synthesis import (
     decision_step,
     distance_since,
     entry_frame,
+    lookahead,
     render,
     stride_clocks,
     switch,
@@ -123,7 +123,7 @@ class LiveSynth:
         self.step = decision_step(self.m)
         # Speeds a decision needs known: the one it reads, and those of every frame up to its
         # gait's entry phase (the stride clock; decided up to a step early, a stride at most).
-        self.horizon = max(int(LOOKAHEAD * self.m), self.step + int(self.kinds.frames[1:N_HUBS].max()))
+        self.horizon = max(lookahead(self.m), self.step + int(self.kinds.frames[1:N_HUBS].max()))
         self.pad = int(np.ceil(4 * sigma)) if sigma > 0 else 0
         self.radius = int(4.0 * sigma + 0.5) if sigma > 0 else 0
         self.total = transition_distances(bank, self.kinds)
@@ -313,7 +313,7 @@ class LiveSynth:
             if t0 >= ready:
                 break
             if t0 == a:
-                ahead = a + int(LOOKAHEAD * self.m)
+                ahead = a + lookahead(self.m)
                 if limit is not None:
                     ahead = min(ahead, limit - 1)  # the batch's decisions read its last frame there
                 if a + self.horizon >= v_ready:
@@ -375,10 +375,10 @@ class LiveSynth:
         P.trav0[sc, sj + 1] = walked[sc, P.start[sc, sj + 1] - t0]
 
     def _end_transitions(self, t0: int, n: int, walked: Floats, clocks: Floats) -> None:
-        """Transitions under way (their gait's start not found yet; the transition is in slot 1
-        once playing, else 2) that end within frames ``[t0, t0 + n)``: at the first frame after
-        its start where its distance is covered. ``walked (C, >= n)``, ``clocks (kinds, C, >= n)``:
-        from frame t0 on."""
+        """Transitions under way (their gait's start not found yet: the slot after the
+        transition's holds it, not started) that end within frames ``[t0, t0 + n)``: at the first
+        frame after its start where its distance is covered. ``walked (C, >= n)``,
+        ``clocks (kinds, C, >= n)``: from frame t0 on."""
         P, h = self.pieces, self.scales
         pc = np.flatnonzero(self.busy == NEVER)
         j = (P.start[pc, 1:] == NEVER).argmax(axis=1)  # the slot before the gait not started

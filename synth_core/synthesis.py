@@ -188,6 +188,11 @@ def decision_step(m: int) -> int:
     return max(1, m // DECISION_SHARE)
 
 
+def lookahead(m: int) -> int:
+    """Frames from a gait decision to the speed it reads."""
+    return int(LOOKAHEAD * m)
+
+
 def entry_frame(clock: Floats, d: NDArray[np.int64], wait: NDArray[np.int64]) -> NDArray[np.int64]:
     """Per row of ``clock (n, F)`` (a gait's stride clock), the first frame from ``d`` on where the
     stride has played ``wait`` more stride frames -- the gait reaches a transition's entry phase
@@ -225,9 +230,9 @@ def schedule(bank: Bank, kinds: _Kinds, speed: Floats, m: int, travelled: Floats
     busy = np.zeros(C, np.int64)
     for k in range(K):
         a = k * step
-        # Decided on the speed a segment ahead: transitions take time, so start them early.
+        # Decided on the speed ahead: transitions take time, so start them early.
         draws = uniform(keys, SCHEDULE_STREAM + k, N_HUBS)
-        nxt = _choose(bank, current, speed[:, min(a + int(LOOKAHEAD * m), T - 1)], draws)
+        nxt = _choose(bank, current, speed[:, min(a + lookahead(m), T - 1)], draws)
         go = np.flatnonzero((busy < a + step) & (nxt != current))
         if len(go) == 0:
             continue
@@ -393,9 +398,9 @@ def plan(bank: Bank, prep: Prepared, h: Floats, keys: NDArray[np.uint64], margin
     v = _frame_speeds(speeds, m, T)
     yaw = headings(path, bank.fps)
     keep = T
-    if frames is not None and frames + int(LOOKAHEAD * m) + 1 < T:
+    if frames is not None and frames + lookahead(m) + 1 < T:
         keep = max(frames, 1)
-        T = keep + int(LOOKAHEAD * m) + 1
+        T = keep + lookahead(m) + 1
         path, v, yaw = path[:, :T], v[:, :T], yaw[:, :T]
     clocks = stride_clocks(bank, kinds, v)
     step = np.linalg.norm(np.diff(path[..., [0, 2]], axis=1), axis=-1)
