@@ -125,16 +125,14 @@ def _progress(label: str) -> Callable[[int, int], None]:
 
 def _load_library(animal: str, library: str | None) -> Any:
     from synth_core.artifact import load_library
-    from synth_core.build import build_builtin
 
     if library:
         return load_library(library)
     if animal not in ("horse", "dog"):
         raise ValueError(f"animal: unknown animal {animal!r} (built-in: horse, dog; or --library FILE)")
-    from service.libraries import library_dir
+    from service.libraries import builtin_library
 
-    path = library_dir() / f"{animal}.qslib.npz"
-    return load_library(path) if path.exists() else build_builtin(animal)
+    return builtin_library(animal)
 
 
 def _crowd_sim(args: argparse.Namespace, extra: list[str]) -> int:

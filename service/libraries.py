@@ -40,6 +40,14 @@ def ensure_builtin_libraries(directory: Path) -> list[Path]:
     return built
 
 
+def builtin_library(animal: str) -> Library:
+    """A built-in animal's library: its file in the library directory, else built now."""
+    from synth_core.build import build_builtin
+
+    path = library_dir() / f"{animal}{SUFFIX}"
+    return load_library(path) if path.exists() else build_builtin(animal)
+
+
 def summarize(library: Library, path: Path) -> LibrarySummary:
     skeleton = library.skeleton
     return LibrarySummary(

@@ -5,12 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from service.libraries import library_dir
+from service.libraries import builtin_library
 from synth_core import crowd, evaluate, kernels
 from synth_core import metrics as M
-from synth_core.artifact import load_library
 from synth_core.bank import Bank, build_bank
-from synth_core.build import build_builtin
 from synth_core.footlock import plant_targets
 from synth_core.skeleton import forward_kinematics
 from synth_core.synthesis import Options, Result, headings, synthesize
@@ -145,8 +143,7 @@ def test_unknown_backend_is_refused(bank: Bank, herd: np.ndarray) -> None:
 @pytest.mark.parametrize("animal", ["horse", "dog"])
 def test_issue_5_quality_figures_on_the_standard_scenario(animal: str) -> None:
     """`quadsynth eval`: 500 characters x 500 frames of crowd-sim seed 0, scales in [0.8, 1.2]."""
-    path = library_dir() / f"{animal}.qslib.npz"  # built by ./scripts/test (else built here)
-    bank = build_bank(load_library(path) if path.exists() else build_builtin(animal))
+    bank = build_bank(builtin_library(animal))  # the file ./scripts/test builds (else built here)
     fig = evaluate.standard(bank)
     assert fig["path_error_cm_max"] <= 1.0 and fig["timing_error_cm_max"] <= 10.0
     assert fig["skate_mm_mean"] <= 1.0 and fig["skate_mm_p95"] <= 3.0
