@@ -46,9 +46,16 @@ def character_keys(seed: int, n: int, seeds: ArrayLike | None = None, first: int
 
 def uniform(keys: NDArray[np.uint64], stream: int, lanes: int = 1) -> NDArray[np.float64]:
     """``(len(keys), lanes)`` floats in [0, 1): draw ``stream`` of each character."""
+    return uniform_streams(keys, stream, 1, lanes)[:, 0]
+
+
+def uniform_streams(keys: NDArray[np.uint64], first: int, count: int, lanes: int = 1) -> NDArray[np.float64]:
+    """``(len(keys), count, lanes)``: streams ``first ... first + count - 1`` of each character at
+    once (a compiled schedule takes all its decisions' draws beforehand)."""
     if not 0 < lanes <= LANES:
         raise ValueError(f"lanes: 1 to {LANES}, got {lanes}")
-    counter = np.uint64(stream) * np.uint64(LANES) + np.arange(lanes, dtype=np.uint64)
+    stream = np.arange(first, first + count, dtype=np.uint64)
+    counter = stream[:, None] * np.uint64(LANES) + np.arange(lanes, dtype=np.uint64)[None, :]
     with np.errstate(over="ignore"):
-        bits = _mix(keys[:, None] + (counter + np.uint64(1))[None, :] * _GOLDEN)
+        bits = _mix(keys[:, None, None] + (counter + np.uint64(1))[None] * _GOLDEN)
     return np.asarray((bits >> np.uint64(11)).astype(np.float64) * 2.0**-53)

@@ -163,16 +163,20 @@ def _put(out: Any, q: Any) -> None:
 
 
 @_jit()
-def _nlerp_into(a: Any, b: Any, w: float, out: Any) -> None:
-    """out = normalize(a (1 - w) + b w sign), b turned to a's side; a, b float32 rows (J, 4)."""
+def _nlerp_into(a: Any, b: Any, w: Any, out: Any) -> None:
+    """out = normalize(a (1 - w) + b w sign), b turned to a's side; a, b float32 rows (J, 4), w
+    float32. In float32 throughout: the rows are float32, and mixing in float64 would convert
+    every load (the pose pass took 1.6x as long)."""
+    w = np.float32(w)
+    keep = np.float32(1.0) - w
     for j in range(a.shape[0]):
         d = a[j, 0] * b[j, 0] + a[j, 1] * b[j, 1] + a[j, 2] * b[j, 2] + a[j, 3] * b[j, 3]
         s = -w if d < 0 else w
-        x = a[j, 0] * (1 - w) + b[j, 0] * s
-        y = a[j, 1] * (1 - w) + b[j, 1] * s
-        z = a[j, 2] * (1 - w) + b[j, 2] * s
-        q = a[j, 3] * (1 - w) + b[j, 3] * s
-        n = 1.0 / math.sqrt(x * x + y * y + z * z + q * q)
+        x = a[j, 0] * keep + b[j, 0] * s
+        y = a[j, 1] * keep + b[j, 1] * s
+        z = a[j, 2] * keep + b[j, 2] * s
+        q = a[j, 3] * keep + b[j, 3] * s
+        n = np.float32(1.0) / np.sqrt(x * x + y * y + z * z + q * q)
         out[j, 0], out[j, 1], out[j, 2], out[j, 3] = x * n, y * n, z * n, q * n
 
 

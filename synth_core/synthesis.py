@@ -34,9 +34,9 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from synth_core import UP_AXIS, kernels, quat
+from synth_core import UP_AXIS, kernels, plan_kernels, quat
 from synth_core.bank import STATIC, Bank
-from synth_core.draws import SCALE_STREAM, SCHEDULE_STREAM, character_keys, uniform
+from synth_core.draws import SCALE_STREAM, SCHEDULE_STREAM, character_keys, uniform, uniform_streams
 from synth_core.footlock import lock_feet
 from synth_core.trajectory import DEFAULT_SIGMA, Prepared, TrajectoryError, prepare
 
@@ -112,18 +112,27 @@ def _kinds(bank: Bank) -> _Kinds:
                   np.array(list(range(N_HUBS)) + [b for (_, b), _ in trs]), tr_kind, entry, exit_)
 
 
+def coverage(bank: Bank) -> tuple[Floats, Floats]:
+    """Per hub, the lowest and highest speed it covers (inf, -inf: none). The slowest gait
+    covers down to STAND_SHARE of its slowest clip (its slowest clip, played slower); below
+    that a character stands."""
+    low = np.full(N_HUBS, np.inf)
+    high = np.full(N_HUBS, -np.inf)
+    for h, s in bank.speeds.items():
+        low[h], high[h] = s[0], s[-1]
+    slowest = min(bank.speeds)
+    low[slowest] = STAND_SHARE * low[slowest]
+    return low, high
+
+
 def _choose(bank: Bank, current: NDArray[np.int64], speed: Floats,
             draws: Floats) -> NDArray[np.int64]:
     """Next hub per character for a segment's speed: stay while covered, else one step toward a
     covering gait (a random one where several cover it; ``draws (C, 5)`` uniform)."""
     C = len(current)
     covered = np.zeros((C, 5), bool)
-    low = np.full(5, np.inf)
-    high = np.full(5, -np.inf)
-    for h, s in bank.speeds.items():
-        low[h], high[h] = s[0], s[-1]
+    low, high = coverage(bank)
     slowest = min(bank.speeds)
-    low[slowest] = STAND_SHARE * low[slowest]  # slower than the slowest clip: its slowest clip
     covered[:, 1:] = (speed[:, None] >= low[None, 1:] - 1e-9) & (speed[:, None] <= high[None, 1:] + 1e-9)
     covered[:, STATIC] = speed < low[slowest]
     beyond = ~covered.any(axis=1)  # faster than the fastest gait (resampling makes that rare)
@@ -383,13 +392,15 @@ class Plan:
 
 
 def plan(bank: Bank, prep: Prepared, h: Floats, keys: NDArray[np.uint64], margin: int = MARGIN,
-         frames: int | None = None) -> Plan:
+         frames: int | None = None, compiled: bool = False) -> Plan:
     """Schedule every character's pieces and find the rows each frame blends (see the module doc).
 
     ``frames``: plan only the first ``frames`` frames (all, when that is hardly fewer) -- exactly as
     the whole plan has them: every decision looks one segment ahead, so the schedule runs that much
     further, and headings and speeds come from the whole path. (A streamed batch's first window
-    needs no more.)"""
+    needs no more.)
+
+    ``compiled``: made by :mod:`synth_core.plan_kernels` (the same plan, bit for bit)."""
     path = prep.positions
     C, T = path.shape[:2]
     kinds = _kinds(bank)
@@ -402,6 +413,16 @@ def plan(bank: Bank, prep: Prepared, h: Floats, keys: NDArray[np.uint64], margin
         keep = max(frames, 1)
         T = keep + lookahead(m) + 1
         path, v, yaw = path[:, :T], v[:, :T], yaw[:, :T]
+    if compiled:
+        low, high = coverage(bank)
+        tb = plan_kernels.tables(bank, kinds, transition_distances(bank, kinds), low, high)
+        step = decision_step(m)
+        draws = uniform_streams(keys, SCHEDULE_STREAM, -(-T // step), N_HUBS)
+        rows, weights, gait, contacts, stitches = plan_kernels.plan_frames(
+            tb, bank.contacts, min(bank.speeds), max(bank.speeds), MAX_RATE, margin, step, lookahead(m),
+            bank.creep, v, path, h, draws)
+        full = Plan(rows, weights, yaw, path, h, contacts, stitches, gait)
+        return full if keep == T else full.window(0, keep)
     clocks = stride_clocks(bank, kinds, v)
     step = np.linalg.norm(np.diff(path[..., [0, 2]], axis=1), axis=-1)
     travelled = np.concatenate([np.zeros((C, 1)), np.cumsum(step, axis=1)], axis=1) / h[:, None]
@@ -555,7 +576,7 @@ def synthesize(bank: Bank, positions: ArrayLike, fps: float | None = None,
         sl = slice(a, min(a + CHUNK, C))
         part = replace(prep, positions=prep.positions[sl], raw=prep.raw[sl],
                        segment_speeds=prep.segment_speeds[sl])
-        p = plan(bank, part, h[sl], keys[sl], options.margin)
+        p = plan(bank, part, h[sl], keys[sl], options.margin, compiled=compiled)
         if compiled:
             # Touch the chunk's output pages here, in one thread, before the kernel's workers write
             # them: first-touch page faults taken by parallel workers contend for the process's

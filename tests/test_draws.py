@@ -4,7 +4,7 @@ import numpy as np
 
 from synth_core import crowd
 from synth_core.bank import Bank
-from synth_core.draws import character_keys, uniform
+from synth_core.draws import character_keys, uniform, uniform_streams
 from synth_core.synthesis import Options, synthesize
 
 
@@ -19,6 +19,14 @@ def test_draws_are_uniform_and_independent_of_the_batch() -> None:
     # A character's draws do not depend on how many come after it.
     assert np.array_equal(uniform(character_keys(7, 3), 3, 5), u[:3])
     assert not np.array_equal(uniform(character_keys(8, 3), 3, 5), u[:3])
+
+
+def test_many_streams_at_once_are_the_streams_one_by_one() -> None:
+    keys = character_keys(3, 50)
+    many = uniform_streams(keys, 2, 6, 5)
+    assert many.shape == (50, 6, 5)
+    for k in range(6):
+        assert np.array_equal(many[:, k], uniform(keys, 2 + k, 5))
 
 
 def test_own_seed_overrides_the_batch_seed() -> None:

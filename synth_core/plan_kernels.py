@@ -1,0 +1,321 @@
+"""Compiled (numba) planning: each character's schedule and every frame's table rows, characters
+in parallel.
+
+The numpy reference is :func:`synth_core.synthesis.plan` (``schedule``, ``_local``,
+``blend_rows``): vectorized over characters, it loops in Python over the gait decisions (four a
+segment), and that overhead, not the arithmetic, dominated small batches (10 characters ran at
+40% of the speed per character-frame of 1,000). Here one character's whole plan is a few loops
+over its frames. The same float64 operations in the same order as the reference, without
+fastmath: the plans are equal bit for bit (tested), so a plan made here and the live mode's
+(numpy) agree too.
+
+The per-frame quantities headings and speeds stay in numpy (shared with the live mode); the
+random draws are made beforehand (:func:`synth_core.draws.uniform`, one stream per decision).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any, TypeVar, cast
+
+import numpy as np
+from numpy.typing import NDArray
+
+from synth_core.bank import STATIC
+from synth_core.kernels import AVAILABLE
+
+if TYPE_CHECKING:
+    from synth_core.bank import Bank
+    from synth_core.synthesis import _Kinds
+
+if AVAILABLE:
+    import numba
+
+F = TypeVar("F", bound=Callable[..., Any])
+_NEVER = np.iinfo(np.int64).max // 4
+
+
+def _jit(parallel: bool = False) -> Callable[[F], F]:
+    # No fastmath: the plan must equal the numpy reference's bit for bit (a rounding apart can
+    # move a floor() -- a stride frame, a clip -- and so a contact flag).
+    def wrap(f: F) -> F:
+        if not AVAILABLE:
+            return f
+        return cast(F, numba.njit(cache=True, parallel=parallel, nogil=True)(f))
+    return wrap
+
+
+_prange: Any = numba.prange if AVAILABLE else range
+
+
+@dataclass(frozen=True)
+class Tables:
+    """The bank and piece kinds as flat arrays (see ``synthesis._Kinds``)."""
+
+    offset: NDArray[np.int64]
+    frames: NDArray[np.int64]
+    clips: NDArray[np.int64]
+    cyclic: NDArray[np.bool_]
+    source: NDArray[np.int64]
+    target: NDArray[np.int64]
+    tr_kind: NDArray[np.int64]  # (5, 5)
+    entry: NDArray[np.int64]  # (5, 5)
+    exit: NDArray[np.int64]  # (5, 5)
+    total: NDArray[np.float64]  # per kind: a transition's distance
+    low: NDArray[np.float64]  # per hub: lowest speed it covers (inf: none)
+    high: NDArray[np.float64]  # per hub: highest speed it covers (-inf: none)
+    curve_at: NDArray[np.int64]  # (kinds, 2): per kind, where its curve sits in ``curves`` and its length
+    curves: NDArray[np.float64]  # hubs: clip speeds; transitions: their frames' progress
+
+
+def tables(bank: Bank, kinds: _Kinds, total: NDArray[np.float64], low: NDArray[np.float64],
+           high: NDArray[np.float64]) -> Tables:
+    n = len(kinds.frames)
+    curve_at = np.zeros((n, 2), np.int64)
+    parts: list[NDArray[np.float64]] = []
+    at = 0
+    sources = [(hub, s) for hub, s in bank.speeds.items()]
+    sources += [(int(kinds.tr_kind[a, b]), d) for (a, b), d in bank.progress.items()]
+    for k, curve in sources:
+        curve_at[k] = at, len(curve)
+        parts.append(np.asarray(curve, np.float64))
+        at += len(curve)
+    flat = np.concatenate(parts) if parts else np.zeros(0)
+    return Tables(kinds.offset, kinds.frames, kinds.clips, kinds.cyclic, kinds.source, kinds.target,
+                  kinds.tr_kind, kinds.entry, kinds.exit, total, low, high, curve_at, flat)
+
+
+@_jit()
+def _interp(x: float, xp: Any) -> float:
+    """np.interp(x, xp, arange(len(xp))) for one x, as numpy computes it (same branches, same
+    operations): the last j with xp[j] <= x, then the slope form."""
+    n = len(xp)
+    if x < xp[0]:
+        return 0.0
+    if x > xp[n - 1]:
+        return float(n - 1)
+    lo, hi = 0, n
+    while lo < hi:
+        mid = lo + ((hi - lo) >> 1)
+        if x >= xp[mid]:
+            lo = mid + 1
+        else:
+            hi = mid
+    j = lo - 1
+    if j == n - 1 or xp[j] == x:
+        return float(j)
+    slope = (float(j + 1) - float(j)) / (xp[j + 1] - xp[j])
+    return slope * (x - xp[j]) + float(j)
+
+
+@_jit()
+def _clocks(v: Any, low: Any, high: Any, max_rate: float, out: Any) -> None:
+    """stride_clocks for one character: ``out (N_HUBS + 1, T + 1)``."""
+    T = v.shape[0]
+    for hub in range(out.shape[0]):
+        has = hub < len(high) and high[hub] > -np.inf and hub != STATIC
+        acc = 0.0
+        out[hub, 0] = 0.0
+        for t in range(T):
+            if has:
+                acc += min(max(v[t] / high[hub], 1.0), max_rate)
+            else:
+                acc = float(t + 1)
+            out[hub, t + 1] = acc
+
+
+@_jit()
+def _choose(current: int, speed: float, draws: Any, low: Any, high: Any, slowest: int, fastest: int) -> int:
+    """synthesis._choose for one character (``low``, ``high``: synthesis.coverage)."""
+    best, pick, any_cover = -1.0, 0, False
+    cover_current = False
+    for hub in range(len(low)):
+        if hub == STATIC:
+            covered = speed < low[slowest]
+        else:
+            covered = speed >= low[hub] - 1e-9 and speed <= high[hub] + 1e-9
+        any_cover = any_cover or covered
+        if covered and hub == current:
+            cover_current = True
+        if covered and draws[hub] > best:
+            best, pick = draws[hub], hub
+    if not any_cover:  # faster than the fastest gait
+        if current == fastest:
+            return current
+        pick = fastest  # the only one covered
+    if cover_current:
+        return current
+    return current + (1 if pick > current else (-1 if pick < current else 0))
+
+
+@_jit()
+def _schedule(tb_frames: Any, tr_kind: Any, entry: Any, exit_: Any, total: Any, low: Any, high: Any,
+              slowest: int, fastest: int, v: Any, travelled: Any, clocks: Any, draws: Any,
+              step: int, ahead: int, creep: float, start: Any, kind: Any, first: Any) -> None:
+    """synthesis.schedule for one character: ``start, kind, first (E,)`` filled."""
+    T = v.shape[0]
+    K = draws.shape[0]
+    start[:] = _NEVER
+    kind[:] = 0
+    first[:] = 0
+    start[0] = 0
+    count, current, busy = 1, 0, 0
+    for k in range(K):
+        a = k * step
+        nxt = _choose(current, v[min(a + ahead, T - 1)], draws[k], low, high, slowest, fastest)
+        if not (busy < a + step and nxt != current):
+            continue
+        cur, new, last = current, nxt, count - 1
+        d = max(a, busy)
+        clock = clocks[cur]
+        played = clock[d] - clock[start[last]]
+        frames = tb_frames[cur]
+        phase = np.int64(math.floor(first[last] + played + 0.5)) % frames
+        wait = 0 if cur == STATIC else (entry[cur, new] - phase) % frames
+        tr = tr_kind[cur, new]
+        resume = 0 if new == STATIC else (exit_[cur, new] + 1) % tb_frames[new]
+        due = clock[d] + wait - 1e-9
+        begin = len(clock)
+        for t in range(d, len(clock)):
+            if clock[t] >= due:
+                begin = t
+                break
+        at = travelled[min(max(begin, 0), T - 1)]
+        end = T + tb_frames[tr]
+        for t in range(begin + 1, T):
+            if travelled[t] - at + creep * (t - begin) >= total[tr]:
+                end = t
+                break
+        start[last + 1], kind[last + 1], first[last + 1] = begin, tr, 0
+        start[last + 2], kind[last + 2], first[last + 2] = end, new, resume
+        count += 2
+        busy = end
+        current = new
+
+
+@_jit()
+def _row(kind: int, local: int, speed: float, walked: float, has_walked: bool, offset: Any, frames_of: Any,
+         clips: Any, cyclic: Any, curve_at: Any, curves: Any) -> Any:
+    """synthesis._rows for one (character, frame): (row 0, row 1, the second's weight)."""
+    frames = frames_of[kind]
+    if cyclic[kind]:
+        frame = local % frames
+    else:
+        frame = min(max(local, 0), frames - 1)
+    clip0 = 0
+    weight = 0.0
+    at, n = curve_at[kind, 0], curve_at[kind, 1]
+    if n > 0:
+        curve = curves[at:at + n]
+        if cyclic[kind]:  # a gait: the clips around the speed
+            u = _interp(speed, curve)
+            clip0 = min(np.int64(math.floor(u)), n - 2) if n > 1 else 0
+            weight = u - clip0
+        elif has_walked:  # a transition: the frames around the distance walked
+            f = _interp(walked, curve)
+            frame = min(np.int64(math.floor(f)), n - 1)
+            weight = f - frame
+    clip1 = min(clip0 + 1, clips[kind] - 1)
+    base = offset[kind] + frame
+    step = clip1 * frames if cyclic[kind] else min(frame + 1, frames - 1) - frame
+    return base + clip0 * frames, base + step, weight
+
+
+@_jit()
+def _frames(offset: Any, frames_of: Any, clips: Any, cyclic: Any, source: Any, target: Any, curve_at: Any,
+            curves: Any, contacts_of: Any, margin: int, n_hubs: int, v: Any, travelled: Any, clocks: Any,
+            creep: float, start: Any, kind_e: Any, first_e: Any, rows: Any, weights: Any, gait: Any,
+            contacts: Any, stitches: Any) -> None:
+    """The rest of synthesis.plan for one character: which piece plays each frame, its rows, the
+    piece fading out, gait, contacts and stitches."""
+    T = v.shape[0]
+    E = start.shape[0]
+    e = 0
+    for t in range(T):
+        moved = False
+        while e + 1 < E and min(start[e + 1], T + 1) <= t:
+            e += 1
+            moved = True
+        stitches[t] = moved and t >= 1
+        kind = kind_e[e]
+        row = min(kind, n_hubs)
+        s0 = start[e]
+        local = np.int64(math.floor(first_e[e] + clocks[row, t] - clocks[row, min(max(s0, 0), T)] + 0.5))
+        walked = travelled[t] - travelled[min(max(s0, 0), T - 1)] + creep * local
+        r0, r1, w = _row(kind, local, v[t], walked, True, offset, frames_of, clips, cyclic, curve_at, curves)
+        rows[t, 0], rows[t, 1], weights[t, 0] = r0, r1, w
+        rows[t, 2], rows[t, 3], weights[t, 1] = r0, r1, w
+        weights[t, 2] = 0.0
+        since = t - s0
+        if e >= 1 and since < margin:
+            pk = kind_e[e - 1]
+            pr = min(pk, n_hubs)
+            p_local = np.int64(math.floor(first_e[e - 1] + clocks[pr, t]
+                                          - clocks[pr, min(max(start[e - 1], 0), T)] + 0.5))
+            if not cyclic[pk]:  # a finished transition stays at its end
+                p_local = np.iinfo(np.int32).max
+            p0, p1, pw = _row(pk, p_local, v[t], 0.0, False, offset, frames_of, clips, cyclic, curve_at, curves)
+            u = (since + 1) / (margin + 1)
+            rows[t, 2], rows[t, 3], weights[t, 1] = p0, p1, pw
+            weights[t, 2] = 1 - u * u * (3 - 2 * u)
+        first_half = (r0 - offset[kind]) < frames_of[kind] // 2
+        gait[t] = source[kind] if first_half else target[kind]
+        for f in range(4):
+            contacts[t, f] = contacts_of[r0, f]
+
+
+@_jit(parallel=True)
+def _plan_all(offset: Any, frames_of: Any, clips: Any, cyclic: Any, source: Any, target: Any, tr_kind: Any,
+              entry: Any, exit_: Any, total: Any, low: Any, high: Any, curve_at: Any, curves: Any,
+              contacts_of: Any, slowest: int, fastest: int, max_rate: float, margin: int,
+              n_hubs: int, step: int, ahead: int, creep: float, v: Any, path: Any, h: Any, draws: Any,
+              workers: int, rows: Any, weights: Any, gait: Any, contacts: Any, stitches: Any) -> None:
+    C, T = v.shape
+    E = 1 + 2 * draws.shape[1]
+    workers = min(C, workers)
+    for worker in _prange(workers):
+        clocks = np.empty((n_hubs + 1, T + 1))
+        travelled = np.empty(T)
+        start = np.empty(E, np.int64)
+        kind = np.empty(E, np.int64)
+        first = np.empty(E, np.int64)
+        for c in range(worker, C, workers):
+            _clocks(v[c], low, high, max_rate, clocks)
+            acc = 0.0
+            travelled[0] = 0.0
+            for t in range(1, T):
+                dx = path[c, t, 0] - path[c, t - 1, 0]
+                dz = path[c, t, 2] - path[c, t - 1, 2]
+                acc += math.sqrt(dx * dx + dz * dz)
+                travelled[t] = acc / h[c]
+            _schedule(frames_of, tr_kind, entry, exit_, total, low, high, slowest, fastest, v[c],
+                      travelled, clocks, draws[c], step, ahead, creep, start, kind, first)
+            _frames(offset, frames_of, clips, cyclic, source, target, curve_at, curves, contacts_of, margin,
+                    n_hubs, v[c], travelled, clocks, creep, start, kind, first, rows[c], weights[c], gait[c],
+                    contacts[c], stitches[c])
+
+
+def plan_frames(tb: Tables, contacts_of: NDArray[np.bool_], slowest: int, fastest: int, max_rate: float,
+                margin: int, step: int, ahead: int, creep: float, v: NDArray[np.float64],
+                path: NDArray[np.float64], h: NDArray[np.float64], draws: NDArray[np.float64]
+                ) -> tuple[NDArray[np.int32], NDArray[np.float32], NDArray[np.int8], NDArray[np.bool_],
+                           NDArray[np.bool_]]:
+    """A plan's ``rows, weights, gait, contacts, stitches`` (see ``synthesis.Plan``) for speeds
+    ``v (C, T)`` (the library's unit), smoothed ``path (C, T, 3)``, scales ``h (C,)`` and each
+    decision's draws ``(C, decisions, hubs)``."""
+    if not AVAILABLE:
+        raise RuntimeError("synth_core.plan_kernels needs numba; use the numpy backend")
+    C, T = v.shape
+    rows = np.empty((C, T, 4), np.int32)
+    weights = np.empty((C, T, 3), np.float32)
+    gait = np.empty((C, T), np.int8)
+    contacts = np.empty((C, T, 4), bool)
+    stitches = np.empty((C, T), bool)
+    c = np.ascontiguousarray
+    _plan_all(tb.offset, tb.frames, tb.clips, tb.cyclic, tb.source, tb.target, tb.tr_kind, tb.entry, tb.exit,
+              tb.total, tb.low, tb.high, tb.curve_at, tb.curves, contacts_of, slowest, fastest, max_rate,
+              margin, len(tb.low), step, ahead, creep, c(v, np.float64), c(path, np.float64),
+              c(h, np.float64), c(draws), numba.get_num_threads(), rows, weights, gait, contacts, stitches)
+    return rows, weights, gait, contacts, stitches
