@@ -82,7 +82,7 @@ def synthesize_onthefly(bank: Bank, library: Library, positions: ArrayLike, fps:
                         ids: list[str] | None = None) -> Result:
     """:func:`synth_core.synthesis.synthesize`, each gait segment's clip made at run time."""
     prep, h, keys = prepare_batch(bank, positions, fps, scales, options, ids)
-    p = plan(bank, prep, h, keys, options.margin)
+    p = plan(bank, prep, h, keys, options.margin, compiled=compiled_backend(options))
     T = p.rows.shape[1]
     segment = np.minimum(np.arange(T) // prep.segment, prep.segment_speeds.shape[1] - 1)
     segment = np.broadcast_to(segment[None, :], p.rows.shape[:2])

@@ -122,7 +122,8 @@ class BatchStream:
 
     def _whole_plan(self) -> Plan:
         if self._plan is None:
-            self._plan = plan(self.bank, self.prep, self.character_scales, self.keys, self.options.margin)
+            self._plan = plan(self.bank, self.prep, self.character_scales, self.keys, self.options.margin,
+                              compiled=compiled_backend(self.options))
         return self._plan
 
     def _render(self, p: Plan, start: int, stop: int,
@@ -148,7 +149,7 @@ class BatchStream:
         # The first window from a plan of its own frames and its lock context's, if that is enough.
         reach = first_stop + PAD + FIRST_PLAN_STRIDES * int(self.bank.mean_cycle)
         early = plan(self.bank, self.prep, self.character_scales, self.keys, self.options.margin,
-                     frames=reach)
+                     frames=reach, compiled=compiled_backend(self.options))
         begin_end = lock_context(early.contacts, 0, first_stop) if self.options.foot_lock else None
         if early.yaw.shape[1] < T and begin_end is not None and begin_end[1].max() >= early.yaw.shape[1]:
             early = self._whole_plan()  # a plant runs past it: plan it all now
