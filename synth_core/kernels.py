@@ -19,6 +19,7 @@ One character, in four passes over its frames:
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any, TypeVar, cast
@@ -533,9 +534,12 @@ def _plan_arrays(plan: Plan) -> tuple[Any, Any, Any, Any, Any, Any]:
             c(plan.contacts))
 
 
-def _skeleton_tables(bank: Bank) -> tuple[Any, Any, Any, Any, Any, float]:
-    """The skeleton's arrays as the kernels take them: parents, offsets, the joints above the
-    feet (FK needs no others), the legs' rig table, bend axes, the sink limit."""
+@functools.lru_cache(maxsize=16)
+def _bank_tables(bank: Bank) -> tuple[Any, ...]:
+    """The bank's arrays as the kernels take them (made once per bank: a small batch's call
+    would otherwise spend a third of its time here): pose table, heights and surges, parents,
+    offsets, the joints above the feet (FK needs no others), the legs' rig table, bend axes,
+    the sink limit."""
     sk = bank.skeleton
     rigs = limb_rigs(sk)
     rig_table = np.array([[r.upper, r.hinge, r.ankle, r.effector] for r in rigs], np.int64)
@@ -545,7 +549,8 @@ def _skeleton_tables(bank: Bank) -> tuple[Any, Any, Any, Any, Any, float]:
         while j >= 0:
             needed[j] = True
             j = int(sk.parents[j])
-    return (sk.parents.astype(np.int64), sk.offsets.astype(np.float64),
+    return (bank.poses, bank.height.astype(np.float64), bank.surge.astype(np.float64),
+            sk.parents.astype(np.int64), sk.offsets.astype(np.float64),
             np.flatnonzero(needed).astype(np.int64), rig_table, np.asarray(bank.bends, np.float64),
             MAX_SINK * sk.leg_length())
 
@@ -562,8 +567,8 @@ def render_window(bank: Bank, plan: Plan, start: int, stop: int, begin: NDArray[
     J = bank.skeleton.n_joints
     out_root = np.empty((C, stop - start, 3), np.float64)
     out_rot = np.empty((C, stop - start, J, 4), np.float32)
-    _render_windows(bank.poses, bank.height.astype(np.float64), bank.surge.astype(np.float64),
-                    *_plan_arrays(plan), *_skeleton_tables(bank), foot_lock, numba.get_num_threads(),
+    poses, height, surge, *skeleton = _bank_tables(bank)
+    _render_windows(poses, height, surge, *_plan_arrays(plan), *skeleton, foot_lock, numba.get_num_threads(),
                     np.asarray(begin, np.int64), np.asarray(end, np.int64), start, out_rot, out_root)
     return out_root.astype(np.float32), out_rot
 
@@ -579,9 +584,9 @@ def render(bank: Bank, plan: Plan, foot_lock: bool = True,
     J = bank.skeleton.n_joints
     out_root = np.empty((C, T, 3), np.float64)
     out_rot = np.empty((C, T, J, 4), np.float32) if out is None else out[1]
-    _render_all(bank.poses, bank.height.astype(np.float64), bank.surge.astype(np.float64),
-                *_plan_arrays(plan), *_skeleton_tables(bank), foot_lock, numba.get_num_threads(), out_rot,
-                out_root)
+    poses, height, surge, *skeleton = _bank_tables(bank)
+    _render_all(poses, height, surge, *_plan_arrays(plan), *skeleton, foot_lock, numba.get_num_threads(),
+                out_rot, out_root)
     assert UP_AXIS == 1  # the kernels index Y directly
     if out is None:
         return out_root.astype(np.float32), out_rot

@@ -28,6 +28,7 @@ compiled :mod:`synth_core.kernels`, which synthesis uses when numba is installed
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 
@@ -96,6 +97,7 @@ class _Kinds:
     exit: NDArray[np.int64]  # (5, 5)
 
 
+@functools.lru_cache(maxsize=16)  # per bank (identity): made once, not per plan
 def _kinds(bank: Bank) -> _Kinds:
     pieces = [bank.gaits.get(h, bank.idle) if h else bank.idle for h in range(N_HUBS)]
     trs = sorted(bank.transitions.items())
@@ -123,6 +125,12 @@ def coverage(bank: Bank) -> tuple[Floats, Floats]:
     slowest = min(bank.speeds)
     low[slowest] = STAND_SHARE * low[slowest]
     return low, high
+
+
+@functools.lru_cache(maxsize=16)
+def _plan_tables(bank: Bank) -> plan_kernels.Tables:
+    kinds = _kinds(bank)
+    return plan_kernels.tables(bank, kinds, transition_distances(bank, kinds), *coverage(bank))
 
 
 def _choose(bank: Bank, current: NDArray[np.int64], speed: Floats,
@@ -354,14 +362,14 @@ def headings(path: Floats, fps: float) -> Floats:
     """(C, T) yaw (about +Y, 0 = +Z) of the path's tangent, held where the character moves
     slower than MIN_TURN_SPEED (a standing animal does not spin with its trajectory's jitter);
     before it first moves, the heading it first moves in."""
-    d = np.gradient(path[..., [0, 2]], axis=1)
-    moving = np.linalg.norm(d, axis=-1) * fps >= MIN_TURN_SPEED
-    T = path.shape[1]
+    dx, dz = np.gradient(path[..., 0], axis=1), np.gradient(path[..., 2], axis=1)
+    moving = np.sqrt(dx * dx + dz * dz) * fps >= MIN_TURN_SPEED
+    C, T = moving.shape
     idx = np.maximum.accumulate(np.where(moving, np.arange(T), -1), axis=1)
     first = np.where(moving.any(axis=1), moving.argmax(axis=1), 0)
     idx = np.where(idx < 0, first[:, None], idx)
-    d = np.take_along_axis(d, idx[..., None], axis=1)
-    return np.asarray(np.arctan2(d[..., 0], d[..., 1]))
+    yaw = np.arctan2(dx, dz)
+    return np.asarray(yaw.ravel()[idx + (np.arange(C) * T)[:, None]])
 
 
 @dataclass(frozen=True, eq=False)
@@ -414,8 +422,7 @@ def plan(bank: Bank, prep: Prepared, h: Floats, keys: NDArray[np.uint64], margin
         T = keep + lookahead(m) + 1
         path, v, yaw = path[:, :T], v[:, :T], yaw[:, :T]
     if compiled:
-        low, high = coverage(bank)
-        tb = plan_kernels.tables(bank, kinds, transition_distances(bank, kinds), low, high)
+        tb = _plan_tables(bank)
         step = decision_step(m)
         draws = uniform_streams(keys, SCHEDULE_STREAM, -(-T // step), N_HUBS)
         rows, weights, gait, contacts, stitches = plan_kernels.plan_frames(
@@ -574,8 +581,7 @@ def synthesize(bank: Bank, positions: ArrayLike, fps: float | None = None,
     stitches = np.empty((C, T), bool)
     for a in range(0, C, CHUNK):
         sl = slice(a, min(a + CHUNK, C))
-        part = replace(prep, positions=prep.positions[sl], raw=prep.raw[sl],
-                       segment_speeds=prep.segment_speeds[sl])
+        part = replace(prep, positions=prep.positions[sl], segment_speeds=prep.segment_speeds[sl])
         p = plan(bank, part, h[sl], keys[sl], options.margin, compiled=compiled)
         if compiled:
             # Touch the chunk's output pages here, in one thread, before the kernel's workers write
