@@ -11,11 +11,11 @@ import contextlib
 import logging
 import signal
 import threading
-from collections.abc import AsyncIterator
+from collections.abc import AsyncIterator, Callable
 from concurrent.futures import ThreadPoolExecutor
 from contextlib import asynccontextmanager
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 from fastapi import FastAPI, Request, WebSocket
 from fastapi.exceptions import RequestValidationError
@@ -44,6 +44,9 @@ from service.metrics import Metrics, MetricsMiddleware
 from service.packing import characters_out, skeleton_id
 from service.settings import Settings
 from synth_core.motion_graph import HUBS
+from synth_core.synthesis import Result
+
+Answer = TypeVar("Answer")
 
 log = logging.getLogger("quadsynth.service")
 
@@ -97,15 +100,17 @@ class State:
         self.held.set()
         self.hold.wait()
 
-    async def synthesize(self, job: jobs.Job) -> tuple[Any, float]:
-        """Run ``job`` in the pool within the deadline (504 after; the work stops at its next chunk)."""
+    async def synthesize(self, job: jobs.Job, finish: Callable[[Result, float], Answer]) -> Answer:
+        """Run ``job`` in the pool within the deadline (504 after; the work stops at its next
+        chunk), then ``finish(result, seconds)`` there too: packing and encoding 10 million
+        rotations is CPU work as well, and on the event loop it held /livez for a tenth of a second."""
         bank = self.registry.banks[job.request.animal]
         loop = asyncio.get_running_loop()
 
-        def work() -> tuple[Any, float]:
+        def work() -> Answer:
             if self.settings.test_hooks:
                 self._held()
-            return jobs.run(job, bank)
+            return finish(*jobs.run(job, bank))
 
         future = loop.run_in_executor(self.pool, work)
         try:
@@ -277,21 +282,26 @@ def create_app(directory: Path | None = None, settings: Settings | None = None) 
             raise ApiError(503, "", "libraries are still loading", headers={"Retry-After": "1"})
         raw = await body.read_body(request, settings.max_body_bytes)
         job = jobs.parse(body.decode(raw, request.headers.get("content-type")), settings, registry.banks)
+        req = job.request
+        as_msgpack = body.wants_msgpack(request)
+
+        def answer(result: Result, seconds: float) -> tuple[Response, int, float]:
+            frames = jobs.output_frames(job, result)
+            lib = registry.libraries[req.animal]
+            ids = [job.ids[c] for c in result.kept]
+            reply = {"animal": req.animal, "skeleton_id": skeleton_id(req.animal, lib.skeleton),
+                     "fps": registry.banks[req.animal].fps, "encoding": req.encoding,
+                     "resample_rate": result.resample_rate,
+                     "characters": characters_out(result, ids, frames, req.encoding),
+                     "skipped": jobs.skipped(job, result)}
+            return body.encode(reply, as_msgpack), sum(frames), seconds
+
         async with state.admission.slot():
-            result, seconds = await state.synthesize(job)
-        frames = jobs.output_frames(job, result)
-        state.metrics.character_frames += sum(frames)
+            response, character_frames, seconds = await state.synthesize(job, answer)
+        state.metrics.character_frames += character_frames
         state.metrics.synthesis_seconds += seconds
         state.metrics.syntheses += 1
-        req = job.request
-        lib = registry.libraries[req.animal]
-        ids = [job.ids[c] for c in result.kept]
-        answer = {"animal": req.animal, "skeleton_id": skeleton_id(req.animal, lib.skeleton),
-                  "fps": registry.banks[req.animal].fps, "encoding": req.encoding,
-                  "resample_rate": result.resample_rate,
-                  "characters": characters_out(result, ids, frames, req.encoding),
-                  "skipped": jobs.skipped(job, result)}
-        return body.encode(answer, body.wants_msgpack(request))
+        return response
 
     @app.websocket("/v1/stream")
     async def stream_route(ws: WebSocket) -> None:

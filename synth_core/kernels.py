@@ -22,7 +22,7 @@ from __future__ import annotations
 import functools
 import math
 from collections.abc import Callable
-from typing import TYPE_CHECKING, Any, TypeVar, cast
+from typing import TYPE_CHECKING, Any, Literal, TypeVar, cast
 
 import numpy as np
 from numpy.typing import NDArray
@@ -47,7 +47,7 @@ _EPS = 1e-9
 F = TypeVar("F", bound=Callable[..., Any])
 
 
-def _jit(parallel: bool = False, inline: str = "never") -> Callable[[F], F]:
+def _jit(parallel: bool = False, inline: Literal["never", "always"] = "never") -> Callable[[F], F]:
     # nogil: a service calls these from a worker thread; its event loop must keep answering.
     def wrap(f: F) -> F:
         if not AVAILABLE:
@@ -535,11 +535,11 @@ def _plan_arrays(plan: Plan) -> tuple[Any, Any, Any, Any, Any, Any]:
 
 
 @functools.lru_cache(maxsize=16)
-def _bank_tables(bank: Bank) -> tuple[Any, ...]:
+def _bank_tables(bank: Bank) -> tuple[tuple[Any, Any, Any], tuple[Any, Any, Any, Any, Any, float]]:
     """The bank's arrays as the kernels take them (made once per bank: a small batch's call
-    would otherwise spend a third of its time here): pose table, heights and surges, parents,
+    would otherwise spend a third of its time here): (pose table, heights, surges) and (parents,
     offsets, the joints above the feet (FK needs no others), the legs' rig table, bend axes,
-    the sink limit."""
+    the sink limit)."""
     sk = bank.skeleton
     rigs = limb_rigs(sk)
     rig_table = np.array([[r.upper, r.hinge, r.ankle, r.effector] for r in rigs], np.int64)
@@ -549,10 +549,10 @@ def _bank_tables(bank: Bank) -> tuple[Any, ...]:
         while j >= 0:
             needed[j] = True
             j = int(sk.parents[j])
-    return (bank.poses, bank.height.astype(np.float64), bank.surge.astype(np.float64),
-            sk.parents.astype(np.int64), sk.offsets.astype(np.float64),
-            np.flatnonzero(needed).astype(np.int64), rig_table, np.asarray(bank.bends, np.float64),
-            MAX_SINK * sk.leg_length())
+    return ((bank.poses, bank.height.astype(np.float64), bank.surge.astype(np.float64)),
+            (sk.parents.astype(np.int64), sk.offsets.astype(np.float64),
+             np.flatnonzero(needed).astype(np.int64), rig_table, np.asarray(bank.bends, np.float64),
+             MAX_SINK * sk.leg_length()))
 
 
 def render_window(bank: Bank, plan: Plan, start: int, stop: int, begin: NDArray[np.int64],
@@ -567,8 +567,8 @@ def render_window(bank: Bank, plan: Plan, start: int, stop: int, begin: NDArray[
     J = bank.skeleton.n_joints
     out_root = np.empty((C, stop - start, 3), np.float64)
     out_rot = np.empty((C, stop - start, J, 4), np.float32)
-    poses, height, surge, *skeleton = _bank_tables(bank)
-    _render_windows(poses, height, surge, *_plan_arrays(plan), *skeleton, foot_lock, numba.get_num_threads(),
+    table, skeleton = _bank_tables(bank)
+    _render_windows(*table, *_plan_arrays(plan), *skeleton, foot_lock, numba.get_num_threads(),
                     np.asarray(begin, np.int64), np.asarray(end, np.int64), start, out_rot, out_root)
     return out_root.astype(np.float32), out_rot
 
@@ -584,9 +584,8 @@ def render(bank: Bank, plan: Plan, foot_lock: bool = True,
     J = bank.skeleton.n_joints
     out_root = np.empty((C, T, 3), np.float64)
     out_rot = np.empty((C, T, J, 4), np.float32) if out is None else out[1]
-    poses, height, surge, *skeleton = _bank_tables(bank)
-    _render_all(poses, height, surge, *_plan_arrays(plan), *skeleton, foot_lock, numba.get_num_threads(),
-                out_rot, out_root)
+    table, skeleton = _bank_tables(bank)
+    _render_all(*table, *_plan_arrays(plan), *skeleton, foot_lock, numba.get_num_threads(), out_rot, out_root)
     assert UP_AXIS == 1  # the kernels index Y directly
     if out is None:
         return out_root.astype(np.float32), out_rot

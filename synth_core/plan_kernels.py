@@ -107,7 +107,7 @@ def _interp(x: float, xp: Any) -> float:
     if j == n - 1 or xp[j] == x:
         return float(j)
     slope = (float(j + 1) - float(j)) / (xp[j + 1] - xp[j])
-    return slope * (x - xp[j]) + float(j)
+    return float(slope * (x - xp[j]) + float(j))
 
 
 @_jit()
@@ -172,7 +172,7 @@ def _schedule(tb_frames: Any, tr_kind: Any, entry: Any, exit_: Any, total: Any, 
         clock = clocks[cur]
         played = clock[d] - clock[start[last]]
         frames = tb_frames[cur]
-        phase = np.int64(math.floor(first[last] + played + 0.5)) % frames
+        phase = int(math.floor(first[last] + played + 0.5)) % frames
         wait = 0 if cur == STATIC else (entry[cur, new] - phase) % frames
         tr = tr_kind[cur, new]
         resume = 0 if new == STATIC else (exit_[cur, new] + 1) % tb_frames[new]
@@ -211,11 +211,11 @@ def _row(kind: int, local: int, speed: float, walked: float, has_walked: bool, o
         curve = curves[at:at + n]
         if cyclic[kind]:  # a gait: the clips around the speed
             u = _interp(speed, curve)
-            clip0 = min(np.int64(math.floor(u)), n - 2) if n > 1 else 0
+            clip0 = min(int(math.floor(u)), n - 2) if n > 1 else 0
             weight = u - clip0
         elif has_walked:  # a transition: the frames around the distance walked
             f = _interp(walked, curve)
-            frame = min(np.int64(math.floor(f)), n - 1)
+            frame = min(int(math.floor(f)), n - 1)
             weight = f - frame
     clip1 = min(clip0 + 1, clips[kind] - 1)
     base = offset[kind] + frame
@@ -242,7 +242,7 @@ def _frames(offset: Any, frames_of: Any, clips: Any, cyclic: Any, source: Any, t
         kind = kind_e[e]
         row = min(kind, n_hubs)
         s0 = start[e]
-        local = np.int64(math.floor(first_e[e] + clocks[row, t] - clocks[row, min(max(s0, 0), T)] + 0.5))
+        local = int(math.floor(first_e[e] + clocks[row, t] - clocks[row, min(max(s0, 0), T)] + 0.5))
         walked = travelled[t] - travelled[min(max(s0, 0), T - 1)] + creep * local
         r0, r1, w = _row(kind, local, v[t], walked, True, offset, frames_of, clips, cyclic, curve_at, curves)
         rows[t, 0], rows[t, 1], weights[t, 0] = r0, r1, w
@@ -252,11 +252,12 @@ def _frames(offset: Any, frames_of: Any, clips: Any, cyclic: Any, source: Any, t
         if e >= 1 and since < margin:
             pk = kind_e[e - 1]
             pr = min(pk, n_hubs)
-            p_local = np.int64(math.floor(first_e[e - 1] + clocks[pr, t]
+            p_local = int(math.floor(first_e[e - 1] + clocks[pr, t]
                                           - clocks[pr, min(max(start[e - 1], 0), T)] + 0.5))
             if not cyclic[pk]:  # a finished transition stays at its end
                 p_local = np.iinfo(np.int32).max
-            p0, p1, pw = _row(pk, p_local, v[t], 0.0, False, offset, frames_of, clips, cyclic, curve_at, curves)
+            p0, p1, pw = _row(pk, p_local, v[t], 0.0, False, offset, frames_of, clips, cyclic, curve_at,
+                              curves)
             u = (since + 1) / (margin + 1)
             rows[t, 2], rows[t, 3], weights[t, 1] = p0, p1, pw
             weights[t, 2] = 1 - u * u * (3 - 2 * u)
