@@ -111,8 +111,9 @@ def _interp(x: float, xp: Any) -> float:
 
 
 @_jit()
-def _clocks(v: Any, low: Any, high: Any, max_rate: float, out: Any) -> None:
-    """stride_clocks for one character: ``out (N_HUBS + 1, T + 1)``."""
+def _clocks(v: Any, high: Any, max_rate: float, out: Any) -> None:
+    """stride_clocks for one character: ``out (N_HUBS + 1, T + 1)`` (``high``: each hub's
+    fastest clip, -inf for none; the last row is every transition's: plain time)."""
     T = v.shape[0]
     for hub in range(out.shape[0]):
         has = hub < len(high) and high[hub] > -np.inf and hub != STATIC
@@ -283,7 +284,7 @@ def _plan_all(offset: Any, frames_of: Any, clips: Any, cyclic: Any, source: Any,
         kind = np.empty(E, np.int64)
         first = np.empty(E, np.int64)
         for c in range(worker, C, workers):
-            _clocks(v[c], low, high, max_rate, clocks)
+            _clocks(v[c], high, max_rate, clocks)
             acc = 0.0
             travelled[0] = 0.0
             for t in range(1, T):

@@ -22,8 +22,9 @@ the only Python loops run over segments (a dozen) and gaits (four):
    clip's times h. Sideways sway of the clips is dropped: the path is the caller's.
 5. **Foot lock** (:mod:`synth_core.footlock`) pins each planted foot where it lands.
 
-Steps 1-2 make a :class:`Plan` (numpy); :func:`render` does 3-5 in numpy, the reference of the
-compiled :mod:`synth_core.kernels`, which synthesis uses when numba is installed.
+Steps 1-2 make a :class:`Plan` (numpy here, the reference of the compiled
+:mod:`synth_core.plan_kernels`); :func:`render` does 3-5 in numpy, the reference of the compiled
+:mod:`synth_core.kernels`. Synthesis uses the compiled ones when numba is installed.
 """
 
 from __future__ import annotations
@@ -97,7 +98,7 @@ class _Kinds:
     exit: NDArray[np.int64]  # (5, 5)
 
 
-@functools.lru_cache(maxsize=16)  # per bank (identity): made once, not per plan
+@functools.lru_cache(maxsize=8)  # per bank (identity): made once, not per plan
 def _kinds(bank: Bank) -> _Kinds:
     pieces = [bank.gaits.get(h, bank.idle) if h else bank.idle for h in range(N_HUBS)]
     trs = sorted(bank.transitions.items())
@@ -127,7 +128,7 @@ def coverage(bank: Bank) -> tuple[Floats, Floats]:
     return low, high
 
 
-@functools.lru_cache(maxsize=16)
+@functools.lru_cache(maxsize=8)
 def _plan_tables(bank: Bank) -> plan_kernels.Tables:
     kinds = _kinds(bank)
     return plan_kernels.tables(bank, kinds, transition_distances(bank, kinds), *coverage(bank))
