@@ -52,17 +52,10 @@ _prange: Any = numba.prange if AVAILABLE else range
 
 @dataclass(frozen=True)
 class Tables:
-    """The bank and piece kinds as flat arrays (see ``synthesis._Kinds``)."""
+    """What the compiled plan reads of the bank: the piece kinds, and as flat arrays per kind
+    what the reference finds in the bank's dicts."""
 
-    offset: NDArray[np.int64]
-    frames: NDArray[np.int64]
-    clips: NDArray[np.int64]
-    cyclic: NDArray[np.bool_]
-    source: NDArray[np.int64]
-    target: NDArray[np.int64]
-    tr_kind: NDArray[np.int64]  # (5, 5)
-    entry: NDArray[np.int64]  # (5, 5)
-    exit: NDArray[np.int64]  # (5, 5)
+    kinds: _Kinds
     total: NDArray[np.float64]  # per kind: a transition's distance
     low: NDArray[np.float64]  # per hub: lowest speed it covers (inf: none)
     high: NDArray[np.float64]  # per hub: highest speed it covers (-inf: none)
@@ -83,8 +76,7 @@ def tables(bank: Bank, kinds: _Kinds, total: NDArray[np.float64], low: NDArray[n
         parts.append(np.asarray(curve, np.float64))
         at += len(curve)
     flat = np.concatenate(parts) if parts else np.zeros(0)
-    return Tables(kinds.offset, kinds.frames, kinds.clips, kinds.cyclic, kinds.source, kinds.target,
-                  kinds.tr_kind, kinds.entry, kinds.exit, total, low, high, curve_at, flat)
+    return Tables(kinds, total, low, high, curve_at, flat)
 
 
 @_jit()
@@ -316,8 +308,9 @@ def plan_frames(tb: Tables, contacts_of: NDArray[np.bool_], slowest: int, fastes
     contacts = np.empty((C, T, 4), bool)
     stitches = np.empty((C, T), bool)
     c = np.ascontiguousarray
-    _plan_all(tb.offset, tb.frames, tb.clips, tb.cyclic, tb.source, tb.target, tb.tr_kind, tb.entry, tb.exit,
-              tb.total, tb.low, tb.high, tb.curve_at, tb.curves, contacts_of, slowest, fastest, max_rate,
+    k = tb.kinds
+    _plan_all(k.offset, k.frames, k.clips, k.cyclic, k.source, k.target, k.tr_kind, k.entry, k.exit, tb.total,
+              tb.low, tb.high, tb.curve_at, tb.curves, contacts_of, slowest, fastest, max_rate,
               margin, len(tb.low), step, ahead, creep, c(v, np.float64), c(path, np.float64),
               c(h, np.float64), c(draws), numba.get_num_threads(), rows, weights, gait, contacts, stitches)
     return rows, weights, gait, contacts, stitches
