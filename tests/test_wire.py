@@ -52,8 +52,17 @@ def test_s48_is_six_bytes_and_keeps_edge_cases() -> None:
 
 @pytest.mark.parametrize("encoding", ["s48", "i16"])
 def test_compiled_packers_give_the_reference_bytes(encoding: str) -> None:
-    q = random_rotations(50_000, seed=2).reshape(500, 100, 4)
-    assert np.array_equal(pack_rotations(q, encoding), encode_rotations(q, encoding))  # type: ignore[arg-type]
+    q = random_rotations(50_000, seed=2)
+    # Ties and edges too: components equal in size, on an axis, at +-1/sqrt 2, both signs.
+    rng = np.random.default_rng(3)
+    axes = np.eye(4, dtype=np.float32)[rng.integers(0, 4, 500)] * rng.choice([-1, 1], (500, 1))
+    steps = np.round(q[1000:3000] * 2) / 2
+    steps /= np.maximum(np.linalg.norm(steps, axis=1, keepdims=True), 1e-6)
+    q = np.concatenate([q[:1000], axes, steps, q[3000:]]).astype(np.float32)[:49_994].reshape(-1, 7, 4)  # not a whole number of blocks
+    packed = pack_rotations(q, encoding)  # type: ignore[arg-type]
+    assert np.array_equal(packed, encode_rotations(q, encoding))  # type: ignore[arg-type]
+    into = np.full_like(packed, 7)
+    assert pack_rotations(q, encoding, out=into) is into and np.array_equal(into, packed)  # type: ignore[arg-type]
 
 
 def test_blobs_round_trip_and_refuse_what_does_not_add_up() -> None:
