@@ -8,7 +8,7 @@ replica. Health and metrics routes never pass through here.
 from __future__ import annotations
 
 import asyncio
-from collections.abc import AsyncIterator
+from collections.abc import AsyncIterator, Callable
 from contextlib import asynccontextmanager
 
 from service.errors import ApiError
@@ -24,8 +24,10 @@ class Admission:
         self.metrics = metrics
         self.admitted = 0
 
-    @asynccontextmanager
-    async def slot(self) -> AsyncIterator[None]:
+    async def admit(self) -> Callable[[], None]:
+        """A running slot (waiting for one in the queue; 503 when that is full too), held until
+        the returned ``release`` is called (more calls do nothing): an answer sent in pieces
+        gives its slot back when its work is done, not when a slow client has read it all."""
         if self.admitted >= self.capacity:
             self.metrics.rejected["overloaded"] += 1
             raise ApiError(503, "", f"busy: {self.admitted} requests running or queued in this worker "
@@ -34,11 +36,32 @@ class Admission:
         self.admitted += 1
         self.metrics.in_flight = self.admitted
         try:
-            async with self.running:
-                yield
+            await self.running.acquire()
+        except BaseException:
+            self._leave()
+            raise
+        held = True
+
+        def release() -> None:
+            nonlocal held
+            if held:
+                held = False
+                self.running.release()
+                self._leave()
+
+        return release
+
+    def _leave(self) -> None:
+        self.admitted -= 1
+        self.metrics.in_flight = self.admitted
+
+    @asynccontextmanager
+    async def slot(self) -> AsyncIterator[None]:
+        release = await self.admit()
+        try:
+            yield
         finally:
-            self.admitted -= 1
-            self.metrics.in_flight = self.admitted
+            release()
 
     @asynccontextmanager
     async def turn(self) -> AsyncIterator[None]:

@@ -11,9 +11,11 @@ import contextlib
 import logging
 import signal
 import threading
+import time
 from collections.abc import AsyncIterator, Callable
 from concurrent.futures import ThreadPoolExecutor
 from contextlib import asynccontextmanager
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, TypeVar
 
@@ -36,14 +38,16 @@ from api_schemas import (
     SynthesizeResponse,
 )
 from api_schemas.wire import MSGPACK
-from service import body, jobs, stream
+from service import answer, body, jobs, stream
 from service.admission import Admission
+from service.body import PiecesResponse
 from service.errors import ApiError, handle_api_error, handle_http_error, handle_validation_error
 from service.libraries import LibraryRegistry, library_dir
 from service.metrics import Metrics, MetricsMiddleware
 from service.packing import characters_out, skeleton_id
 from service.settings import Settings
 from synth_core.motion_graph import HUBS
+from synth_core.scratch import Scratch
 from synth_core.synthesis import Result
 
 Answer = TypeVar("Answer")
@@ -95,10 +99,34 @@ class State:
         self.hold = threading.Event()
         self.held = threading.Event()
         self.hold.set()
+        self.local = threading.local()  # per pool thread: its Scratch
 
     def _held(self) -> None:
         self.held.set()
         self.hold.wait()
+
+    def _late(self, job: jobs.Job) -> ApiError:
+        job.cancel.set()  # the work stops at its next chunk
+        self.metrics.rejected["deadline"] += 1
+        limit = self.settings.deadline_s
+        return ApiError(504, "", f"synthesis took longer than the deadline of {limit:g} s (deadline_s); "
+                                 "send fewer characters or frames per request")
+
+    async def _run(self, job: jobs.Job, work: Callable[[], Answer], end: float) -> asyncio.Future[Answer]:
+        """``work`` admitted (503 when the queue is full; the wait counts against the deadline
+        ``end``, loop time) and started in the pool; its slot is given back when it is done."""
+        loop = asyncio.get_running_loop()
+        try:
+            release = await asyncio.wait_for(self.admission.admit(), max(end - loop.time(), 0.0))
+        except TimeoutError:
+            raise self._late(job) from None
+        try:
+            future = loop.run_in_executor(self.pool, work)
+        except BaseException:
+            release()
+            raise
+        future.add_done_callback(lambda _: release())
+        return future
 
     async def synthesize(self, job: jobs.Job, finish: Callable[[Result, float], Answer]) -> Answer:
         """Run ``job`` in the pool within the deadline (504 after; the work stops at its next
@@ -106,24 +134,96 @@ class State:
         rotations is CPU work as well, and on the event loop it held /livez for a tenth of a second."""
         bank = self.registry.banks[job.request.animal]
         loop = asyncio.get_running_loop()
+        end = loop.time() + self.settings.deadline_s
 
         def work() -> Answer:
             if self.settings.test_hooks:
                 self._held()
             return finish(*jobs.run(job, bank))
 
-        future = loop.run_in_executor(self.pool, work)
+        future = await self._run(job, work, end)
         try:
-            return await asyncio.wait_for(asyncio.shield(future), self.settings.deadline_s)
+            return await asyncio.wait_for(asyncio.shield(future), max(end - loop.time(), 0.0))
         except TimeoutError:
-            job.cancel.set()
-            self.metrics.rejected["deadline"] += 1
-            limit = self.settings.deadline_s
-            raise ApiError(504, "", f"synthesis took longer than the deadline of {limit:g} s (deadline_s); "
-                                    "send fewer characters or frames per request") from None
+            raise self._late(job) from None
         except asyncio.CancelledError:
             job.cancel.set()  # the client went away: stop the work too
             raise
+
+    def scratch(self) -> Scratch:
+        """This pool thread's own render and packing pages, kept from request to request."""
+        kept = getattr(self.local, "scratch", None)
+        if kept is None:
+            kept = self.local.scratch = Scratch()
+        return kept
+
+    async def answer_in_pieces(self, job: jobs.Job, meta: dict[str, Any]) -> PiecesResponse:
+        """The msgpack answer to ``job`` (:mod:`service.answer`), sent while it is made: the pool
+        thread renders and packs a chunk of characters while the network carries the one before.
+
+        Until the answer starts (the batch checked and prepared) everything is as
+        :meth:`synthesize`: 503 when busy, 422 for a bad trajectory, 504 past the deadline. After,
+        the deadline or a failure can only cut the answer short (the connection closes before
+        its Content-Length). The admission slot is given back when the work is done, not when a
+        slow client has read the answer."""
+        bank = self.registry.banks[job.request.animal]
+        loop = asyncio.get_running_loop()
+        queue: asyncio.Queue[Any] = asyncio.Queue()
+        end = loop.time() + self.settings.deadline_s
+
+        def emit(item: Any) -> None:
+            with contextlib.suppress(RuntimeError):  # the loop is gone: nobody is waiting
+                loop.call_soon_threadsafe(queue.put_nowait, item)
+
+        def work() -> None:
+            try:
+                if self.settings.test_hooks:
+                    self._held()
+                t0 = time.perf_counter()
+                frames = answer.produce(job, bank, meta, self.scratch(), emit)
+                emit(Finished(frames, time.perf_counter() - t0))
+            except BaseException as exc:  # noqa: BLE001 - handed to the event loop, raised there
+                emit(exc)
+
+        async def next_item() -> Any:
+            try:
+                item = await asyncio.wait_for(queue.get(), max(end - loop.time(), 0.0))
+            except TimeoutError:
+                raise self._late(job) from None
+            if isinstance(item, BaseException):
+                raise item
+            return item
+
+        await self._run(job, work, end)
+        try:
+            length = await next_item()
+        except BaseException:
+            job.cancel.set()
+            raise
+
+        async def pieces() -> AsyncIterator[bytes]:
+            try:
+                while isinstance(item := await next_item(), bytes):
+                    yield item
+            except Exception as exc:  # noqa: BLE001 - the answer has started: it can only be cut short
+                log.warning("answer to a synthesize request cut short: %s: %s", type(exc).__name__, exc)
+                return
+            self.metrics.character_frames += item.frames
+            self.metrics.synthesis_seconds += item.seconds
+            self.metrics.syntheses += 1
+
+        async def close() -> None:
+            job.cancel.set()  # a client that left: the work stops at its next chunk
+
+        return PiecesResponse(pieces(), length, MSGPACK, close)
+
+
+@dataclass(frozen=True)
+class Finished:
+    """The last item a piece-by-piece answer's worker hands over."""
+
+    frames: int  # character-frames sent
+    seconds: float
 
 
 DRAIN_SESSIONS_S = 2.0  # how long SIGTERM waits for WebSocket sessions to close (1001) first
@@ -283,21 +383,21 @@ def create_app(directory: Path | None = None, settings: Settings | None = None) 
         raw = await body.read_body(request, settings.max_body_bytes)
         job = jobs.parse(body.decode(raw, request.headers.get("content-type")), settings, registry.banks)
         req = job.request
-        as_msgpack = body.wants_msgpack(request)
+        sk = registry.libraries[req.animal].skeleton
+        meta = {"animal": req.animal, "skeleton_id": skeleton_id(req.animal, sk),
+                "fps": registry.banks[req.animal].fps, "encoding": req.encoding}
+        if body.wants_msgpack(request):
+            return await state.answer_in_pieces(job, meta)
 
-        def answer(result: Result, seconds: float) -> tuple[Response, int, float]:
-            frames = jobs.output_frames(job, result)
-            lib = registry.libraries[req.animal]
+        def whole(result: Result, seconds: float) -> tuple[Response, int, float]:  # JSON, for humans
+            frames = jobs.output_frames(job, result.root_pos.shape[1], result.kept)
             ids = [job.ids[c] for c in result.kept]
-            reply = {"animal": req.animal, "skeleton_id": skeleton_id(req.animal, lib.skeleton),
-                     "fps": registry.banks[req.animal].fps, "encoding": req.encoding,
-                     "resample_rate": result.resample_rate,
+            reply = {**meta, "resample_rate": result.resample_rate,
                      "characters": characters_out(result, ids, frames, req.encoding),
                      "skipped": jobs.skipped(job, result)}
-            return body.encode(reply, as_msgpack), sum(frames), seconds
+            return body.encode(reply, False), sum(frames), seconds
 
-        async with state.admission.slot():
-            response, character_frames, seconds = await state.synthesize(job, answer)
+        response, character_frames, seconds = await state.synthesize(job, whole)
         state.metrics.character_frames += character_frames
         state.metrics.synthesis_seconds += seconds
         state.metrics.syntheses += 1

@@ -2,13 +2,16 @@
 
 from __future__ import annotations
 
+import asyncio
 import base64
 import json
+from collections.abc import AsyncIterator, Awaitable, Callable
 from typing import Any
 
 import msgpack
 from fastapi import Request
-from fastapi.responses import Response
+from fastapi.responses import Response, StreamingResponse
+from starlette.types import Receive, Scope, Send
 
 from api_schemas.wire import MSGPACK
 from service.errors import ApiError
@@ -76,3 +79,39 @@ def encode(body: Any, as_msgpack: bool, status: int = 200) -> Response:
     if as_msgpack:
         return Response(msgpack.packb(body, use_bin_type=True), status, media_type=MSGPACK)
     return Response(json.dumps(_base64_bytes(body), separators=(",", ":")), status, media_type=JSON)
+
+
+class PiecesResponse(StreamingResponse):
+    """A 200 answer of a known ``length`` sent piece by piece as ``pieces`` yields them.
+
+    If the pieces stop short of ``length`` (the work failed or passed its deadline after the
+    answer started), the answer is left incomplete: the server closes the connection and the
+    client sees a body cut short, never a shorter answer that parses. A client that leaves is
+    noticed between pieces (a task waits on ``receive`` for the disconnect: the server's
+    ``send`` to a closed connection just returns). ``close`` runs at the end in every case."""
+
+    def __init__(self, pieces: AsyncIterator[bytes], length: int, media_type: str,
+                 close: Callable[[], Awaitable[None]]) -> None:
+        super().__init__(pieces, 200, {"content-length": str(length)}, media_type)
+        self.length, self.close = length, close
+
+    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
+        async def disconnected() -> None:
+            while (await receive())["type"] != "http.disconnect":
+                pass
+
+        gone = asyncio.ensure_future(disconnected())
+        sent = 0
+        try:
+            await send({"type": "http.response.start", "status": self.status_code,
+                        "headers": self.raw_headers})
+            async for piece in self.body_iterator:
+                if gone.done():
+                    break
+                await send({"type": "http.response.body", "body": piece, "more_body": True})
+                sent += len(piece)
+            if sent == self.length and not gone.done():
+                await send({"type": "http.response.body", "body": b"", "more_body": False})
+        finally:
+            gone.cancel()
+            await self.close()

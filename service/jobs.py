@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import threading
 import time
+from collections.abc import Iterable
 from dataclasses import dataclass
 from typing import Any, TypeVar
 
@@ -155,11 +156,10 @@ def open_stream(job: Job, bank: Bank, chunk_frames: int) -> BatchStream:
         raise trajectory_error(exc, job) from None
 
 
-def output_frames(job: Job, result: Result | BatchStream) -> list[int]:
-    """Each kept character's own frame count: its share of the common time axis."""
-    T = result.root_pos.shape[1] if isinstance(result, Result) else result.frames
+def output_frames(job: Job, frames: int, kept: Iterable[int]) -> list[int]:
+    """Each kept character's own frame count: its share of the common time axis of ``frames``."""
     longest = job.positions.shape[1]
-    return [int(round((job.lengths[c] - 1) / (longest - 1) * (T - 1))) + 1 for c in result.kept]
+    return [int(round((job.lengths[c] - 1) / (longest - 1) * (frames - 1))) + 1 for c in kept]
 
 
 def skipped(job: Job, result: Result | BatchStream) -> list[dict[str, Any]]:

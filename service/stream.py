@@ -213,7 +213,7 @@ class Session:
         async with self.state.admission.slot():  # refused (503 -> 1013) when the worker is full
             stream: BatchStream = await asyncio.get_running_loop().run_in_executor(
                 self.state.pool, jobs.open_stream, job, bank, chunk_frames)
-        frames = jobs.output_frames(job, stream)
+        frames = jobs.output_frames(job, stream.frames, stream.kept)
         ids = [job.ids[c] for c in stream.kept]
         count = -(-stream.frames // chunk_frames)
         await self.send({

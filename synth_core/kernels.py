@@ -30,6 +30,7 @@ from numpy.typing import NDArray
 from synth_core import UP_AXIS
 from synth_core.footlock import EASE_FRAMES, MAX_SINK, REACH
 from synth_core.ik import HINGE_AXIS_MIN_SIN, limb_rigs
+from synth_core.scratch import Scratch
 
 if TYPE_CHECKING:
     from synth_core.bank import Bank
@@ -472,19 +473,15 @@ def _character(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, yaw
 @_jit(parallel=True)
 def _render_all(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, yaw: Any, path: Any,
                 scales: Any, contacts: Any, parents: Any, offsets: Any, fk_joints: Any, rigs: Any,
-                bends: Any, sink_limit: float, foot_lock: bool, workers: int, out_rot: Any,
-                out_root: Any) -> None:
-    C, T, J = out_rot.shape[0], out_rot.shape[1], out_rot.shape[2]
-    workers = min(C, workers)
-    # One scratch set per worker, reused for its characters: a fresh megabyte per character
-    # would cost more in page faults than the lock's arithmetic.
+                bends: Any, sink_limit: float, foot_lock: bool, out_rot: Any, out_root: Any,
+                w_pos: Any, w_rot: Any, w_feet: Any, w_targets: Any, w_sink: Any, w_eased: Any) -> None:
+    """``w_*``: one working set per worker (first axis), reused for its characters: a fresh
+    megabyte per character would cost more in page faults than the lock's arithmetic."""
+    C = out_rot.shape[0]
+    workers = min(C, w_pos.shape[0])
     for worker in _prange(workers):
-        g_pos = np.empty((T, J, 3))
-        g_rot = np.empty((T, J, 4))
-        feet = np.empty((T, 4, 3))
-        targets = np.empty((T, 4, 3))
-        sink = np.empty(T)
-        eased = np.empty(T)
+        g_pos, g_rot, feet, targets = w_pos[worker], w_rot[worker], w_feet[worker], w_targets[worker]
+        sink, eased = w_sink[worker], w_eased[worker]
         for c in range(worker, C, workers):
             _character(poses, height, surge, rows[c], weights[c], yaw[c], path[c], scales[c],
                             contacts[c], parents, offsets, fk_joints, rigs, bends, sink_limit, foot_lock,
@@ -574,18 +571,26 @@ def render_window(bank: Bank, plan: Plan, start: int, stop: int, begin: NDArray[
 
 
 def render(bank: Bank, plan: Plan, foot_lock: bool = True,
-           out: tuple[NDArray[np.float32], NDArray[np.float32]] | None = None
-           ) -> tuple[NDArray[np.float32], NDArray[np.float32]]:
+           out: tuple[NDArray[np.float32], NDArray[np.float32]] | None = None,
+           scratch: Scratch | None = None) -> tuple[NDArray[np.float32], NDArray[np.float32]]:
     """Root ``(C, T, 3)`` and local rotations ``(C, T, J, 4)`` of a plan (see
-    :func:`synth_core.synthesis.render`, the reference); into ``out`` (root, rotations) if given."""
+    :func:`synth_core.synthesis.render`, the reference); into ``out`` (root, rotations) if given.
+    ``scratch``: where the workers' working sets are kept between calls (a small chunk's call
+    would otherwise spend a fifth of its time faulting them in)."""
     if not AVAILABLE:
         raise RuntimeError("synth_core.kernels needs numba; use the numpy backend")
     C, T = plan.yaw.shape
     J = bank.skeleton.n_joints
-    out_root = np.empty((C, T, 3), np.float64)
+    W = min(C, numba.get_num_threads())
+    scratch = Scratch() if scratch is None else scratch
+    work = [scratch.array(f"render.{name}", shape, np.float64)
+            for name, shape in (("pos", (W, T, J, 3)), ("rot", (W, T, J, 4)), ("feet", (W, T, 4, 3)),
+                                ("targets", (W, T, 4, 3)), ("sink", (W, T)), ("eased", (W, T)),
+                                ("root", (C, T, 3)))]
+    out_root = work.pop()
     out_rot = np.empty((C, T, J, 4), np.float32) if out is None else out[1]
     table, skeleton = _bank_tables(bank)
-    _render_all(*table, *_plan_arrays(plan), *skeleton, foot_lock, numba.get_num_threads(), out_rot, out_root)
+    _render_all(*table, *_plan_arrays(plan), *skeleton, foot_lock, out_rot, out_root, *work)
     assert UP_AXIS == 1  # the kernels index Y directly
     if out is None:
         return out_root.astype(np.float32), out_rot

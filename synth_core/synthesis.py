@@ -30,7 +30,7 @@ Steps 1-2 make a :class:`Plan` (numpy here, the reference of the compiled
 from __future__ import annotations
 
 import functools
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -40,6 +40,7 @@ from synth_core import UP_AXIS, kernels, plan_kernels, quat
 from synth_core.bank import STATIC, Bank
 from synth_core.draws import SCALE_STREAM, SCHEDULE_STREAM, character_keys, uniform, uniform_streams
 from synth_core.footlock import lock_feet
+from synth_core.scratch import Scratch
 from synth_core.trajectory import DEFAULT_SIGMA, Prepared, TrajectoryError, prepare
 
 Floats = NDArray[np.float64]
@@ -542,6 +543,54 @@ def compiled_backend(options: Options) -> bool:
     return options.backend == "numba" or (options.backend == "auto" and kernels.AVAILABLE)
 
 
+@dataclass(frozen=True, eq=False)
+class Rendered:
+    """One chunk of a batch: its characters' motion and plan (:func:`render_chunks`)."""
+
+    characters: slice  # rows of the prepared (kept) characters
+    root: NDArray[np.float32]  # (n, T, 3)
+    rotations: NDArray[np.float32]  # (n, T, J, 4)
+    plan: Plan
+
+
+def render_chunks(bank: Bank, prep: Prepared, h: Floats, keys: NDArray[np.uint64], options: Options,
+                  chunk: int = CHUNK, out: tuple[NDArray[np.float32], NDArray[np.float32]] | None = None,
+                  fresh: bool = False, scratch: Scratch | None = None) -> Iterator[Rendered]:
+    """Plan and render a prepared batch ``chunk`` characters at a time (the working set stays in
+    cache, so the cost per character-frame does not grow with the crowd).
+
+    Each chunk's root and rotations go into its rows of ``out`` (``fresh``: just allocated, not
+    yet touched) or else into ``scratch`` (a new one if none), reused from chunk to chunk: a
+    chunk's arrays then hold until the next is asked for."""
+    C, T = prep.positions.shape[:2]
+    compiled = compiled_backend(options)
+    J = bank.skeleton.n_joints
+    scratch = Scratch() if out is None and scratch is None else scratch
+    for a in range(0, C, chunk):
+        sl = slice(a, min(a + chunk, C))
+        part = replace(prep, positions=prep.positions[sl], segment_speeds=prep.segment_speeds[sl])
+        p = plan(bank, part, h[sl], keys[sl], options.margin, compiled=compiled)
+        if out is not None:
+            root, rotations = out[0][sl], out[1][sl]
+            if fresh and compiled:
+                # Touch the chunk's output pages here, in one thread, before the kernel's workers
+                # write them: first-touch page faults taken by parallel workers contend for the
+                # process's memory map and cost as much as the render itself (measured: 0.9 ->
+                # 0.48 s per 1,000 characters x 500 frames; the memset is ~5% of that).
+                root.fill(0)
+                rotations.fill(0)
+        else:
+            assert scratch is not None
+            n = sl.stop - sl.start
+            root = scratch.array("root", (n, T, 3), np.float32)
+            rotations = scratch.array("rotations", (n, T, J, 4), np.float32)
+        if compiled:
+            kernels.render(bank, p, options.foot_lock, out=(root, rotations), scratch=scratch)
+        else:
+            root[...], rotations[...] = render(bank, p, options.foot_lock)
+        yield Rendered(sl, root, rotations, p)
+
+
 def synthesize(bank: Bank, positions: ArrayLike, fps: float | None = None,
                scales: ArrayLike | None = None, options: Options = Options(),
                ids: list[str] | None = None,
@@ -555,8 +604,7 @@ def synthesize(bank: Bank, positions: ArrayLike, fps: float | None = None,
     batch's resampling rate, when some character is too fast for the library).
 
     The batch is checked and resampled as a whole, then planned and rendered ``CHUNK`` characters
-    at a time (the working set stays in cache, so the cost per character-frame does not grow with
-    the crowd); ``progress(done, total)`` is called after each chunk.
+    at a time (:func:`render_chunks`); ``progress(done, total)`` is called after each chunk.
 
     ``out``: ``(root (C, T, 3), rotations (C, T, J, 4))`` float32 arrays to write into, e.g. a
     previous result's, as a caller synthesizing batch after batch would keep them (T: the frame
@@ -564,15 +612,12 @@ def synthesize(bank: Bank, positions: ArrayLike, fps: float | None = None,
     a VM (measured here), 5.7 s for 10,000 characters x 500 frames."""
     prep, h, keys = prepare_batch(bank, positions, fps, scales, options, ids, seeds)
     C, T = prep.positions.shape[:2]
-    compiled = compiled_backend(options)
     J = bank.skeleton.n_joints
     if out is None:
-        root = np.empty((C, T, 3), np.float32)
-        rotations = np.empty((C, T, J, 4), np.float32)
+        out = (np.empty((C, T, 3), np.float32), np.empty((C, T, J, 4), np.float32))
         fresh = True
     else:
-        root, rotations = out
-        for name, given, shape in (("root", root, (C, T, 3)), ("rotations", rotations, (C, T, J, 4))):
+        for name, given, shape in (("root", out[0], (C, T, 3)), ("rotations", out[1], (C, T, J, 4))):
             if given.shape != shape or given.dtype != np.float32 or not given.flags.c_contiguous:
                 raise ValueError(f"out {name}: need a C-contiguous float32 array of shape {shape}, "
                                  f"got {given.dtype} {given.shape}")
@@ -580,23 +625,10 @@ def synthesize(bank: Bank, positions: ArrayLike, fps: float | None = None,
     gait = np.empty((C, T), np.int8)
     contacts = np.empty((C, T, 4), bool)
     stitches = np.empty((C, T), bool)
-    for a in range(0, C, CHUNK):
-        sl = slice(a, min(a + CHUNK, C))
-        part = replace(prep, positions=prep.positions[sl], segment_speeds=prep.segment_speeds[sl])
-        p = plan(bank, part, h[sl], keys[sl], options.margin, compiled=compiled)
-        if compiled:
-            # Touch the chunk's output pages here, in one thread, before the kernel's workers write
-            # them: first-touch page faults taken by parallel workers contend for the process's
-            # memory map and cost as much as the render itself (measured: 0.9 -> 0.48 s per 1,000
-            # characters x 500 frames; the memset is ~5% of that).
-            if fresh:
-                root[sl].fill(0)
-                rotations[sl].fill(0)
-            kernels.render(bank, p, options.foot_lock, out=(root[sl], rotations[sl]))
-        else:
-            root[sl], rotations[sl] = render(bank, p, options.foot_lock)
+    for chunk in render_chunks(bank, prep, h, keys, options, out=out, fresh=fresh):
+        sl, p = chunk.characters, chunk.plan
         gait[sl], contacts[sl], stitches[sl] = p.gait, p.contacts, p.stitches
         if progress:
             progress(sl.stop, C)
-    return Result(root, rotations, gait, contacts, stitches, h, prep.positions,
+    return Result(out[0], out[1], gait, contacts, stitches, h, prep.positions,
                   prep.resample_rate, prep.kept, prep.rejected)

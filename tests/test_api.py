@@ -66,6 +66,7 @@ def test_synthesize_returns_motion_per_character_byte_identical_for_the_same_see
                                                                                    herd: np.ndarray) -> None:
     first = post(server, batch(herd))
     assert first.status_code == 200 and first.headers["content-type"] == MSGPACK
+    assert first.headers["content-length"] == str(len(first.content))  # sent in pieces, length known
     body = msgpack.unpackb(first.content)
     assert body["resample_rate"] == 1.0 and body["encoding"] == "s48" and body["fps"] == 60.0
     library = httpx.get(f"{server}/v1/libraries/horse").json()
@@ -250,6 +251,32 @@ def test_overload_gets_503_with_retry_after_while_livez_stays_fast(server: str, 
         for w in workers:
             w.join(timeout=60)
     assert results == [200, 200]
+
+
+def test_past_the_deadline_gets_504_and_the_worker_is_free_again(tmp_path: Path, herd: np.ndarray) -> None:
+    port = free_port()
+    proc = start(["--port", str(port), "--log-level", "warning"], tmp_path,
+                 {**LIMITS, "QUADSYNTH_DEADLINE_S": "1"})
+    url = f"http://127.0.0.1:{port}"
+    try:
+        wait_until_live(proc, url)
+        while httpx.get(f"{url}/readyz").status_code != 200:
+            time.sleep(0.1)
+        httpx.post(f"{url}/_test/hold")
+        t0 = time.perf_counter()
+        late = post(url, batch(herd[:2, :80]))
+        refused(late, 504, "", "deadline of 1 s", "deadline_s")
+        assert 1.0 <= time.perf_counter() - t0 < 5.0
+        refused(httpx.post(f"{url}/v1/synthesize", content=as_json(batch(herd[:2, :80])), timeout=60,
+                           headers={"content-type": "application/json"}), 504, "", "deadline_s")
+        httpx.post(f"{url}/_test/release")
+        # The abandoned work stops and gives its slot back: the next request is answered.
+        answer = post(url, batch(herd[:2, :80]))
+        assert answer.status_code == 200 and len(msgpack.unpackb(answer.content)["characters"]) == 2
+        assert 'reason="deadline"} 2' in httpx.get(f"{url}/metrics").text
+    finally:
+        proc.terminate()
+        proc.wait(timeout=30)
 
 
 def test_sigterm_lets_the_request_in_flight_finish(tmp_path: Path, herd: np.ndarray) -> None:

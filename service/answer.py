@@ -1,0 +1,180 @@
+"""The msgpack answer of ``POST /v1/synthesize``, sent while the characters are synthesized.
+
+msgpack is a concatenation (a map is its header, then its keys and values), so the answer can
+go out in pieces -- the head, then each chunk of characters as soon as it is rendered and
+packed, then the tail -- with the same bytes as ``msgpack.packb`` of the whole answer (tested),
+and its length is known before the first rotation is made (ids, scales and frame counts are
+known once the batch is prepared): it goes out with a Content-Length, and the network carries
+one chunk while the next is synthesized. No batch-sized float32 rotations are made at all: the
+chunks are rendered and packed in a worker thread's own :class:`Scratch` pages.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+import struct
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+import msgpack
+import numpy as np
+
+from api_schemas.wire import BYTES_PER_JOINT_FRAME, Encoding, packed_dtype
+from service import jobs
+from service.packing import contact_bits, pack_rotations
+from synth_core.bank import Bank
+from synth_core.scratch import Scratch
+from synth_core.synthesis import prepare_batch, render_chunks
+from synth_core.trajectory import TrajectoryError
+
+PIECE_BYTES = 8 * 1024 * 1024  # float32 rotations per chunk: the chunks stay small enough to stream
+
+
+@dataclass(frozen=True)
+class Hole:
+    """Binary data that comes later; its length is known now."""
+
+    nbytes: int
+
+
+Template = list[bytes | Hole]
+
+
+def bin_header(n: int) -> bytes:
+    """msgpack's header of ``bin`` data of ``n`` bytes (as ``packb`` writes it for ``bytes``)."""
+    if n < 1 << 8:
+        return struct.pack(">BB", 0xC4, n)
+    if n < 1 << 16:
+        return struct.pack(">BH", 0xC5, n)
+    return struct.pack(">BI", 0xC6, n)
+
+
+@dataclass(frozen=True)
+class Spliced:
+    """A value whose template is made already (:func:`character`)."""
+
+    parts: Template
+
+
+def template(value: Any, header: bool = True) -> Template:
+    """``value``'s msgpack bytes with a :class:`Hole` where each :class:`Hole` leaf's data goes;
+    neighbouring bytes are joined. ``header=False``: a map's entries without its header."""
+    packer = msgpack.Packer(use_bin_type=True)
+    parts: Template = []
+
+    def walk(v: Any, header: bool = True) -> None:
+        if isinstance(v, Hole):
+            parts.extend((bin_header(v.nbytes), v))
+        elif isinstance(v, Spliced):
+            parts.extend(v.parts)
+        elif isinstance(v, dict):
+            if header:
+                parts.append(packer.pack_map_header(len(v)))
+            for key, item in v.items():
+                walk(key)
+                walk(item)
+        elif isinstance(v, list):
+            parts.append(packer.pack_array_header(len(v)))
+            for item in v:
+                walk(item)
+        else:
+            parts.append(packer.pack(v))
+
+    walk(value, header)
+    joined: Template = []
+    for part in parts:
+        if joined and isinstance(part, bytes) and isinstance(joined[-1], bytes):
+            joined[-1] += part
+        else:
+            joined.append(part)
+    return joined
+
+
+def hole_blob(dtype: str, shape: list[int], itemsize: int) -> dict[str, Any]:
+    """A wire blob (:func:`api_schemas.wire.blob`) whose data comes later."""
+    return {"dtype": dtype, "shape": shape, "data": Hole(math.prod(shape) * itemsize)}
+
+
+@functools.lru_cache(maxsize=256)
+def _arrays(frames: int, joints: int, encoding: Encoding) -> tuple[bytes | Hole, ...]:
+    """A character's entries after its id and scale: frame count and the four arrays (as holes:
+    root, rotations, gait, contacts), the same for every character of that length."""
+    components = 6 if encoding == "s48" else 4
+    rotations = hole_blob(packed_dtype(encoding), [frames, joints, components],
+                          BYTES_PER_JOINT_FRAME[encoding] // components)
+    rotations["encoding"] = encoding
+    return tuple(template({"frames": frames, "root": hole_blob("<f4", [frames, 3], 4),
+                           "rotations": rotations, "gait": hole_blob("|i1", [frames], 1),
+                           "contacts": hole_blob("|u1", [frames], 1)}, header=False))
+
+
+def character(packer: msgpack.Packer, cid: str, scale: float, frames: int, joints: int,
+              encoding: Encoding) -> Spliced:
+    """One character of the answer (:func:`service.packing.characters_out`'s dict)."""
+    first = packer.pack_map_header(7) + packer.pack("id") + packer.pack(cid) + packer.pack("scale")
+    rest = _arrays(frames, joints, encoding)
+    return Spliced([first + packer.pack(scale) + rest[0], *rest[1:]])
+
+
+def filled(parts: Template, arrays: list[np.ndarray]) -> list[bytes | memoryview]:
+    """The template's bytes with the arrays' bytes in its holes, in order."""
+    data = iter(arrays)
+    out: list[bytes | memoryview] = []
+    for part in parts:
+        if isinstance(part, Hole):
+            a = next(data)
+            assert a.nbytes == part.nbytes and a.flags.c_contiguous
+            out.append(memoryview(a.reshape(-1)).cast("B"))  # type: ignore[arg-type]
+        else:
+            out.append(part)
+    return out
+
+
+def produce(job: jobs.Job, bank: Bank, meta: dict[str, Any], scratch: Scratch,
+            emit: Callable[[Any], None]) -> int:
+    """The answer to ``job`` (in a worker thread): ``emit(length)``, the answer's whole length in
+    bytes, once the batch is prepared; then ``emit(piece)`` for each piece of it, in order.
+    ``meta``: the answer's fields before ``resample_rate`` (animal, skeleton_id, fps, encoding).
+    Returns the character-frames sent; 422 (:class:`ApiError`) for a bad trajectory, before
+    anything is emitted; :class:`jobs.Cancelled` between chunks once ``job.cancel`` is set."""
+    req = job.request
+    scales, seeds = jobs.character_scales_and_seeds(req)
+    options = jobs.options(req)
+    try:
+        prep, h, keys = prepare_batch(bank, job.positions, req.fps, scales, options, job.ids, seeds)
+    except TrajectoryError as exc:
+        raise jobs.trajectory_error(exc, job) from None
+    T = prep.positions.shape[1]
+    J = bank.skeleton.n_joints
+    frames = jobs.output_frames(job, T, prep.kept)
+    encoding: Encoding = req.encoding
+    packer = msgpack.Packer(use_bin_type=True)
+    characters = [character(packer, job.ids[c], float(h[i]), n, J, encoding)
+                  for i, (c, n) in enumerate(zip(prep.kept, frames, strict=True))]
+    skipped = [{"id": job.ids[c], "index": c, "reason": why} for c, why in sorted(prep.rejected.items())]
+    parts = template({**meta, "resample_rate": prep.resample_rate, "characters": characters,
+                      "skipped": skipped})
+    emit(sum(p.nbytes if isinstance(p, Hole) else len(p) for p in parts))
+    holes = [i for i, p in enumerate(parts) if isinstance(p, Hole)]  # four per character, in order
+    emit(b"".join(parts[:holes[0]] if holes else parts))  # type: ignore[arg-type]
+    per_chunk = max(1, PIECE_BYTES // (T * J * 16))
+    for chunk in render_chunks(bank, prep, h, keys, options, chunk=per_chunk, scratch=scratch):
+        if job.cancel.is_set():
+            raise jobs.Cancelled
+        sl, p = chunk.characters, chunk.plan
+        n = sl.stop - sl.start
+        packed = pack_rotations(chunk.rotations, encoding,
+                                out=None if encoding == "f32" else scratch.array(
+                                    "packed", (n, T, J, 6 if encoding == "s48" else 4),
+                                    np.uint8 if encoding == "s48" else np.int16))
+        bits = contact_bits(p.contacts)
+        arrays = []
+        for i in range(n):
+            k = frames[sl.start + i]
+            arrays += [chunk.root[i, :k], packed[i, :k], p.gait[i, :k], bits[i, :k]]
+        # From this chunk's first hole up to the next chunk's (the last: to the end).
+        end = holes[4 * sl.stop] if 4 * sl.stop < len(holes) else len(parts)
+        emit(b"".join(filled(parts[holes[4 * sl.start]:end], arrays)))
+    return sum(frames)

@@ -1,0 +1,83 @@
+"""The REST answer sent in pieces (service.answer) is byte for byte the answer built whole."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import msgpack
+import numpy as np
+import pytest
+
+from api_schemas.wire import blob
+from service import answer, jobs
+from service.packing import characters_out
+from service.settings import Settings
+from synth_core import crowd
+from synth_core.bank import Bank
+from synth_core.scratch import Scratch
+from synth_core.synthesis import synthesize
+
+
+def body(encoding: str) -> dict[str, Any]:
+    paths = crowd.simulate(7, 140, seed=3).astype(np.float32)
+    characters: list[dict[str, Any]] = [{"id": f"h{c}", "points": blob(p)} for c, p in enumerate(paths)]
+    characters[2]["points"] = blob(paths[2, :90])  # a shorter one: cut back to its own length
+    bad = paths[4].copy()
+    bad[70] = np.nan  # skipped (skip_invalid), the others kept
+    characters[4]["points"] = blob(bad)
+    characters[5]["scale"] = 1.3
+    return {"seed": 4, "encoding": encoding, "skip_invalid": True, "characters": characters}
+
+
+def whole(job: jobs.Job, bank: Bank, meta: dict[str, Any]) -> bytes:
+    """The answer as app.py builds the JSON one: synthesize, then every field packed at once."""
+    req = job.request
+    scales, seeds = jobs.character_scales_and_seeds(req)
+    result = synthesize(bank, job.positions, req.fps, scales, jobs.options(req), ids=job.ids, seeds=seeds)
+    frames = jobs.output_frames(job, result.root_pos.shape[1], result.kept)
+    ids = [job.ids[c] for c in result.kept]
+    return msgpack.packb({**meta, "resample_rate": result.resample_rate,
+                          "characters": characters_out(result, ids, frames, req.encoding),
+                          "skipped": jobs.skipped(job, result)}, use_bin_type=True)
+
+
+@pytest.mark.parametrize("encoding", ["s48", "i16", "f32"])
+def test_the_answer_in_pieces_is_the_whole_answer_byte_for_byte(bank: Bank, encoding: str,
+                                                              monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(answer, "PIECE_BYTES", 3 * 140 * bank.skeleton.n_joints * 16)  # 3 a chunk
+    job = jobs.parse(body(encoding), Settings(), {"horse": bank})
+    meta = {"animal": "horse", "skeleton_id": "horse-x", "fps": bank.fps, "encoding": encoding}
+    emitted: list[Any] = []
+    scratch = Scratch()
+    sent = answer.produce(job, bank, meta, scratch, emitted.append)
+    length, pieces = emitted[0], emitted[1:]
+    assert len(pieces) == 1 + 2  # the head, then 6 kept characters 3 at a time
+    expected = whole(job, bank, meta)
+    assert b"".join(pieces) == expected and length == len(expected)
+    decoded = msgpack.unpackb(expected)
+    assert [c["id"] for c in decoded["characters"]] == ["h0", "h1", "h2", "h3", "h5", "h6"]
+    assert decoded["skipped"][0]["index"] == 4 and sent == sum(c["frames"] for c in decoded["characters"])
+    # The scratch pages are reused by the next answer, and it is the same again.
+    emitted.clear()
+    answer.produce(job, bank, meta, scratch, emitted.append)
+    assert b"".join(emitted[1:]) == expected
+
+
+def test_a_cancelled_answer_stops_between_chunks(bank: Bank, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(answer, "PIECE_BYTES", 140 * bank.skeleton.n_joints * 16)  # one a chunk
+    job = jobs.parse(body("s48"), Settings(), {"horse": bank})
+    emitted: list[Any] = []
+
+    def emit(item: Any) -> None:
+        emitted.append(item)
+        if len(emitted) == 3:  # length, head, first character
+            job.cancel.set()
+
+    with pytest.raises(jobs.Cancelled):
+        answer.produce(job, bank, {"animal": "horse"}, Scratch(), emit)
+    assert len(emitted) == 3
+
+
+def test_msgpack_bin_headers_are_msgpacks_own() -> None:
+    for n in (0, 1, 255, 256, 65535, 65536, 1 << 20):
+        assert answer.bin_header(n) == msgpack.packb(b"\0" * n, use_bin_type=True)[:-n or None]
