@@ -439,8 +439,11 @@ def _solve_legs(g_pos: Any, g_rot: Any, targets: Any, sink: Any, rigs: Any, pare
 def _character(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, yaw: Any, path: Any,
                     h: float, contacts: Any, parents: Any, offsets: Any, fk_joints: Any, rigs: Any,
                     bends: Any, sink_limit: float, foot_lock: bool, out_rot: Any, out_root: Any,
-                    g_pos: Any, g_rot: Any, feet: Any, targets: Any, sink: Any, eased: Any) -> None:
-    """All four passes for one character (scratch arrays given)."""
+                    g_pos: Any, g_rot: Any, feet: Any, targets: Any, sink: Any, eased: Any,
+                    keep_from: int, keep_to: int) -> None:
+    """All four passes for one character (scratch arrays given). Only frames ``[keep_from,
+    keep_to)`` are wanted (a window rendered over its foot lock's context): the legs' IK, which
+    reads nothing of other frames, is solved for those alone."""
     T = out_rot.shape[0]
     _assemble(poses, height, surge, rows, weights, yaw, path, h, out_rot, out_root)
     if not foot_lock:
@@ -467,7 +470,8 @@ def _character(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, yaw
     _ease_sink(sink, sink_limit, eased)
     for t in range(T):
         out_root[t, 1] = (out_root[t, 1] / h - eased[t]) * h
-    _solve_legs(g_pos, g_rot, targets, eased, rigs, parents, offsets, bends, out_rot)
+    a, b = keep_from, keep_to
+    _solve_legs(g_pos[a:b], g_rot[a:b], targets[a:b], eased[a:b], rigs, parents, offsets, bends, out_rot[a:b])
 
 
 @_jit(parallel=True)
@@ -484,8 +488,8 @@ def _render_all(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, ya
         sink, eased = w_sink[worker], w_eased[worker]
         for c in range(worker, C, workers):
             _character(poses, height, surge, rows[c], weights[c], yaw[c], path[c], scales[c],
-                            contacts[c], parents, offsets, fk_joints, rigs, bends, sink_limit, foot_lock,
-                            out_rot[c], out_root[c], g_pos, g_rot, feet, targets, sink, eased)
+                       contacts[c], parents, offsets, fk_joints, rigs, bends, sink_limit, foot_lock,
+                       out_rot[c], out_root[c], g_pos, g_rot, feet, targets, sink, eased, 0, out_rot.shape[1])
 
 
 @_jit(parallel=True)
@@ -515,7 +519,7 @@ def _render_windows(poses: Any, height: Any, surge: Any, rows: Any, weights: Any
             _character(poses, height, surge, rows[c, b:e], weights[c, b:e], yaw[c, b:e], path[c, b:e],
                        scales[c], contacts[c, b:e], parents, offsets, fk_joints, rigs, bends, sink_limit,
                        foot_lock, rot[:k], root[:k], g_pos[:k], g_rot[:k], feet[:k], targets[:k],
-                       sink[:k], eased[:k])
+                       sink[:k], eased[:k], start - b, start - b + n)
             out_rot[c] = rot[start - b:start - b + n]
             out_root[c] = root[start - b:start - b + n]
 
