@@ -20,6 +20,8 @@ from collections.abc import Iterator, MutableMapping
 from typing import TYPE_CHECKING, Any
 
 import msgpack
+import numpy as np
+from numpy.typing import NDArray
 from starlette.websockets import WebSocket, WebSocketDisconnect, WebSocketState
 
 from api_schemas.wire import blob, packed_dtype
@@ -62,6 +64,12 @@ def chunk_message(batch: int, index: int, window: Window, encoding: str) -> dict
     return {"type": "chunk", "batch": batch, "chunk": index, "start": window.start,
             "frames": window.stop - window.start, "root": blob(window.root_pos), "rotations": rotations,
             "gait": blob(window.gait), "contacts": blob(contact_bits(window.contacts))}
+
+
+def packed_chunk(batch: int, index: int, window: Window, encoding: str) -> tuple[int, bytes]:
+    """A window's frame count and its chunk message packed (in the pool: packing a live tick of
+    thousands of characters is tens of megabytes, CPU work the event loop must not do)."""
+    return window.stop - window.start, pack(chunk_message(batch, index, window, encoding))
 
 
 class Session:
@@ -149,14 +157,16 @@ class Session:
 
     # --- writing -------------------------------------------------------------------------------
 
-    async def send(self, message: dict[str, Any]) -> None:
-        """Send, unless the client is gone; a client that does not take it in time: 1013."""
+    async def send(self, message: dict[str, Any] | bytes) -> None:
+        """Send (a message, or one packed already), unless the client is gone; a client that
+        does not take it in time: 1013."""
         if self.gone.is_set():
             return
         limit = self.settings.ws_send_timeout_s
+        raw = message if isinstance(message, bytes) else pack(message)
         async with self.send_lock:
             try:
-                await asyncio.wait_for(self.ws.send_bytes(pack(message)), limit)
+                await asyncio.wait_for(self.ws.send_bytes(raw), limit)
             except TimeoutError:
                 raise Closing(TRY_LATER, ApiError(503, "", f"slow consumer: a message was not taken within "
                                                            f"{limit:g} s (ws_send_timeout_s)")) from None
@@ -225,6 +235,10 @@ class Session:
                            for i, h, n in zip(ids, stream.character_scales, frames, strict=True)],
             "skipped": jobs.skipped(job, stream)})
         windows: Iterator[Window] = stream.windows()
+
+        def next_chunk(index: int) -> tuple[int, bytes]:
+            return packed_chunk(number, index, next(windows), req.encoding)
+
         self.acked, sent = -1, 0
         self.state.metrics.syntheses += 1
         while sent < count:
@@ -233,10 +247,10 @@ class Session:
             if self.gone.is_set() or self.cancel.is_set():
                 break
             t0 = time.perf_counter()
-            window = await self.in_pool(next, windows)
+            n, message = await self.in_pool(next_chunk, sent)
             self.state.metrics.synthesis_seconds += time.perf_counter() - t0
-            await self.send(chunk_message(number, sent, window, req.encoding))
-            self.state.metrics.character_frames += len(ids) * (window.stop - window.start)
+            await self.send(message)
+            self.state.metrics.character_frames += len(ids) * n
             sent += 1
         cancelled = self.cancel.is_set()
         self.cancel.clear()
@@ -279,25 +293,30 @@ class Session:
                                                                           strict=True)]})
         self.acked, sent = -1, 0
         self.state.metrics.syntheses += 1
+
+        def step(points: NDArray[np.float64] | None, index: int) -> tuple[int, bytes] | None:
+            window = synth.finish() if points is None else synth.append(points)
+            if window is None or window.stop <= window.start:
+                return None
+            return packed_chunk(number, index, window, req.encoding)
+
         while True:
             message = await self.next_live()
             if message is None:
                 break
             finishing = message.get("type") == "finish"
+            points = None if finishing else live.points(message, C, settings)
             t0 = time.perf_counter()
             try:
-                if finishing:
-                    window = await self.in_pool(synth.finish)
-                else:
-                    window = await self.in_pool(synth.append, live.points(message, C, settings))
+                made = await self.in_pool(step, points, sent)
             except TrajectoryError as exc:
                 raise live.live_error(exc, "points") from None
             self.state.metrics.synthesis_seconds += time.perf_counter() - t0
-            if window is not None and window.stop > window.start:
+            if made is not None:
                 await self.wait_for_room(sent)
                 self.check()
-                await self.send(chunk_message(number, sent, window, req.encoding))
-                self.state.metrics.character_frames += C * (window.stop - window.start)
+                await self.send(made[1])
+                self.state.metrics.character_frames += C * made[0]
                 sent += 1
             if finishing:
                 break
