@@ -561,11 +561,12 @@ def render_chunks(bank: Bank, prep: Prepared, h: Floats, keys: NDArray[np.uint64
 
     Each chunk's root and rotations go into its rows of ``out`` (``fresh``: just allocated, not
     yet touched) or else into ``scratch`` (a new one if none), reused from chunk to chunk: a
-    chunk's arrays then hold until the next is asked for."""
+    chunk's arrays then hold until the next is asked for. The render kernel's working sets are
+    kept in ``scratch`` either way."""
     C, T = prep.positions.shape[:2]
     compiled = compiled_backend(options)
     J = bank.skeleton.n_joints
-    scratch = Scratch() if out is None and scratch is None else scratch
+    scratch = Scratch() if scratch is None else scratch
     for a in range(0, C, chunk):
         sl = slice(a, min(a + chunk, C))
         part = replace(prep, positions=prep.positions[sl], segment_speeds=prep.segment_speeds[sl])
