@@ -254,14 +254,7 @@ def test_overload_gets_503_with_retry_after_while_livez_stays_fast(server: str, 
 
 
 def test_past_the_deadline_gets_504_and_the_worker_is_free_again(tmp_path: Path, herd: np.ndarray) -> None:
-    port = free_port()
-    proc = start(["--port", str(port), "--log-level", "warning"], tmp_path,
-                 {**LIMITS, "QUADSYNTH_DEADLINE_S": "1"})
-    url = f"http://127.0.0.1:{port}"
-    try:
-        wait_until_live(proc, url)
-        while httpx.get(f"{url}/readyz").status_code != 200:
-            time.sleep(0.1)
+    with running(tmp_path, {**LIMITS, "QUADSYNTH_DEADLINE_S": "1"}) as (url, _):
         httpx.post(f"{url}/_test/hold")
         t0 = time.perf_counter()
         late = post(url, batch(herd[:2, :80]))
@@ -274,9 +267,6 @@ def test_past_the_deadline_gets_504_and_the_worker_is_free_again(tmp_path: Path,
         answer = post(url, batch(herd[:2, :80]))
         assert answer.status_code == 200 and len(msgpack.unpackb(answer.content)["characters"]) == 2
         assert 'reason="deadline"} 2' in httpx.get(f"{url}/metrics").text
-    finally:
-        proc.terminate()
-        proc.wait(timeout=30)
 
 
 def test_sigterm_lets_the_request_in_flight_finish(tmp_path: Path, herd: np.ndarray) -> None:
