@@ -19,7 +19,7 @@ import pytest
 
 from api_schemas.wire import ENCODING_ERROR, blob, decode_rotations, rotation_angle, unblob
 from synth_core import crowd
-from tests.test_service import free_port, running, start, wait_until_live
+from tests.test_service import running
 
 MSGPACK = "application/vnd.msgpack"
 LIMITS = {"QUADSYNTH_MAX_BODY_BYTES": str(1024 * 1024), "QUADSYNTH_MAX_CHARACTERS": "40",
@@ -270,13 +270,7 @@ def test_past_the_deadline_gets_504_and_the_worker_is_free_again(tmp_path: Path,
 
 
 def test_sigterm_lets_the_request_in_flight_finish(tmp_path: Path, herd: np.ndarray) -> None:
-    port = free_port()
-    proc = start(["--port", str(port), "--log-level", "warning"], tmp_path, LIMITS)
-    url = f"http://127.0.0.1:{port}"
-    try:
-        wait_until_live(proc, url)
-        while httpx.get(f"{url}/readyz").status_code != 200:
-            time.sleep(0.1)
+    with running(tmp_path, LIMITS) as (url, proc):
         httpx.post(f"{url}/_test/hold")
         results: list[httpx.Response] = []
         worker = threading.Thread(target=lambda: results.append(post(url, batch(herd[:2, :80]))))
@@ -295,9 +289,6 @@ def test_sigterm_lets_the_request_in_flight_finish(tmp_path: Path, herd: np.ndar
         assert len(msgpack.unpackb(results[0].content)["characters"]) == 2
         # uvicorn drains, then re-raises the SIGTERM it caught: the process ends by that signal.
         assert proc.wait(timeout=30) in (0, -signal.SIGTERM)
-    finally:
-        if proc.poll() is None:
-            proc.kill()
 
 
 def test_python_client_gives_the_motion_synthesize_gives_locally(server: str, herd: np.ndarray) -> None:
