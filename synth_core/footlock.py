@@ -29,6 +29,9 @@ Floats = NDArray[np.float64]
 REACH = 0.98  # of a leg's full reach, at most
 MAX_SINK = 0.05  # of the leg length, the most the root is lowered
 EASE_FRAMES = 9
+# Frames either side of a frame that its eased sink reads: the running max's half width plus the
+# Gaussian's radius (ease_sink: sigma EASE_FRAMES / 6, truncated at 4 sigma).
+PAD = EASE_FRAMES // 2 + int(4.0 * EASE_FRAMES / 6 + 0.5)
 
 
 def plant_targets(feet: NDArray[np.floating], contacts: NDArray[np.bool_]) -> Floats:

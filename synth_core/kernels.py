@@ -28,7 +28,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from synth_core import UP_AXIS
-from synth_core.footlock import EASE_FRAMES, MAX_SINK, REACH
+from synth_core.footlock import EASE_FRAMES, MAX_SINK, PAD, REACH
 from synth_core.ik import HINGE_AXIS_MIN_SIN, limb_rigs
 from synth_core.scratch import Scratch
 
@@ -522,6 +522,49 @@ def _render_windows(poses: Any, height: Any, surge: Any, rows: Any, weights: Any
                        sink[:k], eased[:k], start - b, start - b + n)
             out_rot[c] = rot[start - b:start - b + n]
             out_root[c] = root[start - b:start - b + n]
+
+
+@_jit()
+def _run_start(flags: Any, t: int) -> int:
+    """The first frame of the run of equal flags that frame t is in."""
+    while t > 0 and flags[t - 1] == flags[t]:
+        t -= 1
+    return t
+
+
+@_jit()
+def _run_end(flags: Any, t: int) -> int:
+    """The frame after the last of the run of equal flags that frame t is in."""
+    T = len(flags)
+    while t + 1 < T and flags[t + 1] == flags[t]:
+        t += 1
+    return t + 1
+
+
+@_jit()
+def _lock_contexts(contacts: Any, start: int, stop: int, pad: int, begin: Any, end: Any) -> None:
+    C, T, F = contacts.shape
+    lo, hi = max(start - pad, 0), min(stop + pad, T)
+    for c in range(C):
+        b, e = T, 0
+        for f in range(F):
+            flags = contacts[c, :, f]
+            run = _run_start(flags, lo)  # the plant lo is in, or the plant before its swing
+            b = min(b, run if flags[lo] else (_run_start(flags, run - 1) if run > 0 else 0))
+            after = _run_end(flags, hi - 1)  # the plant hi - 1 is in, or the plant after its swing
+            e = max(e, after if flags[hi - 1] else (_run_end(flags, after) if after < T else T))
+        begin[c], end[c] = b, e
+
+
+def lock_context(contacts: NDArray[np.bool_], start: int, stop: int
+                 ) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+    """:func:`synth_core.streaming.lock_context`, compiled: a scan from the window's ends over
+    the runs each foot is in, instead of every frame's run bounds (a live session's every
+    window spent 20 ms per 4,000 characters on those)."""
+    C = contacts.shape[0]
+    begin, end = np.empty(C, np.int64), np.empty(C, np.int64)
+    _lock_contexts(contacts, start, stop, PAD, begin, end)
+    return begin, end
 
 
 def _plan_arrays(plan: Plan) -> tuple[Any, Any, Any, Any, Any, Any]:

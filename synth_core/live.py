@@ -39,19 +39,21 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.ndimage import gaussian_filter1d
 
-from synth_core import kernels
+from synth_core import kernels, plan_kernels
 from synth_core.bank import Bank
 from synth_core.draws import SCHEDULE_STREAM, character_keys, uniform
-from synth_core.footlock import EASE_FRAMES
-from synth_core.streaming import PAD, Window, lock_context
+from synth_core.footlock import EASE_FRAMES, PAD
+from synth_core.streaming import Window, lock_context
 from synth_core.synthesis import (
     MARGIN,
+    MAX_RATE,
     MIN_TURN_SPEED,
     N_HUBS,
     Floats,
     Plan,
     _choose,
     _kinds,
+    _plan_tables,
     blend_rows,
     character_scales,
     decision_step,
@@ -85,6 +87,53 @@ class _Pieces:
     before: NDArray[np.bool_]  # slot 0 holds a piece (the first piece has none before it)
 
 
+class _Planned:
+    """The planned frames kept (the foot lock's context): plan arrays with room to grow, each
+    block written in place at the end and old frames dropped from the front (concatenating the
+    whole buffer for every block cost a tenth of a session's time)."""
+
+    def __init__(self, scales: Floats) -> None:
+        self.scales = scales
+        self.start = 0  # frame of the first kept
+        self.lo = self.hi = 0  # the columns kept
+        self.arrays = self._alloc(0)
+
+    def _alloc(self, cap: int) -> list[NDArray[Any]]:
+        C = len(self.scales)
+        return [np.empty((C, cap, 4), np.int32), np.empty((C, cap, 3), np.float32), np.empty((C, cap)),
+                np.empty((C, cap, 3)), np.empty((C, cap, 4), bool), np.empty((C, cap), bool),
+                np.empty((C, cap), np.int8)]
+
+    def _columns(self, a: int, b: int) -> Plan:
+        rows, weights, yaw, path, contacts, stitches, gait = (x[:, a:b] for x in self.arrays)
+        return Plan(rows, weights, yaw, path, self.scales, contacts, stitches, gait)
+
+    @property
+    def frames(self) -> int:
+        return self.hi - self.lo
+
+    def plan(self) -> Plan:
+        """The frames kept, ``[start, start + frames)``."""
+        return self._columns(self.lo, self.hi)
+
+    def reserve(self, n: int) -> Plan:
+        """The next ``n`` frames, to be filled."""
+        cap = self.arrays[0].shape[1]
+        if self.hi + n > cap:  # move the kept frames to the front, into larger arrays if need be
+            kept = self.hi - self.lo
+            arrays = self.arrays if kept + n <= cap // 2 else self._alloc(2 * (kept + n))
+            for new, old in zip(arrays, self.arrays, strict=True):
+                new[:, :kept] = old[:, self.lo:self.hi]
+            self.arrays, self.lo, self.hi = arrays, 0, kept
+        self.hi += n
+        return self._columns(self.hi - n, self.hi)
+
+    def drop_before(self, frame: int) -> None:
+        if frame > self.start:
+            self.lo += frame - self.start
+            self.start = frame
+
+
 class LiveSynth:
     """Characters whose trajectories grow: :meth:`append` points, get back the new frames.
 
@@ -111,6 +160,9 @@ class LiveSynth:
         self.lock_lag = lock_lag if foot_lock else 0
         self.rendered = 0  # library frames rendered
         self.compiled = backend == "numba" or (backend == "auto" and kernels.AVAILABLE)
+        # The plan's blocks by plan_kernels.live_block (the same plan, bit for bit; False: the
+        # numpy reference, which tests compare it with).
+        self.plan_compiled = self.compiled
         self.keys = character_keys(seed, C, seeds)
         self.scales = character_scales(self.keys, scales, scale_range)
         if not (np.isfinite(self.scales) & (self.scales > 0)).all():
@@ -127,6 +179,7 @@ class LiveSynth:
         self.pad = int(np.ceil(4 * sigma)) if sigma > 0 else 0
         self.radius = int(4.0 * sigma + 0.5) if sigma > 0 else 0
         self.total = transition_distances(bank, self.kinds)
+        self.tables = _plan_tables(bank)
         # Input (at fps) and the library-rate points made from it.
         self.inputs = np.zeros((C, 0, 3))
         self.inputs_start = 0  # global index of inputs[:, 0]
@@ -157,8 +210,7 @@ class LiveSynth:
         start[:, 1] = 0  # standing: the idle from frame 0
         self.pieces = _Pieces(start, np.zeros((C, SLOTS), np.int64), np.zeros((C, SLOTS), np.int64),
                               np.zeros((C, SLOTS)), np.zeros((C, SLOTS)), np.zeros(C, bool))
-        self.buffer: Plan | None = None  # planned frames kept as the foot lock's context
-        self.buffer_start = 0
+        self.buffer = _Planned(self.scales)  # planned frames kept as the foot lock's context
 
     @property
     def latency_frames(self) -> int:
@@ -337,12 +389,15 @@ class LiveSynth:
         # The clocks and distance of the frames up to the next decision (known), so transitions
         # ending before it are found now (the batch knows every end beforehand).
         v = self._speeds(np.arange(a, a + self.step))
-        clocks = stride_clocks(self.bank, self.kinds, v, a, self.clock)
         pts = self.path[:, a - self.path_start:a + self.step + 1 - self.path_start]
-        step = np.linalg.norm(np.diff(pts[..., _GROUND], axis=1), axis=-1)
-        walked = np.cumsum(np.concatenate([self.walked[:, None], step], axis=1), axis=1)
-        self._start_distances(a, self.step, walked)
-        self._end_transitions(a, self.step, walked, clocks)
+        if self.plan_compiled:
+            self._compiled_block(a, v, pts, None)
+        else:
+            clocks = stride_clocks(self.bank, self.kinds, v, a, self.clock)
+            step = np.linalg.norm(np.diff(pts[..., _GROUND], axis=1), axis=-1)
+            walked = np.cumsum(np.concatenate([self.walked[:, None], step], axis=1), axis=1)
+            self._start_distances(a, self.step, walked)
+            self._end_transitions(a, self.step, walked, clocks)
         self._normalize(a)
         draws = uniform(self.keys, SCHEDULE_STREAM + k, N_HUBS)
         nxt = _choose(self.bank, self.current, self._speeds(np.array([ahead]))[:, 0], draws)
@@ -411,13 +466,38 @@ class LiveSynth:
     def _plan_block(self, t0: int, t1: int) -> None:
         """Frames [t0, t1): no decision falls inside."""
         self._normalize(t0)
+        n = t1 - t0
+        v = self._speeds(np.arange(t0, t1))
+        pts = self.path[:, t0 - self.path_start:t1 + 1 - self.path_start]
+        block = self.buffer.reserve(n)  # written in place
+        out = (block.rows, block.weights, block.gait, block.contacts, block.stitches)
+        if self.plan_compiled:
+            self._compiled_block(t0, v, pts, out)
+        else:
+            for dest, part in zip(out, self._block_rows(t0, t1, v, pts), strict=True):
+                dest[...] = part
+        block.yaw[...] = self._headings(t0, t1)
+        block.path[...] = pts[:, :n]
+        self.planned = t1
+
+    def _compiled_block(self, t0: int, v: Floats, pts: Floats, out: tuple[NDArray[Any], ...] | None) -> None:
+        """:func:`plan_kernels.live_block`: the scan of frames [t0, t0 + n) (as :meth:`_decide`
+        makes it, ``out`` None) or the block's rows as :meth:`_block_rows` (into ``out``)."""
+        P = self.pieces
+        walked = plan_kernels.live_block(
+            self.tables, self.bank.contacts, MAX_RATE, self.margin, self.bank.creep, t0, v, pts, self.scales,
+            self.clock, self.walked, (P.start, P.kind, P.first, P.clock0, P.trav0), P.before, self.busy, out)
+        if out is not None:
+            self.walked = walked
+
+    def _block_rows(self, t0: int, t1: int, v: Floats, pts: Floats) -> tuple[NDArray[Any], ...]:
+        """The numpy reference of a block's rows, weights, gait, contacts and stitches (the
+        clocks and distance carried on to t1)."""
         bank, kinds, P = self.bank, self.kinds, self.pieces
         C, n = len(self.scales), t1 - t0
         t = np.arange(t0, t1)
-        v = self._speeds(t)
         # Clocks and distance at frames t0..t1 (one more: the next block starts from it).
         clocks = stride_clocks(bank, kinds, v, t0, self.clock)
-        pts = self.path[:, t0 - self.path_start:t1 + 1 - self.path_start]
         step = np.linalg.norm(np.diff(pts[..., _GROUND], axis=1), axis=-1)
         walked = np.cumsum(np.concatenate([self.walked[:, None], step], axis=1), axis=1)  # (C, n+1)
         h = self.scales[:, None]
@@ -441,12 +521,9 @@ class LiveSynth:
         rows, weights, gait = blend_rows(bank, kinds, self.margin, kind, local, v, walked_since, since,
                                          (fc, ft), p_kind, p_local)
         stitches = (t[None, :] >= 1) & ((P.start[:, 1:, None] == t[None, None, :]).any(axis=1))
-        block = Plan(rows, weights, self._headings(t0, t1), pts[:, :n].copy(), self.scales,
-                     bank.contacts[rows[..., 0]], stitches, gait)
         self.clock = clocks[:, :, n].copy()
         self.walked = walked[:, n].copy()
-        self.planned = t1
-        self._keep(block, t0)
+        return rows, weights, gait, bank.contacts[rows[..., 0]], stitches
 
     def _headings(self, t0: int, t1: int) -> Floats:
         """(C, n) yaw as :func:`synthesis.headings` (gradient; held while slow; before the first
@@ -495,30 +572,16 @@ class LiveSynth:
         yaw[has] = np.arctan2(dd[has, 0], dd[has, 1])
         return yaw
 
-    def _keep(self, block: Plan, t0: int) -> None:
-        """The planned frames kept for the foot lock's context: the last few cycles."""
-        if self.buffer is None:
-            self.buffer, self.buffer_start = block, t0
-        else:
-            b = self.buffer
-
-            def cat(x: NDArray[Any], y: NDArray[Any]) -> NDArray[Any]:
-                return np.concatenate([x, y], axis=1)
-            self.buffer = Plan(cat(b.rows, block.rows), cat(b.weights, block.weights), cat(b.yaw, block.yaw),
-                               cat(b.path, block.path), self.scales, cat(b.contacts, block.contacts),
-                               cat(b.stitches, block.stitches), cat(b.gait, block.gait))
-
     def _emit(self, start: int, stop: int) -> Window:
         """Render planned frames [start, stop) (every ``out_step``-th frame of the library's)."""
-        assert self.buffer is not None
-        k, b0 = self.out_step, self.buffer_start
+        k, b0 = self.out_step, self.buffer.start
         # Only the frames sent are rendered -- the foot lock too works on them alone (a plant's
         # average over its frames sent), so 30 fps out costs half of 60.
         first = (-b0) % k
-        buf = self.buffer.window(first, self.buffer.yaw.shape[1], k)
+        buf = self.buffer.plan().window(first, self.buffer.frames, k)
         lo, hi = -(-(start - b0 - first) // k), -(-(stop - b0 - first) // k)
         if self.foot_lock:
-            begin, end = lock_context(buf.contacts, lo, hi)
+            begin, end = (kernels.lock_context if self.compiled else lock_context)(buf.contacts, lo, hi)
         else:
             C = len(self.scales)
             begin, end = np.full(C, lo), np.full(C, hi)
@@ -528,15 +591,13 @@ class LiveSynth:
             cb, ce = int(begin.min()), int(end.max())
             root, rot = render(self.bank, buf.window(cb, ce), self.foot_lock)
             root, rot = root[:, lo - cb:hi - cb], rot[:, lo - cb:hi - cb]
-        window = Window(self.emitted, root, rot, buf.gait[:, lo:hi], buf.contacts[:, lo:hi])
+        # Copies: the buffer's columns are written over by later blocks.
+        window = Window(self.emitted, root, rot, buf.gait[:, lo:hi].copy(), buf.contacts[:, lo:hi].copy())
         self.emitted += hi - lo
-        buf = self.buffer
         # Keep the context the next frames' lock may read: whole plants reaching back past PAD,
         # at most KEEP_PLANS of the slowest cycle.
-        keep_from = max(stop - PAD - EASE_FRAMES - KEEP_PLANS * int(self.kinds.frames[1:N_HUBS].max()), 0)
-        if keep_from > b0:
-            self.buffer = buf.window(keep_from - b0, buf.yaw.shape[1])
-            self.buffer_start = keep_from
+        slowest = int(self.kinds.frames[1:N_HUBS].max())
+        self.buffer.drop_before(stop - PAD - EASE_FRAMES - KEEP_PLANS * slowest)
         drop = max(self.planned - 2, 0) - self.path_start  # the path the next block and heading read
         if drop > 0:
             self.path = self.path[:, drop:]

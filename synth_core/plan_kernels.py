@@ -314,3 +314,148 @@ def plan_frames(tb: Tables, contacts_of: NDArray[np.bool_], slowest: int, fastes
               margin, len(tb.low), step, ahead, creep, c(v, np.float64), c(path, np.float64),
               c(h, np.float64), c(draws), numba.get_num_threads(), rows, weights, gait, contacts, stitches)
     return rows, weights, gait, contacts, stitches
+
+
+# --- the live mode's blocks (synth_core.live) --------------------------------------------------
+#
+# The live plan carries each character's pieces in a few slots (start frame, kind, first clip
+# frame, the kind's clock and the distance at its start) from block to block; its numpy
+# reference is LiveSynth._scan and LiveSynth._block_rows. Here, as above, one character at a
+# time in parallel, in the reference's operations and order: the plans are equal bit for bit.
+
+@_jit()
+def _live_scan(c: int, t0: int, n: int, v: Any, pts: Any, h: float, high: Any, max_rate: float,
+               n_hubs: int, creep: float, total: Any, clock_in: Any, walked_in: Any, start: Any, kind: Any,
+               clock0: Any, trav0: Any, busy: Any, clocks: Any, walked: Any) -> None:
+    """Frames [t0, t0 + n) of character c: its clocks ``(n_hubs + 1, n + 1)`` and distance
+    ``(n + 1,)`` from the carried ones; the distance at their start of pieces starting there;
+    the end of a transition under way, if it is there (LiveSynth._start_distances and
+    _end_transitions)."""
+    never = _NEVER
+    for hub in range(n_hubs + 1):
+        if hub < len(high) and high[hub] > -np.inf and hub != STATIC:
+            acc = clock_in[hub, c]
+            clocks[hub, 0] = acc
+            for t in range(n):
+                acc += min(max(v[t] / high[hub], 1.0), max_rate)
+                clocks[hub, t + 1] = acc
+        else:  # plain time
+            for t in range(n + 1):
+                clocks[hub, t] = float(t0 + t)
+    acc = walked_in[c]
+    walked[0] = acc
+    for t in range(n):
+        dx = pts[t + 1, 0] - pts[t, 0]
+        dz = pts[t + 1, 2] - pts[t, 2]
+        acc += math.sqrt(dx * dx + dz * dz)
+        walked[t + 1] = acc
+    S = start.shape[1]
+    for j in range(1, S):
+        s = start[c, j]
+        if s >= t0 and s < t0 + n:
+            trav0[c, j] = walked[s - t0]
+    if busy[c] != never:
+        return
+    j = 0  # the slot before the gait not started yet (the transition's)
+    for k in range(1, S):
+        if start[c, k] == never:
+            j = k - 1
+            break
+    b = start[c, j]
+    if b >= t0 + n:
+        return
+    at = trav0[c, j] / h
+    for t in range(n):
+        if (walked[t] / h - at) + creep * float(t0 + t - b) >= total[kind[c, j]] and t0 + t > b:
+            start[c, j + 1] = t0 + t
+            clock0[c, j + 1] = clocks[min(kind[c, j + 1], n_hubs), t]
+            trav0[c, j + 1] = walked[t]
+            busy[c] = t0 + t
+            return
+
+
+@_jit(parallel=True)
+def _live_block(offset: Any, frames_of: Any, clips: Any, cyclic: Any, source: Any, target: Any, total: Any,
+                high: Any, curve_at: Any, curves: Any, contacts_of: Any, max_rate: float, margin: int,
+                n_hubs: int, creep: float, t0: int, v: Any, pts: Any, h: Any, clock: Any, walked_in: Any,
+                start: Any, kind: Any, first: Any, clock0: Any, trav0: Any, before: Any, busy: Any,
+                with_rows: bool, workers: int, rows: Any, weights: Any, gait: Any, contacts: Any,
+                stitches: Any, walked_out: Any) -> None:
+    C, n = v.shape
+    S = start.shape[1]
+    workers = min(C, workers)
+    for worker in _prange(workers):
+        clocks = np.empty((n_hubs + 1, n + 1))
+        walked = np.empty(n + 1)
+        for c in range(worker, C, workers):
+            hc = h[c]
+            _live_scan(c, t0, n, v[c], pts[c], hc, high, max_rate, n_hubs, creep, total, clock, walked_in,
+                       start, kind, clock0, trav0, busy, clocks, walked)
+            walked_out[c] = walked[n]
+            if not with_rows:
+                continue
+            for hub in range(n_hubs + 1):
+                clock[hub, c] = clocks[hub, n]
+            for tt in range(n):
+                t = t0 + tt
+                e = 1  # the slot playing: the last started
+                for j in range(2, S):
+                    if t >= start[c, j]:
+                        e += 1
+                k = kind[c, e]
+                local = int(math.floor(float(first[c, e]) + clocks[min(k, n_hubs), tt] - clock0[c, e] + 0.5))
+                ws = (walked[tt] / hc - trav0[c, e] / hc) + creep * float(local)
+                r0, r1, w = _row(k, local, v[c, tt], ws, True, offset, frames_of, clips, cyclic, curve_at,
+                                 curves)
+                rows[c, tt, 0], rows[c, tt, 1], weights[c, tt, 0] = r0, r1, w
+                rows[c, tt, 2], rows[c, tt, 3], weights[c, tt, 1] = r0, r1, w
+                weights[c, tt, 2] = 0.0
+                since = t - start[c, e]
+                if (e >= 2 or before[c]) and since < margin:  # the piece before fades out
+                    pk = kind[c, e - 1]
+                    p_local = int(math.floor(float(first[c, e - 1]) + clocks[min(pk, n_hubs), tt]
+                                             - clock0[c, e - 1] + 0.5))
+                    if not cyclic[pk]:  # a finished transition stays at its end
+                        p_local = np.iinfo(np.int32).max
+                    p0, p1, pw = _row(pk, p_local, v[c, tt], 0.0, False, offset, frames_of, clips, cyclic,
+                                      curve_at, curves)
+                    u = (since + 1) / (margin + 1)
+                    rows[c, tt, 2], rows[c, tt, 3], weights[c, tt, 1] = p0, p1, pw
+                    weights[c, tt, 2] = 1 - u * u * (3 - 2 * u)
+                first_half = (r0 - offset[k]) < frames_of[k] // 2
+                gait[c, tt] = source[k] if first_half else target[k]
+                for f in range(4):
+                    contacts[c, tt, f] = contacts_of[r0, f]
+                stitch = False
+                if t >= 1:
+                    for j in range(1, S):
+                        stitch = stitch or start[c, j] == t
+                stitches[c, tt] = stitch
+
+
+def live_block(tb: Tables, contacts_of: NDArray[np.bool_], max_rate: float, margin: int, creep: float,
+               t0: int, v: NDArray[np.float64], pts: NDArray[np.float64], h: NDArray[np.float64],
+               clock: NDArray[np.float64], walked: NDArray[np.float64], slots: tuple[NDArray[Any], ...],
+               before: NDArray[np.bool_], busy: NDArray[np.int64],
+               out: tuple[NDArray[Any], ...] | None) -> NDArray[np.float64]:
+    """Frames ``[t0, t0 + n)`` of a live plan (``v (C, n)`` speeds, ``pts (C, n + 1, 3)`` path):
+    the pieces' ``slots`` (start, kind, first, clock0, trav0, each ``(C, SLOTS)``) and ``busy``
+    brought up to date; with ``out`` (rows, weights, gait, contacts, stitches, each ``(C, n,
+    ...)``) the frames' rows too, and ``clock (kinds, C)`` carried on to ``t0 + n``. Returns the
+    distance walked at ``t0 + n`` (to carry when ``out`` is given)."""
+    if not AVAILABLE:
+        raise RuntimeError("synth_core.plan_kernels needs numba; use the numpy backend")
+    C, n = v.shape
+    walked_out = np.empty(C)
+    if out is None:
+        none = np.empty((C, 0, 4), np.int32)
+        out = (none, np.empty((C, 0, 3), np.float32), np.empty((C, 0), np.int8), np.empty((C, 0, 4), bool),
+               np.empty((C, 0), bool))
+    k = tb.kinds
+    start, kind, first, clock0, trav0 = slots
+    rows, weights, gait, contacts, stitches = out
+    _live_block(k.offset, k.frames, k.clips, k.cyclic, k.source, k.target, tb.total, tb.high, tb.curve_at,
+                tb.curves, contacts_of, max_rate, margin, len(tb.low), creep, t0, v, pts, h, clock, walked,
+                start, kind, first, clock0, trav0, before, busy, rows.shape[1] == n, numba.get_num_threads(),
+                rows, weights, gait, contacts, stitches, walked_out)
+    return walked_out

@@ -28,12 +28,9 @@ from numpy.typing import ArrayLike, NDArray
 
 from synth_core import kernels
 from synth_core.bank import Bank
-from synth_core.footlock import EASE_FRAMES
+from synth_core.footlock import PAD
 from synth_core.synthesis import Options, Plan, compiled_backend, plan, prepare_batch, render
 
-# Frames either side of a frame that its eased sink reads: the running max's half width plus the
-# Gaussian's radius (footlock.ease_sink: sigma EASE_FRAMES / 6, truncated at 4 sigma).
-PAD = EASE_FRAMES // 2 + int(4.0 * EASE_FRAMES / 6 + 0.5)
 RENDER_CHUNKS = 4  # chunks rendered at once after the first (the context's cost spread over more)
 FIRST_PLAN_STRIDES = 3  # the first window's plan reaches this many of the slowest gait's cycles on
 

@@ -68,6 +68,18 @@ def test_live_frames_are_the_batch_plans_frames(bank: Bank, herd: np.ndarray, ba
     assert len(set(gait.ravel().tolist())) == 5  # standing and every gait: the test covers them
 
 
+def test_compiled_live_plan_is_the_numpy_reference(bank: Bank, herd: np.ndarray) -> None:
+    """plan_kernels.live_block against LiveSynth's numpy blocks: with the same render, the same
+    windows bit for bit (foot lock on: its contexts read the kept plan too)."""
+    pytest.importorskip("numba")
+    sessions = []
+    for compiled in (True, False):
+        live = LiveSynth(bank, len(herd), 60.0, seed=5, scale_range=(0.8, 1.2), backend="numba")
+        live.plan_compiled = compiled
+        sessions.append(joined(feed(live, herd, seed=3)[0]))
+    for got, want in zip(*sessions, strict=True):
+        np.testing.assert_array_equal(got, want)
+
 def test_points_at_30_fps_come_back_at_30_fps(bank: Bank) -> None:
     herd = crowd.simulate(8, 400, seed=4, fps=30.0)
     batch = synthesize(bank, herd, 30.0, options=Options(seed=1, foot_lock=False))

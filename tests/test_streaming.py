@@ -22,6 +22,22 @@ def test_runs_and_context_cover_whole_plants() -> None:
     assert begin[0] == 2 and stop[0] == 20  # from the plant before that swing
 
 
+
+def test_compiled_lock_context_is_the_reference() -> None:
+    kernels = pytest.importorskip("synth_core.kernels")
+    rng = np.random.default_rng(7)
+    # Runs of random lengths (1 to 12 frames), so windows start and end in plants, in swings,
+    # at the first and the last frame.
+    lengths = rng.integers(1, 13, size=(50, 4, 40))
+    flags = np.arange(40) % 2 == rng.integers(0, 2, size=(50, 4, 1))
+    contacts = np.stack([np.stack([np.repeat(flags[c, f], lengths[c, f])[:90] for f in range(4)], axis=-1)
+                         for c in range(50)])
+    for start, stop in [(0, 1), (0, 90), (3, 17), (40, 55), (80, 90), (89, 90), (11, 12)]:
+        want = lock_context(contacts, start, stop)
+        got = kernels.lock_context(contacts, start, stop)
+        np.testing.assert_array_equal(got[0], want[0])
+        np.testing.assert_array_equal(got[1], want[1])
+
 @pytest.mark.parametrize("backend", ["numba", "numpy"])
 @pytest.mark.parametrize("foot_lock", [True, False])
 def test_windows_equal_the_whole_batch(bank: Bank, backend: str, foot_lock: bool) -> None:
