@@ -87,36 +87,34 @@ class _Pieces:
     before: NDArray[np.bool_]  # slot 0 holds a piece (the first piece has none before it)
 
 
-class _Planned:
-    """The planned frames kept (the foot lock's context): plan arrays with room to grow, each
-    block written in place at the end and old frames dropped from the front (concatenating the
-    whole buffer for every block cost a tenth of a session's time)."""
+class _Columns:
+    """Frames ``[start, stop)`` of per-character arrays ``(C, frames, ...)`` with room to grow:
+    new frames are written in place at the end and old ones dropped from the front (concatenating
+    the whole of them for every block cost a tenth of a session's time)."""
 
-    def __init__(self, scales: Floats) -> None:
-        self.scales = scales
+    def __init__(self, C: int, layout: list[tuple[tuple[int, ...], type]], room: int = 0) -> None:
+        self.C, self.layout = C, layout
         self.start = 0  # frame of the first kept
         self.lo = self.hi = 0  # the columns kept
-        self.arrays = self._alloc(0)
+        self.arrays = self._alloc(room)  # room: twice the frames usually kept, so moves are rare
 
     def _alloc(self, cap: int) -> list[NDArray[Any]]:
-        C = len(self.scales)
-        return [np.empty((C, cap, 4), np.int32), np.empty((C, cap, 3), np.float32), np.empty((C, cap)),
-                np.empty((C, cap, 3)), np.empty((C, cap, 4), bool), np.empty((C, cap), bool),
-                np.empty((C, cap), np.int8)]
-
-    def _columns(self, a: int, b: int) -> Plan:
-        rows, weights, yaw, path, contacts, stitches, gait = (x[:, a:b] for x in self.arrays)
-        return Plan(rows, weights, yaw, path, self.scales, contacts, stitches, gait)
+        return [np.empty((self.C, cap, *tail), dtype) for tail, dtype in self.layout]
 
     @property
     def frames(self) -> int:
         return self.hi - self.lo
 
-    def plan(self) -> Plan:
-        """The frames kept, ``[start, start + frames)``."""
-        return self._columns(self.lo, self.hi)
+    @property
+    def stop(self) -> int:
+        return self.start + self.frames
 
-    def reserve(self, n: int) -> Plan:
+    def columns(self, a: int, b: int) -> list[NDArray[Any]]:
+        """Frames ``[a, b)`` (within ``[start, stop)``) of each array: views."""
+        i = self.lo - self.start
+        return [x[:, a + i:b + i] for x in self.arrays]
+
+    def reserve(self, n: int) -> list[NDArray[Any]]:
         """The next ``n`` frames, to be filled."""
         cap = self.arrays[0].shape[1]
         if self.hi + n > cap:  # move the kept frames to the front, into larger arrays if need be
@@ -126,12 +124,35 @@ class _Planned:
                 new[:, :kept] = old[:, self.lo:self.hi]
             self.arrays, self.lo, self.hi = arrays, 0, kept
         self.hi += n
-        return self._columns(self.hi - n, self.hi)
+        return self.columns(self.stop - n, self.stop)
 
     def drop_before(self, frame: int) -> None:
+        frame = min(frame, self.stop)
         if frame > self.start:
             self.lo += frame - self.start
             self.start = frame
+
+
+class _Planned(_Columns):
+    """The planned frames kept (the foot lock's context)."""
+
+    def __init__(self, scales: Floats, room: int) -> None:
+        super().__init__(len(scales), [((4,), np.int32), ((3,), np.float32), ((), np.float64),
+                                       ((3,), np.float64), ((4,), np.bool_), ((), np.bool_), ((), np.int8)],
+                         room)
+        self.scales = scales
+
+    def _plan(self, arrays: list[NDArray[Any]]) -> Plan:
+        rows, weights, yaw, path, contacts, stitches, gait = arrays
+        return Plan(rows, weights, yaw, path, self.scales, contacts, stitches, gait)
+
+    def plan(self) -> Plan:
+        """The frames kept, ``[start, stop)``."""
+        return self._plan(self.columns(self.start, self.stop))
+
+    def reserve_plan(self, n: int) -> Plan:
+        """The next ``n`` frames, to be filled."""
+        return self._plan(self.reserve(n))
 
 
 class LiveSynth:
@@ -191,8 +212,7 @@ class LiveSynth:
         self.n_raw = 0  # raw points in `longer` (after its head)
         self.ended = False
         # Smoothed path, segment speeds, and what the plan carries from block to block.
-        self.path = np.zeros((C, 0, 3))
-        self.path_start = 0
+        self.path = _Columns(C, [((3,), np.float64)], 2 * self.latency_frames)
         self.n_path = 0
         self.seg = np.zeros((C, 0))  # segment speeds / scale
         self.seg_start = 0
@@ -210,7 +230,14 @@ class LiveSynth:
         start[:, 1] = 0  # standing: the idle from frame 0
         self.pieces = _Pieces(start, np.zeros((C, SLOTS), np.int64), np.zeros((C, SLOTS), np.int64),
                               np.zeros((C, SLOTS)), np.zeros((C, SLOTS)), np.zeros(C, bool))
-        self.buffer = _Planned(self.scales)  # planned frames kept as the foot lock's context
+        # Planned frames kept as the foot lock's context (see _emit).
+        self.buffer = _Planned(self.scales, 2 * (self.lock_lag + self.kept_frames + 2 * self.step))
+
+    @property
+    def kept_frames(self) -> int:
+        """Planned frames before the next to send kept for the foot lock: whole plants reaching
+        back past PAD, at most KEEP_PLANS of the slowest cycle."""
+        return PAD + EASE_FRAMES + KEEP_PLANS * int(self.kinds.frames[1:N_HUBS].max())
 
     @property
     def latency_frames(self) -> int:
@@ -316,7 +343,7 @@ class LiveSynth:
             new = smooth[:, self.n_path + self.pad - lo:ready + self.pad - lo]
         else:
             new = self.longer[:, self.n_path - self.longer_start:ready - self.longer_start]
-        self.path = np.concatenate([self.path, new], axis=1)
+        self.path.reserve(new.shape[1])[0][...] = new
         self.n_path = ready
         drop = max(self.n_path + self.pad - self.radius - 1, 0) - self.longer_start
         if drop > 0:
@@ -327,12 +354,16 @@ class LiveSynth:
         whole = (self.n_path - 1) // m
         if whole > self.n_seg:
             a, b = self.n_seg * m, whole * m + 1
-            pts = self.path[:, a - self.path_start:b - self.path_start]
+            pts = self._path(a, b)
             step = np.linalg.norm(np.diff(pts[..., _GROUND], axis=1), axis=-1)
             counts = np.full(whole - self.n_seg, m)  # as segment_speeds divides, for the same bits
             speeds = step.reshape(len(step), -1, m).sum(axis=2) / counts * self.bank.fps
             self.seg = np.concatenate([self.seg, speeds / self.scales[:, None]], axis=1)
             self.n_seg = whole
+
+    def _path(self, a: int, b: int) -> Floats:
+        """The smoothed path's frames [a, b) (a view)."""
+        return self.path.columns(a, b)[0]
 
     def _speeds(self, t: NDArray[np.int64], who: NDArray[np.int64] | None = None) -> Floats:
         """(C, len(t)) speed at frames t (interpolated between segment centres); of the
@@ -389,7 +420,7 @@ class LiveSynth:
         # The clocks and distance of the frames up to the next decision (known), so transitions
         # ending before it are found now (the batch knows every end beforehand).
         v = self._speeds(np.arange(a, a + self.step))
-        pts = self.path[:, a - self.path_start:a + self.step + 1 - self.path_start]
+        pts = self._path(a, a + self.step + 1)
         if self.plan_compiled:
             self._compiled_block(a, v, pts, None)
         else:
@@ -468,9 +499,10 @@ class LiveSynth:
         self._normalize(t0)
         n = t1 - t0
         v = self._speeds(np.arange(t0, t1))
-        pts = self.path[:, t0 - self.path_start:t1 + 1 - self.path_start]
-        block = self.buffer.reserve(n)  # written in place
-        out = (block.rows, block.weights, block.gait, block.contacts, block.stitches)
+        pts = self._path(t0, t1 + 1)
+        block = self.buffer.reserve_plan(n)  # written in place
+        out: tuple[NDArray[Any], ...] = (block.rows, block.weights, block.gait, block.contacts,
+                                         block.stitches)
         if self.plan_compiled:
             self._compiled_block(t0, v, pts, out)
         else:
@@ -530,7 +562,7 @@ class LiveSynth:
         move, the heading of the first move -- where it is known yet, else ``heading``)."""
         lo = max(t0 - 1, 0)
         hi = min(t1 + 1, self.n_path)
-        pts = self.path[:, lo - self.path_start:hi - self.path_start][..., _GROUND]
+        pts = self._path(lo, hi)[..., _GROUND]
         d = np.gradient(pts, axis=1) if pts.shape[1] > 1 else np.zeros_like(pts)
         if lo == 0 and pts.shape[1] > 1:
             d[:, 0] = pts[:, 1] - pts[:, 0]
@@ -560,7 +592,7 @@ class LiveSynth:
     def _first_move(self, who: NDArray[np.bool_], t1: int) -> Floats:
         """Yaw of each `who` character's first moving frame at or after t1 in the known path,
         else ``heading``."""
-        pts = self.path[who][:, t1 - 1 - self.path_start:][..., _GROUND]
+        pts = self._path(t1 - 1, self.n_path)[who][..., _GROUND]
         yaw = np.full(int(who.sum()), self.heading)
         if pts.shape[1] < 3:
             return yaw
@@ -594,14 +626,8 @@ class LiveSynth:
         # Copies: the buffer's columns are written over by later blocks.
         window = Window(self.emitted, root, rot, buf.gait[:, lo:hi].copy(), buf.contacts[:, lo:hi].copy())
         self.emitted += hi - lo
-        # Keep the context the next frames' lock may read: whole plants reaching back past PAD,
-        # at most KEEP_PLANS of the slowest cycle.
-        slowest = int(self.kinds.frames[1:N_HUBS].max())
-        self.buffer.drop_before(stop - PAD - EASE_FRAMES - KEEP_PLANS * slowest)
-        drop = max(self.planned - 2, 0) - self.path_start  # the path the next block and heading read
-        if drop > 0:
-            self.path = self.path[:, drop:]
-            self.path_start += drop
+        self.buffer.drop_before(stop - self.kept_frames)  # the context the next frames' lock reads
+        self.path.drop_before(self.planned - 2)  # the path the next block and heading read
         first_seg = max(int(np.floor((self.planned - self.m / 2) / self.m)) - 1, 0)  # the speeds still read
         if first_seg > self.seg_start:
             self.seg = self.seg[:, first_seg - self.seg_start:]
