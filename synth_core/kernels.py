@@ -139,13 +139,13 @@ def _put(out: Any, q: Any) -> None:
 
 
 @_jit()
-def _nlerp_into(a: Any, b: Any, w: Any, out: Any) -> None:
-    """out = normalize(a (1 - w) + b w sign), b turned to a's side; a, b float32 rows (J, 4), w
-    float32. In float32 throughout: the rows are float32, and mixing in float64 would convert
-    every load (the pose pass took 1.6x as long)."""
+def _nlerp_into(a: Any, b: Any, w: Any, out: Any, joints: Any) -> None:
+    """out = normalize(a (1 - w) + b w sign), b turned to a's side, for rows ``joints`` of a, b
+    (float32 (J, 4)); w float32. In float32 throughout: the rows are float32, and mixing in
+    float64 would convert every load (the pose pass took 1.6x as long)."""
     w = np.float32(w)
     keep = np.float32(1.0) - w
-    for j in range(a.shape[0]):
+    for j in joints:
         d = a[j, 0] * b[j, 0] + a[j, 1] * b[j, 1] + a[j, 2] * b[j, 2] + a[j, 3] * b[j, 3]
         s = -w if d < 0 else w
         x = a[j, 0] * keep + b[j, 0] * s
@@ -160,24 +160,28 @@ def _nlerp_into(a: Any, b: Any, w: Any, out: Any) -> None:
 
 @_jit()
 def _assemble(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, yaw: Any, path: Any,
-              h: float, out_rot: Any, out_root: Any) -> None:
-    """Pass 1 without FK: blended, turned, warped pose of each frame of one character."""
+              h: float, out_rot: Any, out_root: Any, fk_joints: Any, keep_from: int, keep_to: int) -> None:
+    """Pass 1 without FK: blended, turned, warped pose of each frame of one character -- of the
+    joints FK needs only (``fk_joints``), outside the frames wanted (a window's context: the
+    lock reads only its feet)."""
     T, J = out_rot.shape[0], out_rot.shape[1]
     before = np.empty((J, 4), np.float32)
     now = np.empty((J, 4), np.float32)
+    every = np.arange(J)
     for t in range(T):
+        joints = every if keep_from <= t < keep_to else fk_joints
         r0, r1, p0, p1 = rows[t, 0], rows[t, 1], rows[t, 2], rows[t, 3]
         w, pw, keep = weights[t, 0], weights[t, 1], weights[t, 2]
         ht = height[r0] * (1 - w) + height[r1] * w
         sg = surge[r0] * (1 - w) + surge[r1] * w
         if keep > 0:
-            _nlerp_into(poses[r0], poses[r1], w, now)
-            _nlerp_into(poses[p0], poses[p1], pw, before)
-            _nlerp_into(now, before, keep, out_rot[t])
+            _nlerp_into(poses[r0], poses[r1], w, now, joints)
+            _nlerp_into(poses[p0], poses[p1], pw, before, joints)
+            _nlerp_into(now, before, keep, out_rot[t], joints)
             ht = ht * (1 - keep) + (height[p0] * (1 - pw) + height[p1] * pw) * keep
             sg = sg * (1 - keep) + (surge[p0] * (1 - pw) + surge[p1] * pw) * keep
         else:
-            _nlerp_into(poses[r0], poses[r1], w, out_rot[t])
+            _nlerp_into(poses[r0], poses[r1], w, out_rot[t], joints)
         a = yaw[t]
         _put(out_rot[t, 0], _qmul((0.0, math.sin(0.5 * a), 0.0, math.cos(0.5 * a)), _q4(out_rot[t, 0])))
         out_root[t, 0] = path[t, 0] + math.sin(a) * sg * h
@@ -447,7 +451,10 @@ def _character(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, yaw
     keep_to)`` are wanted (a window rendered over its foot lock's context): the legs' IK, which
     reads nothing of other frames, is solved for those alone."""
     T = out_rot.shape[0]
-    _assemble(poses, height, surge, rows, weights, yaw, path, h, out_rot, out_root)
+    if not foot_lock:
+        keep_from, keep_to = 0, T  # no context
+    _assemble(poses, height, surge, rows, weights, yaw, path, h, out_rot, out_root, fk_joints, keep_from,
+              keep_to)
     if not foot_lock:
         return
     _fk(out_rot, out_root, h, parents, offsets, fk_joints, g_pos, g_rot)
