@@ -123,12 +123,19 @@ class BatchStream:
                               compiled=compiled_backend(self.options))
         return self._plan
 
+    def _context(self, p: Plan, start: int, stop: int,
+                 bounds: tuple[NDArray[np.int64], NDArray[np.int64]] | None = None
+                 ) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+        if compiled_backend(self.options):
+            return kernels.lock_context(p.contacts, start, stop)
+        return lock_context(p.contacts, start, stop, bounds)
+
     def _render(self, p: Plan, start: int, stop: int,
                 bounds: tuple[NDArray[np.int64], NDArray[np.int64]] | None) -> Window:
         lock = self.options.foot_lock
         C = p.yaw.shape[0]
         if lock:
-            begin, end = lock_context(p.contacts, start, stop, bounds)
+            begin, end = self._context(p, start, stop, bounds)
         else:
             begin, end = np.full(C, start), np.full(C, stop)
         if compiled_backend(self.options):
@@ -147,14 +154,16 @@ class BatchStream:
         reach = first_stop + PAD + FIRST_PLAN_STRIDES * int(self.bank.mean_cycle)
         early = plan(self.bank, self.prep, self.character_scales, self.keys, self.options.margin,
                      frames=reach, compiled=compiled_backend(self.options))
-        begin_end = lock_context(early.contacts, 0, first_stop) if self.options.foot_lock else None
+        begin_end = self._context(early, 0, first_stop) if self.options.foot_lock else None
         if early.yaw.shape[1] < T and begin_end is not None and begin_end[1].max() >= early.yaw.shape[1]:
             early = self._whole_plan()  # a plant runs past it: plan it all now
         yield self._render(early, 0, first_stop, None)
         if first_stop == T:
             return
         whole = self._whole_plan()
-        bounds = runs(whole.contacts) if self.options.foot_lock else None
+        # The numpy reference finds every frame's run once; the compiled scan needs none.
+        numpy_lock = self.options.foot_lock and not compiled_backend(self.options)
+        bounds = runs(whole.contacts) if numpy_lock else None
         for a in range(first_stop, T, K * RENDER_CHUNKS):
             b = min(a + K * RENDER_CHUNKS, T)
             w = self._render(whole, a, b, bounds)

@@ -360,18 +360,27 @@ def blend_rows(bank: Bank, kinds: _Kinds, margin: int, kind: NDArray[np.int64], 
     return rows, weights, gait
 
 
-def headings(path: Floats, fps: float) -> Floats:
+def headings(path: Floats, fps: float, frames: int | None = None) -> Floats:
     """(C, T) yaw (about +Y, 0 = +Z) of the path's tangent, held where the character moves
     slower than MIN_TURN_SPEED (a standing animal does not spin with its trajectory's jitter);
-    before it first moves, the heading it first moves in."""
-    dx, dz = np.gradient(path[..., 0], axis=1), np.gradient(path[..., 2], axis=1)
+    before it first moves, the heading it first moves in. ``frames``: the first ``frames`` only
+    (the same numbers: the path beyond is read only for characters standing until then)."""
+    T_all = path.shape[1]
+    n = T_all if frames is None or frames + 1 >= T_all else frames + 1  # + 1: the last one's gradient
+    dx, dz = np.gradient(path[:, :n, 0], axis=1), np.gradient(path[:, :n, 2], axis=1)
+    if n < T_all:
+        dx, dz = dx[:, :-1], dz[:, :-1]
     moving = np.sqrt(dx * dx + dz * dz) * fps >= MIN_TURN_SPEED
     C, T = moving.shape
     idx = np.maximum.accumulate(np.where(moving, np.arange(T), -1), axis=1)
-    first = np.where(moving.any(axis=1), moving.argmax(axis=1), 0)
+    has = moving.any(axis=1)
+    first = np.where(has, moving.argmax(axis=1), 0)
     idx = np.where(idx < 0, first[:, None], idx)
     yaw = np.arctan2(dx, dz)
-    return np.asarray(yaw.ravel()[idx + (np.arange(C) * T)[:, None]])
+    out = np.asarray(yaw.ravel()[idx + (np.arange(C) * T)[:, None]])
+    if n < T_all and not has.all():
+        out[~has] = headings(path[~has], fps)[:, :T]
+    return out if frames is None else out[:, :frames]
 
 
 @dataclass(frozen=True, eq=False)
@@ -416,13 +425,13 @@ def plan(bank: Bank, prep: Prepared, h: Floats, keys: NDArray[np.uint64], margin
     kinds = _kinds(bank)
     m = prep.segment
     speeds = prep.segment_speeds / h[:, None]  # the library motion's speed for each character
-    v = _frame_speeds(speeds, m, T)
-    yaw = headings(path, bank.fps)
     keep = T
     if frames is not None and frames + lookahead(m) + 1 < T:
         keep = max(frames, 1)
         T = keep + lookahead(m) + 1
-        path, v, yaw = path[:, :T], v[:, :T], yaw[:, :T]
+        path = path[:, :T]
+    v = _frame_speeds(speeds, m, T)
+    yaw = headings(prep.positions, bank.fps, T)
     if compiled:
         tb = _plan_tables(bank)
         step = decision_step(m)

@@ -55,6 +55,19 @@ def test_root_stays_on_the_path_and_keeps_time(result: Result) -> None:
     assert np.abs(np.sum(offset * left, axis=-1)).max() <= 0.01  # sideways: at most 1 cm
 
 
+
+def test_headings_of_the_first_frames_are_the_wholes() -> None:
+    """headings(frames=n) reads the path beyond n only for characters standing until then."""
+    t = np.arange(300)[:, None]
+    path = np.zeros((3, 300, 3))
+    path[0] = np.where(t < 40, 0.0, 0.02 * (t - 40)) * np.array([1.0, 0.0, 0.0])  # moves at 40
+    path[1] = np.where(t < 200, 0.0, 0.02 * (t - 200)) * np.array([0.0, 0.0, -1.0])  # stands past 120
+    path[2] = 0.01 * t * np.array([0.6, 0.0, 0.8])  # moves from the start
+    whole = headings(path, 60.0)
+    for n in (1, 41, 120, 299, 300, 400):
+        np.testing.assert_array_equal(headings(path, 60.0, n), whole[:, :n])
+    assert whole[1, 0] == np.pi  # the standing one faces where it will go
+
 def test_same_seed_same_motion_other_seed_other_choices(bank: Bank, herd: np.ndarray, result: Result) -> None:
     again = synthesize(bank, herd, options=Options(scale_range=(0.8, 1.2), seed=0))
     assert np.array_equal(again.rotations, result.rotations)
