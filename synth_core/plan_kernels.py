@@ -6,8 +6,8 @@ The numpy reference is :func:`synth_core.synthesis.plan` (``schedule``, ``_local
 segment), and that overhead, not the arithmetic, dominated small batches (10 characters ran at
 40% of the speed per character-frame of 1,000). Here one character's whole plan is a few loops
 over its frames. The same float64 operations in the same order as the reference, without
-fastmath: the plans are equal bit for bit (tested), so a plan made here and the live mode's
-(numpy) agree too.
+fastmath: the plans are equal bit for bit (tested), and so are the live mode's blocks made here
+and by its numpy reference (``live_block``, tested).
 
 The per-frame quantities headings and speeds stay in numpy (shared with the live mode); the
 random draws are made beforehand (:func:`synth_core.draws.uniform`, one stream per decision).
