@@ -279,17 +279,25 @@ def warm_up(registry: LibraryRegistry) -> None:
     import numpy as np
 
     from service.packing import pack_rotations
+    from synth_core.live import LiveSynth
     from synth_core.streaming import BatchStream
     from synth_core.synthesis import synthesize
 
     path = np.zeros((1, 30, 3))
     path[0, :, 2] = np.linspace(0.0, 0.3, 30)
+    # A live session's kernels take views of its buffers: two characters, so that they are views
+    # as in any real session (of one, numba sees contiguous arrays and compiles another version).
+    walk = np.zeros((2, 200, 3))
+    walk[:, :, 2] = np.linspace(0.0, 8.0, 200)
     for bank in registry.banks.values():
         result = synthesize(bank, path)
         for encoding in ("s48", "i16"):
             pack_rotations(result.rotations, encoding)
         for _ in BatchStream(bank, path, chunk_frames=10).windows():
             pass
+        live = LiveSynth(bank, 2, 30.0)
+        live.append(walk)
+        live.finish()
 
 
 def create_app(directory: Path | None = None, settings: Settings | None = None) -> FastAPI:
