@@ -63,7 +63,6 @@ from synth_core.synthesis import (
     render,
     stride_clocks,
     switch,
-    transition_distances,
 )
 from synth_core.trajectory import _GROUND, DEFAULT_SIGMA, TELEPORT_M, TrajectoryError
 
@@ -199,8 +198,7 @@ class LiveSynth:
         self.horizon = max(lookahead(self.m), self.step + int(self.kinds.frames[1:N_HUBS].max()))
         self.pad = int(np.ceil(4 * sigma)) if sigma > 0 else 0
         self.radius = int(4.0 * sigma + 0.5) if sigma > 0 else 0
-        self.total = transition_distances(bank, self.kinds)
-        self.tables = _plan_tables(bank)
+        self.tables = _plan_tables(bank)  # the kinds' tables as the compiled blocks read them
         # Input (at fps) and the library-rate points made from it.
         self.inputs = np.zeros((C, 0, 3))
         self.inputs_start = 0  # global index of inputs[:, 0]
@@ -474,7 +472,8 @@ class LiveSynth:
             return
         dist = distance_since(walked[pc, :n] / h[pc, None], self.bank.creep, b, t0,
                               at=P.trav0[pc, j, None] / h[pc, None])
-        done = (dist >= self.total[P.kind[pc, j]][:, None]) & (np.arange(t0, t0 + n)[None, :] > b[:, None])
+        covered = dist >= self.tables.total[P.kind[pc, j]][:, None]
+        done = covered & (np.arange(t0, t0 + n)[None, :] > b[:, None])
         hit = done.any(axis=1)
         ec, ej, et = pc[hit], j[hit] + 1, done[hit].argmax(axis=1)
         P.start[ec, ej] = t0 + et
