@@ -328,9 +328,10 @@ class Session:
                 if finishing:
                     break
             if sending is not None:
-                await sending
+                last, sending = sending, None
+                await last
         finally:
-            if sending is not None:  # leaving on an error: let it finish first (its own error: this one's)
+            if sending is not None:  # leaving on an error: let its send finish first (this error wins)
                 with contextlib.suppress(Exception):
                     await sending
         cancelled = self.cancel.is_set()

@@ -422,11 +422,7 @@ class LiveSynth:
         if self.plan_compiled:
             self._compiled_block(a, v, pts, None)
         else:
-            clocks = stride_clocks(self.bank, self.kinds, v, a, self.clock)
-            step = np.linalg.norm(np.diff(pts[..., _GROUND], axis=1), axis=-1)
-            walked = np.cumsum(np.concatenate([self.walked[:, None], step], axis=1), axis=1)
-            self._start_distances(a, self.step, walked)
-            self._end_transitions(a, self.step, walked, clocks)
+            self._scan(a, v, pts)
         self._normalize(a)
         draws = uniform(self.keys, SCHEDULE_STREAM + k, N_HUBS)
         nxt = _choose(self.bank, self.current, self._speeds(np.array([ahead]))[:, 0], draws)
@@ -450,6 +446,18 @@ class LiveSynth:
         P.start[go, j + 2], P.kind[go, j + 2], P.first[go, j + 2] = NEVER, new, resume
         self.busy[go] = NEVER
         self.current[go] = new
+
+    def _scan(self, t0: int, v: Floats, pts: Floats) -> tuple[Floats, Floats]:
+        """Frames [t0, t0 + n) (``v (C, n)``, ``pts (C, n + 1, 3)``): the clocks and distance at
+        frames t0 .. t0 + n from the carried ones, and the pieces' starts and ends there
+        (the numpy reference of :func:`plan_kernels.live_block`'s scan)."""
+        n = v.shape[1]
+        clocks = stride_clocks(self.bank, self.kinds, v, t0, self.clock)
+        step = np.linalg.norm(np.diff(pts[..., _GROUND], axis=1), axis=-1)
+        walked = np.cumsum(np.concatenate([self.walked[:, None], step], axis=1), axis=1)  # (C, n+1)
+        self._start_distances(t0, n, walked)
+        self._end_transitions(t0, n, walked, clocks)
+        return clocks, walked
 
     def _start_distances(self, t0: int, n: int, walked: Floats) -> None:
         """The distance travelled at their start of the pieces starting within frames ``[t0, t0 + n)``
@@ -527,14 +535,9 @@ class LiveSynth:
         bank, kinds, P = self.bank, self.kinds, self.pieces
         C, n = len(self.scales), t1 - t0
         t = np.arange(t0, t1)
-        # Clocks and distance at frames t0..t1 (one more: the next block starts from it).
-        clocks = stride_clocks(bank, kinds, v, t0, self.clock)
-        step = np.linalg.norm(np.diff(pts[..., _GROUND], axis=1), axis=-1)
-        walked = np.cumsum(np.concatenate([self.walked[:, None], step], axis=1), axis=1)  # (C, n+1)
+        clocks, walked = self._scan(t0, v, pts)  # to t1: the next block starts from there
         h = self.scales[:, None]
         c_all = np.arange(C)
-        self._start_distances(t0, n, walked)
-        self._end_transitions(t0, n, walked, clocks)
         # Which slot plays each frame, and the slot before it.
         e = 1 + (t[None, :, None] >= P.start[:, None, 2:]).sum(axis=2)
         cc = c_all[:, None]
