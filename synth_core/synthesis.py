@@ -606,7 +606,7 @@ def synthesize(bank: Bank, positions: ArrayLike, fps: float | None = None,
                ids: list[str] | None = None,
                progress: Callable[[int, int], None] | None = None,
                out: tuple[NDArray[np.float32], NDArray[np.float32]] | None = None,
-               seeds: ArrayLike | None = None) -> Result:
+               seeds: ArrayLike | None = None, scratch: Scratch | None = None) -> Result:
     """Motion for every trajectory ``positions (C, F, 3)`` sampled at ``fps`` (default: the library's).
 
     ``seeds (C,)``: a character's own seed (``-1``: none, it draws from ``options.seed`` and its
@@ -619,7 +619,9 @@ def synthesize(bank: Bank, positions: ArrayLike, fps: float | None = None,
     ``out``: ``(root (C, T, 3), rotations (C, T, J, 4))`` float32 arrays to write into, e.g. a
     previous result's, as a caller synthesizing batch after batch would keep them (T: the frame
     count after resampling). Fresh memory is dear: its first touch costs up to 1.8 ms per MB on
-    a VM (measured here), 5.7 s for 10,000 characters x 500 frames."""
+    a VM (measured here), 5.7 s for 10,000 characters x 500 frames. ``scratch``: the render
+    kernel's working sets, kept by such a caller for the same reason (a few MB: a fresh one per
+    call made a batch of 10 characters a fifth slower per character-frame than one of 1,000)."""
     prep, h, keys = prepare_batch(bank, positions, fps, scales, options, ids, seeds)
     C, T = prep.positions.shape[:2]
     J = bank.skeleton.n_joints
@@ -635,7 +637,7 @@ def synthesize(bank: Bank, positions: ArrayLike, fps: float | None = None,
     gait = np.empty((C, T), np.int8)
     contacts = np.empty((C, T, 4), bool)
     stitches = np.empty((C, T), bool)
-    for chunk in render_chunks(bank, prep, h, keys, options, out=out, fresh=fresh):
+    for chunk in render_chunks(bank, prep, h, keys, options, out=out, fresh=fresh, scratch=scratch):
         sl, p = chunk.characters, chunk.plan
         gait[sl], contacts[sl], stitches[sl] = p.gait, p.contacts, p.stitches
         if progress:

@@ -40,6 +40,23 @@ def test_resampling_keeps_every_path_length_and_the_formation() -> None:
     assert slow.resample_rate == 1.0 and slow.positions.shape == herd.shape
 
 
+def test_the_smoothed_paths_are_resampled_in_the_papers_order() -> None:
+    """Smooth, measure, then resample the smoothed paths (each point on the smoothed path's
+    polyline, time-uniformly), with segment speeds measured on what is returned."""
+    rng = np.random.default_rng(4)
+    herd = np.stack([line(300, 2.0), line(300, 3.0, offset=1.0)]) + rng.normal(0, 0.01, (2, 300, 3)) * [1, 0, 1]
+    once = prepare(herd, 60.0, 60.0, 10.0, 40, np.ones(2), sigma=3.0)
+    longer = prepare(herd, 60.0, 60.0, 10.0, 40, np.ones(2), sigma=3.0, min_rate=1.5)
+    n = longer.positions.shape[1]
+    assert n == 1 + int(np.ceil(299 * 1.5))  # whole frames: the rate is what they make
+    assert once.resample_rate == 1.0 and longer.resample_rate == (n - 1) / 299
+    t = np.linspace(0, 299, n)
+    for c in range(2):
+        want = np.stack([np.interp(t, np.arange(300), once.positions[c, :, k]) for k in range(3)], axis=-1)
+        assert np.allclose(longer.positions[c], want, atol=1e-12)
+    assert np.array_equal(longer.segment_speeds, segment_speeds(longer.positions, 40, 60.0))
+
+
 def test_big_characters_are_judged_at_their_own_scale() -> None:
     """A horse twice the size runs the library's motion at half the speed: no resampling."""
     path = line(100, 6.0)[None]
