@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from synth_core.trajectory import TELEPORT_M, TrajectoryError, prepare, segment_speeds, smooth
+from synth_core.trajectory import ROWS, TELEPORT_M, TrajectoryError, prepare, segment_speeds, smooth
 
 
 def line(frames: int, speed: float, fps: float = 60.0, offset: float = 0.0) -> np.ndarray:
@@ -44,7 +44,8 @@ def test_the_smoothed_paths_are_resampled_in_the_papers_order() -> None:
     """Smooth, measure, then resample the smoothed paths (each point on the smoothed path's
     polyline, time-uniformly), with segment speeds measured on what is returned."""
     rng = np.random.default_rng(4)
-    herd = np.stack([line(300, 2.0), line(300, 3.0, offset=1.0)]) + rng.normal(0, 0.01, (2, 300, 3)) * [1, 0, 1]
+    herd = np.stack([line(300, 2.0), line(300, 3.0, offset=1.0)])
+    herd += rng.normal(0, 0.01, (2, 300, 3)) * [1, 0, 1]
     once = prepare(herd, 60.0, 60.0, 10.0, 40, np.ones(2), sigma=3.0)
     longer = prepare(herd, 60.0, 60.0, 10.0, 40, np.ones(2), sigma=3.0, min_rate=1.5)
     n = longer.positions.shape[1]
@@ -55,6 +56,25 @@ def test_the_smoothed_paths_are_resampled_in_the_papers_order() -> None:
         want = np.stack([np.interp(t, np.arange(300), once.positions[c, :, k]) for k in range(3)], axis=-1)
         assert np.allclose(longer.positions[c], want, atol=1e-12)
     assert np.array_equal(longer.segment_speeds, segment_speeds(longer.positions, 40, 60.0))
+
+
+def test_a_batch_of_many_row_blocks_keeps_its_order_and_its_errors() -> None:
+    """Checked and smoothed ROWS characters at a time, the blocks on every core: each character's
+    result and each error land at its own index."""
+    rng = np.random.default_rng(5)
+    C = 2 * ROWS + 37
+    herd = np.stack([line(120, 1.0 + 2.0 * rng.random(), offset=3.0 * c) for c in range(C)])
+    herd += rng.normal(0, 0.01, herd.shape) * [1, 0, 1]
+    herd[ROWS + 3, 50] = np.nan
+    herd[C - 1, 80:] += [2 * TELEPORT_M, 0, 0]
+    out = prepare(herd, 60.0, 60.0, 10.0, 40, np.ones(C), sigma=2.0, skip_invalid=True)
+    assert sorted(out.rejected) == [ROWS + 3, C - 1]
+    assert "NaN or Inf at frame 50" in out.rejected[ROWS + 3] and "jumps" in out.rejected[C - 1]
+    assert list(out.kept) == [c for c in range(C) if c not in (ROWS + 3, C - 1)]
+    for i in (0, ROWS - 1, ROWS + 3, 2 * ROWS, len(out.kept) - 1):
+        alone = prepare(herd[out.kept[i]][None], 60.0, 60.0, 10.0, 40, np.ones(1), sigma=2.0)
+        assert np.array_equal(out.positions[i], alone.positions[0])
+        assert np.array_equal(out.segment_speeds[i], alone.segment_speeds[0])
 
 
 def test_big_characters_are_judged_at_their_own_scale() -> None:
