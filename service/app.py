@@ -139,7 +139,11 @@ class State:
         def work() -> Answer:
             if self.settings.test_hooks:
                 self._held()
-            return finish(*jobs.run(job, bank))
+            try:
+                return finish(*jobs.run(job, bank))
+            except jobs.Cancelled:
+                self.count_cancelled(loop)
+                raise
 
         future = await self._run(job, work, end)
         try:
@@ -149,6 +153,15 @@ class State:
         except asyncio.CancelledError:
             job.cancel.set()  # the client went away: stop the work too
             raise
+
+    def count_cancelled(self, loop: asyncio.AbstractEventLoop) -> None:
+        """From a pool thread: one more synthesis stopped early (counted on the event loop, which
+        owns the metrics)."""
+        def count() -> None:
+            self.metrics.cancelled += 1
+
+        with contextlib.suppress(RuntimeError):  # the loop is gone: so is /metrics
+            loop.call_soon_threadsafe(count)
 
     def scratch(self) -> Scratch:
         """This pool thread's own render and packing pages, kept from request to request."""
@@ -183,6 +196,8 @@ class State:
                 frames = answer.produce(job, bank, meta, self.scratch(), emit)
                 emit(Finished(frames, time.perf_counter() - t0))
             except BaseException as exc:  # noqa: BLE001 - handed to the event loop, raised there
+                if isinstance(exc, jobs.Cancelled):
+                    self.count_cancelled(loop)
                 emit(exc)
 
         async def next_item() -> Any:

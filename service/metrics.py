@@ -20,6 +20,7 @@ class Metrics:
     character_frames: int = 0
     synthesis_seconds: float = 0.0
     syntheses: int = 0
+    cancelled: int = 0  # syntheses stopped before their end: the client left or the deadline passed
     in_flight: int = 0
     ws_sessions: int = 0
 
@@ -44,6 +45,9 @@ class Metrics:
             "# TYPE quadsynth_synthesis_seconds summary",
             f'quadsynth_synthesis_seconds_sum{{pid="{pid}"}} {self.synthesis_seconds:.6f}',
             f'quadsynth_synthesis_seconds_count{{pid="{pid}"}} {self.syntheses}',
+            "# HELP quadsynth_cancelled_total Syntheses stopped before their end (client gone, deadline).",
+            "# TYPE quadsynth_cancelled_total counter",
+            f'quadsynth_cancelled_total{{pid="{pid}"}} {self.cancelled}',
             "# HELP quadsynth_in_flight Synthesis requests running or queued now.",
             "# TYPE quadsynth_in_flight gauge",
             f'quadsynth_in_flight{{pid="{pid}"}} {self.in_flight}',

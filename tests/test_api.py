@@ -267,6 +267,42 @@ def test_past_the_deadline_gets_504_and_the_worker_is_free_again(tmp_path: Path,
         answer = post(url, batch(herd[:2, :80]))
         assert answer.status_code == 200 and len(msgpack.unpackb(answer.content)["characters"]) == 2
         assert 'reason="deadline"} 2' in httpx.get(f"{url}/metrics").text
+        assert metric(url, "quadsynth_cancelled_total") == 1  # the held one; the queued one never ran
+
+
+def metric(url: str, name: str) -> float:
+    """The value of an unlabelled-but-pid series of the (one worker's) /metrics."""
+    for line in httpx.get(f"{url}/metrics").text.splitlines():
+        if line.startswith(name + "{"):
+            return float(line.rsplit(" ", 1)[1])
+    raise AssertionError(f"{name} not in /metrics")
+
+
+def test_a_client_leaving_mid_answer_stops_the_work(tmp_path: Path) -> None:
+    """The answer goes out while it is made: a client that reads its first bytes and hangs up
+    stops the synthesis at its next chunk of characters (counted as cancelled, not as
+    character-frames made), nothing is left running, and the worker takes the next request."""
+    big = crowd.simulate(600, 1000, seed=2).astype(np.float32)  # a 7.2 MB body: ~45 chunks of work
+    with running(tmp_path, {"QUADSYNTH_MAX_IN_FLIGHT": "1", "QUADSYNTH_MAX_QUEUED": "1"}) as (url, _):
+        raw = msgpack.packb(batch(big), use_bin_type=True)
+        with httpx.Client(timeout=60) as client, client.stream(
+                "POST", f"{url}/v1/synthesize", content=raw, headers={"content-type": MSGPACK}) as response:
+            assert response.status_code == 200
+            first = next(response.iter_raw())
+            assert 0 < len(first) < int(response.headers["content-length"])
+        # gone: the connection closed with most of the answer still to come
+        deadline = time.monotonic() + 30
+        while metric(url, "quadsynth_cancelled_total") < 1 and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert metric(url, "quadsynth_cancelled_total") == 1
+        while metric(url, "quadsynth_in_flight") > 0 and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert metric(url, "quadsynth_in_flight") == 0
+        assert metric(url, "quadsynth_character_frames_total") == 0
+        answer = post(url, batch(big[:2, :100]))
+        assert answer.status_code == 200 and len(msgpack.unpackb(answer.content)["characters"]) == 2
+        assert metric(url, "quadsynth_character_frames_total") == 200
+        assert metric(url, "quadsynth_cancelled_total") == 1
 
 
 def test_sigterm_lets_the_request_in_flight_finish(tmp_path: Path, herd: np.ndarray) -> None:
