@@ -90,7 +90,7 @@ def request_body(positions: ArrayLike, ids: Sequence[str] | None = None,
     return bytes(msgpack.packb({**options, "characters": characters}, use_bin_type=True))
 
 
-def decode_response(content: bytes) -> Motion:
+def decode_response(content: bytes | bytearray) -> Motion:
     body = msgpack.unpackb(content)
     characters = []
     for ch in body["characters"]:
@@ -105,7 +105,52 @@ def decode_response(content: bytes) -> Motion:
                   body.get("skipped", []))
 
 
-def _raise_for(status: int, content: bytes) -> None:
+class _Body:
+    """A 200 answer's body read into one buffer of its Content-Length as the pieces arrive.
+
+    httpx's ``read()`` keeps every 64 KiB piece and then joins them: twice the answer in fresh
+    memory, whose first touch is dear (a quarter of a 64 MB answer's end-to-end time on a VM,
+    measured: 0.37 -> 0.28 s for 500 characters x 500 frames)."""
+
+    def __init__(self, headers: Any) -> None:
+        self.buffer = bytearray(int(headers["content-length"]))
+        self.view = memoryview(self.buffer)
+        self.size = 0
+
+    @staticmethod
+    def applies(status: int, headers: Any) -> bool:
+        length = headers.get("content-length", "")
+        return status == 200 and length.isdigit() and "content-encoding" not in headers
+
+    def add(self, piece: bytes) -> None:
+        end = self.size + len(piece)
+        if end > len(self.buffer):  # h11 refuses this first; a guard all the same
+            raise ServiceError(200, "", f"answer longer than its Content-Length ({len(self.buffer)})")
+        self.view[self.size:end] = piece
+        self.size = end
+
+
+def read_body(response: Any) -> bytes | bytearray:
+    """The body of a streamed httpx ``response`` (see :class:`_Body`)."""
+    if not _Body.applies(response.status_code, response.headers):
+        return bytes(response.read())
+    body = _Body(response.headers)
+    for piece in response.iter_raw():
+        body.add(piece)
+    return body.buffer
+
+
+async def aread_body(response: Any) -> bytes | bytearray:
+    """:func:`read_body` of an httpx ``AsyncClient`` stream."""
+    if not _Body.applies(response.status_code, response.headers):
+        return bytes(await response.aread())
+    body = _Body(response.headers)
+    async for piece in response.aiter_raw():
+        body.add(piece)
+    return body.buffer
+
+
+def _raise_for(status: int, content: bytes | bytearray) -> None:
     if status == 200:
         return
     try:
@@ -145,10 +190,12 @@ class Client:
     def synthesize(self, positions: ArrayLike, ids: Sequence[str] | None = None,
                    scales: Sequence[float | None] | None = None, **options: Any) -> Motion:
         """``options``: the request's fields (animal, fps, seed, sigma, encoding, skip_invalid, ...)."""
-        response = self._http.post("/v1/synthesize", content=request_body(positions, ids, scales, **options),
-                                   headers={"content-type": MSGPACK, "accept": MSGPACK})
-        _raise_for(response.status_code, response.content)
-        return decode_response(response.content)
+        with self._http.stream("POST", "/v1/synthesize",
+                               content=request_body(positions, ids, scales, **options),
+                               headers={"content-type": MSGPACK, "accept": MSGPACK}) as response:
+            content = read_body(response)
+        _raise_for(response.status_code, content)
+        return decode_response(content)
 
 
     def stream(self, positions: ArrayLike, ids: Sequence[str] | None = None,
@@ -269,8 +316,9 @@ class AsyncClient:
 
     async def synthesize(self, positions: ArrayLike, ids: Sequence[str] | None = None,
                          scales: Sequence[float | None] | None = None, **options: Any) -> Motion:
-        response = await self._http.post("/v1/synthesize",
-                                         content=request_body(positions, ids, scales, **options),
-                                         headers={"content-type": MSGPACK, "accept": MSGPACK})
-        _raise_for(response.status_code, response.content)
-        return decode_response(response.content)
+        async with self._http.stream("POST", "/v1/synthesize",
+                                     content=request_body(positions, ids, scales, **options),
+                                     headers={"content-type": MSGPACK, "accept": MSGPACK}) as response:
+            content = await aread_body(response)
+        _raise_for(response.status_code, content)
+        return decode_response(content)

@@ -5,7 +5,8 @@ Without ``--url`` it starts ``quadsynth serve`` on a free loopback port (the def
 directory) and stops it after. Figures (500 horses, crowd-sim, seed 0, msgpack, s48):
 
 - ``rest_char_frames_per_s``: 500 x 500 frames through ``POST /v1/synthesize``, end to end over
-  loopback HTTP (body out, whole answer in), best of ``repeats``;
+  loopback HTTP (body out, whole answer in, read as the Python client reads it: into one buffer
+  of its Content-Length), best of ``repeats``;
 - ``ws_first_chunk_ms``: from sending a 500-character ``synthesize`` on ``/v1/stream`` to
   receiving its first 30-frame chunk, best of ``repeats`` (the session already open);
 - ``ws_char_frames_per_s``: the same stream to its ``end``, acking every chunk;
@@ -34,6 +35,7 @@ import httpx
 import msgpack
 import numpy as np
 
+from api_schemas.client import read_body
 from api_schemas.wire import blob
 from synth_core import crowd
 
@@ -70,17 +72,20 @@ def local_service() -> Iterator[str]:
         proc.wait(timeout=60)
 
 
-def rest(url: str, body: dict[str, Any], repeats: int) -> tuple[float, bytes]:
+def rest(url: str, body: dict[str, Any], repeats: int) -> tuple[float, bytes | bytearray]:
     raw = msgpack.packb(body, use_bin_type=True)
-    best, content = float("inf"), b""
+    best = float("inf")
+    content: bytes | bytearray = b""
     with httpx.Client(base_url=url, timeout=300) as client:
         for _ in range(repeats):
             t0 = time.perf_counter()
-            response = client.post("/v1/synthesize", content=raw,
-                                   headers={"content-type": "application/vnd.msgpack"})
+            with client.stream("POST", "/v1/synthesize", content=raw,
+                               headers={"content-type": "application/vnd.msgpack"}) as response:
+                content = read_body(response)  # as api_schemas.client.Client reads it
             best = min(best, time.perf_counter() - t0)
-            response.raise_for_status()
-            content = response.content
+            if response.status_code != 200:
+                raise SystemExit(f"bench-service: POST /v1/synthesize: {response.status_code} "
+                                 f"{bytes(content[:300])!r}")
     return best, content
 
 

@@ -330,7 +330,7 @@ def test_sigterm_lets_the_request_in_flight_finish(tmp_path: Path, herd: np.ndar
 def test_python_client_gives_the_motion_synthesize_gives_locally(server: str, herd: np.ndarray) -> None:
     import asyncio
 
-    from api_schemas.client import AsyncClient, Client, ServiceError
+    from api_schemas.client import AsyncClient, Client, ServiceError, read_body
     from synth_core.bank import build_bank
     from synth_core.build import build_builtin
     from synth_core.synthesis import Options, synthesize
@@ -357,3 +357,10 @@ def test_python_client_gives_the_motion_synthesize_gives_locally(server: str, he
         assert worst <= ENCODING_ERROR["s48"][0]
 
     asyncio.run(over_asyncio())
+    # The client reads an answer into one buffer of its Content-Length: the same bytes.
+    raw = msgpack.packb(batch(herd[:3]), use_bin_type=True)
+    with httpx.Client(base_url=server, timeout=60) as http:
+        with http.stream("POST", "/v1/synthesize", content=raw, headers={"content-type": MSGPACK}) as r:
+            streamed = read_body(r)
+        assert isinstance(streamed, bytearray) and len(streamed) == int(r.headers["content-length"])
+        assert streamed == http.post("/v1/synthesize", content=raw, headers={"content-type": MSGPACK}).content
