@@ -620,8 +620,8 @@ def synthesize(bank: Bank, positions: ArrayLike, fps: float | None = None,
     previous result's, as a caller synthesizing batch after batch would keep them (T: the frame
     count after resampling). Fresh memory is dear: its first touch costs up to 1.8 ms per MB on
     a VM (measured here), 5.7 s for 10,000 characters x 500 frames. ``scratch``: the render
-    kernel's working sets, kept by such a caller for the same reason (a few MB: a fresh one per
-    call made a batch of 10 characters a fifth slower per character-frame than one of 1,000)."""
+    kernel's working sets (a few MB), which such a caller can keep too, as the service's worker
+    threads do (default: fresh ones, kept for this call's chunks)."""
     prep, h, keys = prepare_batch(bank, positions, fps, scales, options, ids, seeds)
     C, T = prep.positions.shape[:2]
     J = bank.skeleton.n_joints

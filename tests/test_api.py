@@ -271,7 +271,7 @@ def test_past_the_deadline_gets_504_and_the_worker_is_free_again(tmp_path: Path,
 
 
 def metric(url: str, name: str) -> float:
-    """The value of an unlabelled-but-pid series of the (one worker's) /metrics."""
+    """The value of a series labelled only by pid, on the /metrics of a one-worker server."""
     for line in httpx.get(f"{url}/metrics").text.splitlines():
         if line.startswith(name + "{"):
             return float(line.rsplit(" ", 1)[1])

@@ -22,7 +22,7 @@ from api_schemas.wire import blob, unblob
 from synth_core import crowd
 from synth_core.bank import Bank
 from synth_core.live import LiveSynth
-from tests.test_api import LIMITS, post
+from tests.test_api import LIMITS, metric, post
 from tests.test_service import free_port, running, start, wait_until_live
 
 STREAM_LIMITS = {**LIMITS, "QUADSYNTH_WS_WINDOW": "2", "QUADSYNTH_WS_SEND_TIMEOUT_S": "1.5"}
@@ -168,13 +168,6 @@ def test_a_client_that_stops_acking_is_closed_with_1013(server: str, herd: np.nd
         with pytest.raises(ConnectionClosed) as closed:
             ws.recv(timeout=10)
         assert closed.value.rcvd is not None and closed.value.rcvd.code == 1013
-
-
-def metric(url: str, name: str) -> float:
-    for line in httpx.get(f"{url}/metrics").text.splitlines():
-        if line.startswith(name + "{"):
-            return float(line.rsplit(" ", 1)[1])
-    raise AssertionError(f"{name} not in /metrics")
 
 
 def test_a_disconnect_mid_stream_stops_the_work(server: str) -> None:
