@@ -15,11 +15,11 @@ from service.errors import ApiError
 from service.jobs import validate
 from service.settings import Settings
 from synth_core.bank import Bank
-from synth_core.live import LiveSynth
+from synth_core.live_shards import LiveShards
 from synth_core.trajectory import TrajectoryError
 
 
-def open_live(body: Any, settings: Settings, banks: dict[str, Bank]) -> tuple[LiveRequest, LiveSynth]:
+def open_live(body: Any, settings: Settings, banks: dict[str, Bank]) -> tuple[LiveRequest, LiveShards]:
     """The session's request and synthesizer; 422 naming the field for anything unusable."""
     req = validate(LiveRequest, body, settings, banks)
     bank = banks[req.animal]
@@ -29,7 +29,7 @@ def open_live(body: Any, settings: Settings, banks: dict[str, Bank]) -> tuple[Li
     scales = np.array([np.nan if c.scale is None else c.scale for c in req.characters])
     seeds = np.array([-1 if c.seed is None else c.seed for c in req.characters], np.int64)
     try:
-        live = LiveSynth(bank, len(req.characters), req.fps, scales=scales, seed=req.seed, seeds=seeds,
+        live = LiveShards(bank, len(req.characters), req.fps, scales=scales, seed=req.seed, seeds=seeds,
                          scale_range=(req.scale_min, req.scale_max), sigma=req.sigma,
                          foot_lock=req.foot_lock, heading=req.heading)
     except TrajectoryError as exc:

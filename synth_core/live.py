@@ -166,7 +166,7 @@ class LiveSynth:
                  scales: ArrayLike | None = None, seed: int = 0, seeds: ArrayLike | None = None,
                  scale_range: tuple[float, float] = (1.0, 1.0), sigma: float = DEFAULT_SIGMA,
                  margin: int = MARGIN, foot_lock: bool = True, backend: str = "auto",
-                 heading: float = 0.0, lock_lag: int = LOCK_LAG) -> None:
+                 heading: float = 0.0, lock_lag: int = LOCK_LAG, first: int = 0) -> None:
         if not (isinstance(n_characters, int) and n_characters >= 1):
             raise TrajectoryError(f"characters: need at least one, got {n_characters}")
         fps = bank.fps if fps is None else float(fps)
@@ -183,7 +183,9 @@ class LiveSynth:
         # The plan's blocks by plan_kernels.live_block (the same plan, bit for bit; False: the
         # numpy reference, which tests compare it with).
         self.plan_compiled = self.compiled
-        self.keys = character_keys(seed, C, seeds)
+        # first: the index of these characters' first in the session (a shard of it: see
+        # synth_core.live_shards), so each draws as it would among all of them.
+        self.keys = character_keys(seed, C, seeds, first)
         self.scales = character_scales(self.keys, scales, scale_range)
         if not (np.isfinite(self.scales) & (self.scales > 0)).all():
             bad = int(np.flatnonzero(~(np.isfinite(self.scales) & (self.scales > 0)))[0])
@@ -247,6 +249,15 @@ class LiveSynth:
     def append(self, points: ArrayLike) -> Window | None:
         """Points ``(C, n, 3)`` (n >= 1) at ``fps``, the next of every character's trajectory;
         the frames this settles (None: none yet)."""
+        arr = self.check(points)
+        self.inputs = np.concatenate([self.inputs, arr], axis=1)
+        self.n_inputs += arr.shape[1]
+        self._retime()
+        return self._advance()
+
+    def check(self, points: ArrayLike) -> Floats:
+        """The points :meth:`append` would take, as float64 -- or :class:`TrajectoryError` for
+        the first character they are unusable for; nothing is changed either way."""
         if self.ended:
             raise TrajectoryError("points: the trajectories have ended (finish was called)")
         arr = np.asarray(points, np.float64)
@@ -264,10 +275,7 @@ class LiveSynth:
             c = int(jump.max(axis=1).argmax())
             raise TrajectoryError(f"points: jumps {jump[c].max():.1f} m in one frame (limit {TELEPORT_M} m: "
                                   "a teleport, not locomotion)", c)
-        self.inputs = np.concatenate([self.inputs, arr], axis=1)
-        self.n_inputs += arr.shape[1]
-        self._retime()
-        return self._advance()
+        return arr
 
     def finish(self) -> Window | None:
         """The trajectories end with the points given: the rest of the frames."""

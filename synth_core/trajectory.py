@@ -63,7 +63,7 @@ class TrajectoryError(ValueError):
 
     def __init__(self, message: str, character: int | str | None = None) -> None:
         super().__init__(message if character is None else f"character {character}: {message}")
-        self.character = character
+        self.character, self.reason = character, message
 
 
 @dataclass(frozen=True)

@@ -9,6 +9,8 @@ import pytest
 from synth_core import crowd
 from synth_core.bank import Bank
 from synth_core.live import LiveSynth
+from synth_core.live_shards import LiveShards
+from synth_core.live_shards import joined as shards_joined
 from synth_core.metrics import foot_skate
 from synth_core.skeleton import forward_kinematics
 from synth_core.streaming import Window
@@ -135,3 +137,52 @@ def test_bad_points_are_refused_naming_the_character(bank: Bank) -> None:
         LiveSynth(bank, 1, 60.0).finish()
     with pytest.raises(TrajectoryError, match=r"fps: must be within \(0, 60\]"):
         LiveSynth(bank, 1, 120.0)
+
+
+def test_shards_make_the_sessions_frames_bit_for_bit(bank: Bank, herd: np.ndarray) -> None:
+    """A session cut into shards (each advanced in its own thread, rendering on one) makes one
+    LiveSynth's frames: its characters' draws (scales, gaits) by their index in the session."""
+    seeds = np.where(np.arange(len(herd)) % 5 == 0, 11, -1)  # some characters with their own seed
+    scales = np.where(np.arange(len(herd)) % 4 == 1, 1.1, np.nan)  # some given, the rest drawn
+    options = {"seed": 5, "scale_range": (0.8, 1.2), "scales": scales, "seeds": seeds}
+    whole = LiveSynth(bank, len(herd), 60.0, **options)  # type: ignore[arg-type]
+    sharded = LiveShards(bank, len(herd), 60.0, shards=3, **options)  # type: ignore[arg-type]
+    assert [len(p.scales) for p in sharded.parts] == [8, 8, 8]
+    np.testing.assert_array_equal(sharded.scales, whole.scales)
+    assert sharded.latency_frames == whole.latency_frames
+    rng = np.random.default_rng(1)
+    i, windows = 0, 0
+    while True:
+        n = int(rng.integers(1, 45))
+        done = i >= herd.shape[1]
+        want = whole.finish() if done else whole.append(herd[:, i:i + n])
+        got = sharded.finish() if done else sharded.append(herd[:, i:i + n])
+        i += n
+        assert (got is None) == (want is None)
+        if got is not None and want is not None:
+            assert len(got) == 3 and {w.start for w in got} == {want.start}
+            one = shards_joined(got)
+            for field in ("root_pos", "rotations", "gait", "contacts"):
+                np.testing.assert_array_equal(getattr(one, field), getattr(want, field))
+            windows += 1
+        if done:
+            break
+    assert windows >= 5
+
+
+def test_shards_refuse_bad_points_whole_naming_the_character(bank: Bank) -> None:
+    sharded = LiveShards(bank, 6, 60.0, shards=3)
+    ok = np.zeros((6, 5, 3))
+    sharded.append(ok)
+    jump = np.zeros((6, 5, 3))
+    jump[5, 0] = [9.0, 0.0, 0.0]  # the last shard's last character
+    with pytest.raises(TrajectoryError, match="character 5: points: jumps 9.0 m in one frame"):
+        sharded.append(jump)
+    # Nothing was taken, by any shard: each has the 5 points of the first message.
+    assert [p.n_inputs for p in sharded.parts] == [5, 5, 5]
+    with pytest.raises(TrajectoryError, match=r"expected shape \(6, n >= 1, 3\)"):
+        sharded.append(ok[:4])
+    with pytest.raises(TrajectoryError, match=r"scales: expected 6 values"):
+        LiveShards(bank, 6, 60.0, scales=[1.0, 1.0])
+    with pytest.raises(TrajectoryError, match="character 4: scale: must be a positive number"):
+        LiveShards(bank, 6, 60.0, shards=2, scales=[1, 1, 1, 1, -1, 1])

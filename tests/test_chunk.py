@@ -1,0 +1,41 @@
+"""A stream's chunk message packed in place (service.chunk) is byte for byte msgpack's packing of
+the message as a dict -- from one window, or from a live session's shards' windows."""
+
+from __future__ import annotations
+
+import msgpack
+import numpy as np
+import pytest
+
+from service.chunk import chunk_message, packed_chunk
+from synth_core.live_shards import joined
+from synth_core.streaming import Window
+
+
+def window(C: int, n: int, J: int, start: int, seed: int) -> Window:
+    rng = np.random.default_rng(seed)
+    q = rng.normal(size=(C, n, J, 4)).astype(np.float32)
+    q /= np.linalg.norm(q, axis=-1, keepdims=True)
+    return Window(start, rng.normal(size=(C, n, 3)).astype(np.float32), q,
+                  rng.integers(-1, 5, (C, n)).astype(np.int8), rng.random((C, n, 4)) < 0.5)
+
+
+@pytest.mark.parametrize("encoding", ["s48", "i16", "f32"])
+def test_a_chunk_is_msgpacks_bytes_of_its_message(encoding: str) -> None:
+    shards = [window(c, 7, 5, 42, seed) for seed, c in enumerate((3, 1, 4))]
+    whole = joined(shards)
+    want = msgpack.packb(chunk_message(2, 9, whole, encoding), use_bin_type=True)
+    for parts in (shards, [whole]):
+        frames, got = packed_chunk(2, 9, parts, encoding)
+        assert frames == 7 and bytes(got) == want
+    message = msgpack.unpackb(got)
+    assert message["rotations"]["shape"][:3] == [8, 7, 5] and message["start"] == 42
+
+
+def test_a_big_chunks_rotations_are_packed_in_place_aligned() -> None:
+    """Over 64 KiB of rotations (msgpack's bin 32 header), each of several packings aligned
+    wherever its buffer landed: the same bytes every time."""
+    w = window(40, 30, 20, 0, 1)
+    want = msgpack.packb(chunk_message(0, 0, w, "s48"), use_bin_type=True)
+    for _ in range(4):
+        assert bytes(packed_chunk(0, 0, [w], "s48")[1]) == want
