@@ -446,22 +446,30 @@ def _character(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, yaw
                     h: float, contacts: Any, parents: Any, offsets: Any, fk_joints: Any, rigs: Any,
                     bends: Any, sink_limit: float, foot_lock: bool, out_rot: Any, out_root: Any,
                     g_pos: Any, g_rot: Any, feet: Any, targets: Any, sink: Any, eased: Any,
-                    keep_from: int, keep_to: int) -> None:
+                    keep_from: int, keep_to: int, known_feet: Any, known: int) -> None:
     """All four passes for one character (scratch arrays given). Only frames ``[keep_from,
     keep_to)`` are wanted (a window rendered over its foot lock's context): the legs' IK, which
-    reads nothing of other frames, is solved for those alone."""
+    reads nothing of other frames, is solved for those alone. ``known_feet (T, 4, 3)``: the
+    feet of frames ``[0, known)`` made already (a live session's earlier windows), read there,
+    not posed again, and written for the frames posed (an empty array: none kept); ``known``
+    is at most ``keep_from - PAD``, the first frame whose sink the wanted frames read."""
     T = out_rot.shape[0]
     if not foot_lock:
-        keep_from, keep_to = 0, T  # no context
-    _assemble(poses, height, surge, rows, weights, yaw, path, h, out_rot, out_root, fk_joints, keep_from,
-              keep_to)
+        keep_from, keep_to, known = 0, T, 0  # no context
+    a = known
+    _assemble(poses, height, surge, rows[a:], weights[a:], yaw[a:], path[a:], h, out_rot[a:], out_root[a:],
+              fk_joints, keep_from - a, keep_to - a)
     if not foot_lock:
         return
-    _fk(out_rot, out_root, h, parents, offsets, fk_joints, g_pos, g_rot)
+    _fk(out_rot[a:], out_root[a:], h, parents, offsets, fk_joints, g_pos[a:], g_rot[a:])
+    keep = known_feet.shape[0] > 0
     for f in range(4):
-        feet[:, f, :] = g_pos[:, rigs[f, 3], :]
+        feet[:a, f, :] = known_feet[:a, f, :]
+        feet[a:, f, :] = g_pos[a:, rigs[f, 3], :]
+        if keep:
+            known_feet[a:, f, :] = feet[a:, f, :]
     _plant_targets(feet, contacts, targets)
-    for t in range(T):
+    for t in range(a, T):
         floor = path[t, 1] / h
         worst = 0.0
         for f in range(4):
@@ -476,8 +484,9 @@ def _character(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, yaw
             s = -to_ankle[1] - math.sqrt(max(allowed * allowed - across2, 0.0))
             worst = max(worst, s)
         sink[t] = worst
-    _ease_sink(sink, sink_limit, eased)
-    for t in range(T):
+    # Eased from frame a on: the wanted frames, PAD or more after it, read nothing before it.
+    _ease_sink(sink[a:], sink_limit, eased[a:])
+    for t in range(a, T):
         out_root[t, 1] = (out_root[t, 1] / h - eased[t]) * h
     a, b = keep_from, keep_to
     _solve_legs(g_pos[a:b], g_rot[a:b], targets[a:b], eased[a:b], rigs, parents, offsets, bends, out_rot[a:b])
@@ -492,27 +501,32 @@ def _render_all(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, ya
     megabyte per character would cost more in page faults than the lock's arithmetic."""
     C = out_rot.shape[0]
     workers = min(C, w_pos.shape[0])
+    none_known = np.empty((0, 4, 3))
     for worker in _prange(workers):
         g_pos, g_rot, feet, targets = w_pos[worker], w_rot[worker], w_feet[worker], w_targets[worker]
         sink, eased = w_sink[worker], w_eased[worker]
         for c in range(worker, C, workers):
             _character(poses, height, surge, rows[c], weights[c], yaw[c], path[c], scales[c],
                        contacts[c], parents, offsets, fk_joints, rigs, bends, sink_limit, foot_lock,
-                       out_rot[c], out_root[c], g_pos, g_rot, feet, targets, sink, eased, 0, out_rot.shape[1])
+                       out_rot[c], out_root[c], g_pos, g_rot, feet, targets, sink, eased, 0, out_rot.shape[1],
+                       none_known, 0)
 
 
 @_jit(parallel=True)
 def _render_windows(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, yaw: Any, path: Any,
                     scales: Any, contacts: Any, parents: Any, offsets: Any, fk_joints: Any, rigs: Any,
                     bends: Any, sink_limit: float, foot_lock: bool, workers: int, begin: Any, end: Any,
-                    start: int, out_rot: Any, out_root: Any) -> None:
+                    start: int, out_rot: Any, out_root: Any, known_feet: Any, known: Any) -> None:
     """Frames ``[start, start + out.shape[1])`` of each character, rendered over its own context
-    ``[begin[c], end[c])`` of the plan (see :func:`render_window`)."""
+    ``[begin[c], end[c])`` of the plan (see :func:`render_window`); ``known_feet (C, T, 4, 3)``
+    (or none: ``(C, 0, 4, 3)``) the feet of plan frames ``[0, known[c])``, made by earlier
+    windows, and kept for the next: ``known`` is moved on to ``end``."""
     C, n, J = out_rot.shape[0], out_rot.shape[1], out_rot.shape[2]
     longest = 0
     for c in range(C):
         longest = max(longest, end[c] - begin[c])
     workers = min(C, workers)
+    keep = known_feet.shape[1] > 0
     for worker in _prange(workers):
         rot = np.empty((longest, J, 4), np.float32)
         root = np.empty((longest, 3))
@@ -525,12 +539,16 @@ def _render_windows(poses: Any, height: Any, surge: Any, rows: Any, weights: Any
         for c in range(worker, C, workers):
             b, e = begin[c], end[c]
             k = e - b
+            # Frames whose feet are known, up to the first whose sink the wanted frames read.
+            a = min(max(min(known[c], start - PAD) - b, 0), k) if keep else 0
             _character(poses, height, surge, rows[c, b:e], weights[c, b:e], yaw[c, b:e], path[c, b:e],
                        scales[c], contacts[c, b:e], parents, offsets, fk_joints, rigs, bends, sink_limit,
                        foot_lock, rot[:k], root[:k], g_pos[:k], g_rot[:k], feet[:k], targets[:k],
-                       sink[:k], eased[:k], start - b, start - b + n)
+                       sink[:k], eased[:k], start - b, start - b + n, known_feet[c, b:e], a)
             out_rot[c] = rot[start - b:start - b + n]
             out_root[c] = root[start - b:start - b + n]
+            if keep and foot_lock and known[c] >= b:  # frames [0, e) known now (else a gap before b)
+                known[c] = max(known[c], e)
 
 
 @_jit()
@@ -609,20 +627,38 @@ def _bank_tables(bank: Bank) -> tuple[tuple[Any, Any, Any], tuple[Any, Any, Any,
 
 
 def render_window(bank: Bank, plan: Plan, start: int, stop: int, begin: NDArray[np.int64],
-                  end: NDArray[np.int64], foot_lock: bool = True
+                  end: NDArray[np.int64], foot_lock: bool = True,
+                  known: tuple[NDArray[np.float64], NDArray[np.int64]] | None = None
                   ) -> tuple[NDArray[np.float32], NDArray[np.float32]]:
     """Root ``(C, stop - start, 3)`` and rotations of frames ``[start, stop)`` only, each
     character rendered over its context ``[begin, end)`` of ``plan`` (from
-    :func:`synth_core.streaming.lock_context`): the same numbers as :func:`render` of the whole."""
+    :func:`synth_core.streaming.lock_context`): the same numbers as :func:`render` of the whole
+    (with ``known``: to rounding, see tests/test_live.py).
+
+    ``known``: (feet ``(C, T, 4, 3)`` float64, ``frames (C,)``) -- the feet of each character's
+    plan frames ``[0, frames[c])``, kept from earlier windows over the same plan: those are not
+    posed again (a live session's windows share most of their context: it was two-fifths of
+    their render). The feet of the frames posed are written there, ``frames`` moved on."""
     if not AVAILABLE:
         raise RuntimeError("synth_core.kernels needs numba; use the numpy backend")
     C = plan.yaw.shape[0]
     J = bank.skeleton.n_joints
+    # Only the frames some context reads are made contiguous.
+    cb, ce = int(np.min(begin)), int(np.max(end))
+    feet, frames = (np.empty((C, 0, 4, 3)), np.zeros(C, np.int64)) if known is None else known
+    if known is not None:
+        assert feet.shape[:2] == plan.yaw.shape and feet.dtype == np.float64 and frames.dtype == np.int64
+    frames -= cb  # in the window's frames (moved back after)
     out_root = np.empty((C, stop - start, 3), np.float64)
     out_rot = np.empty((C, stop - start, J, 4), np.float32)
     table, skeleton = _bank_tables(bank)
-    _render_windows(*table, *_plan_arrays(plan), *skeleton, foot_lock, numba.get_num_threads(),
-                    np.asarray(begin, np.int64), np.asarray(end, np.int64), start, out_rot, out_root)
+    try:
+        _render_windows(*table, *_plan_arrays(plan.window(cb, ce)), *skeleton, foot_lock,
+                        numba.get_num_threads(), np.asarray(begin, np.int64) - cb,
+                        np.asarray(end, np.int64) - cb, start - cb, out_rot, out_root,
+                        feet[:, cb:ce] if known is not None else feet, frames)
+    finally:
+        frames += cb
     return out_root.astype(np.float32), out_rot
 
 

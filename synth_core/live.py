@@ -232,6 +232,10 @@ class LiveSynth:
                               np.zeros((C, SLOTS)), np.zeros((C, SLOTS)), np.zeros(C, bool))
         # Planned frames kept as the foot lock's context (see _emit).
         self.buffer = _Planned(self.scales, 2 * (self.lock_lag + self.kept_frames + 2 * self.step))
+        # The feet of the frames sent and of those after them posed by the foot lock so far (frames
+        # [0, known_feet) of each character's): see kernels.render_window.
+        self.feet = _Columns(C, [((4, 3), np.float64)], self.buffer.arrays[0].shape[1] // self.out_step + 1)
+        self.known_feet = np.zeros(C, np.int64)
 
     @property
     def kept_frames(self) -> int:
@@ -628,7 +632,14 @@ class LiveSynth:
             C = len(self.scales)
             begin, end = np.full(C, lo), np.full(C, hi)
         if self.compiled:
-            root, rot = kernels.render_window(self.bank, buf, lo, hi, begin, end, self.foot_lock)
+            # The feet of frames posed by earlier windows, by frame sent (from 0), kept for later ones.
+            o0 = (b0 + first) // k
+            n = buf.yaw.shape[1]
+            self.feet.reserve(max(o0 + n - self.feet.stop, 0))
+            known = self.known_feet - o0
+            root, rot = kernels.render_window(self.bank, buf, lo, hi, begin, end, self.foot_lock,
+                                              (self.feet.columns(o0, o0 + n)[0], known))
+            self.known_feet = known + o0
         else:
             cb, ce = int(begin.min()), int(end.max())
             root, rot = render(self.bank, buf.window(cb, ce), self.foot_lock)
@@ -637,6 +648,7 @@ class LiveSynth:
         window = Window(self.emitted, root, rot, buf.gait[:, lo:hi].copy(), buf.contacts[:, lo:hi].copy())
         self.emitted += hi - lo
         self.buffer.drop_before(stop - self.kept_frames)  # the context the next frames' lock reads
+        self.feet.drop_before(-(-self.buffer.start // k))
         self.path.drop_before(self.planned - 2)  # the path the next block and heading read
         first_seg = max(int(np.floor((self.planned - self.m / 2) / self.m)) - 1, 0)  # the speeds still read
         if first_seg > self.seg_start:

@@ -75,10 +75,11 @@ class LiveShards:
                                       f"got shape {arr.shape}")
             return [arr[a:b] for a, b in zip(self.cuts[:-1], self.cuts[1:], strict=True)]
 
+        shard_scales, shard_seeds = each("scales", scales, np.float64), each("seeds", seeds, np.int64)
         self.parts = [self._each_shard(functools.partial(LiveSynth, bank, int(b - a), fps, scales=sc,
                                                          seeds=sd, first=int(a), **options), int(a))
-                      for a, b, sc, sd in zip(self.cuts[:-1], self.cuts[1:], each("scales", scales, np.float64),
-                                              each("seeds", seeds, np.int64), strict=True)]
+                      for a, b, sc, sd in zip(self.cuts[:-1], self.cuts[1:], shard_scales, shard_seeds,
+                                              strict=True)]
         first = self.parts[0]
         self.latency_frames, self.out_step = first.latency_frames, first.out_step
         self.scales = np.concatenate([p.scales for p in self.parts])

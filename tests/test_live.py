@@ -186,3 +186,32 @@ def test_shards_refuse_bad_points_whole_naming_the_character(bank: Bank) -> None
         LiveShards(bank, 6, 60.0, scales=[1.0, 1.0])
     with pytest.raises(TrajectoryError, match="character 4: scale: must be a positive number"):
         LiveShards(bank, 6, 60.0, shards=2, scales=[1, 1, 1, 1, -1, 1])
+
+
+def test_feet_kept_from_earlier_windows_are_the_feet_posed_again(bank: Bank, herd: np.ndarray) -> None:
+    """kernels.render_window reading the feet earlier windows posed (a live session's windows
+    share most of their lock context) gives the numbers of posing each whole context again, to
+    rounding: the feet read were posed by another window's call, whose compiled path (a frame
+    posed as sent or as context) may round a last bit differently -- seen once, on a fresh
+    compile: 2 of 96,000 root numbers, 7e-17 m apart."""
+    pytest.importorskip("numba")
+    from synth_core import kernels
+    from synth_core.footlock import PAD
+    from synth_core.synthesis import plan, prepare_batch
+
+    options = Options(seed=5, scale_range=(0.8, 1.2))
+    prep, h, keys = prepare_batch(bank, herd, 60.0, None, options, None, None)
+    p = plan(bank, prep, h, keys, options.margin, compiled=True)
+    C, T = p.yaw.shape
+    feet, known = np.empty((C, T, 4, 3)), np.zeros(C, np.int64)
+    read = 0
+    for a in range(0, T, 25):
+        b = min(a + 25, T)
+        begin, end = kernels.lock_context(p.contacts, a, b)
+        read += int(np.clip(np.minimum(known, a - PAD) - begin, 0, None).sum())  # frames not posed
+        got = kernels.render_window(bank, p, a, b, begin, end, True, (feet, known))
+        want = kernels.render_window(bank, p, a, b, begin, end, True)
+        np.testing.assert_allclose(got[0], want[0], rtol=0, atol=1e-6)
+        np.testing.assert_allclose(got[1], want[1], rtol=0, atol=1e-6)
+        assert (known == end).all()  # each character's feet known up to its context's end
+    assert read > 10 * C * T // 25  # most windows read more than ten frames' feet of each
