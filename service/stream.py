@@ -282,7 +282,6 @@ class Session:
                                                                           strict=True)]})
         self.acked, sent = -1, 0
         self.state.metrics.syntheses += 1
-        _T = {'wait_points': 0.0, 'step': 0.0, 'wait_send': 0.0, 'wait_room': 0.0}
 
         def step(points: NDArray[np.float64] | None, index: int) -> tuple[int, memoryview] | None:
             windows = synth.finish() if points is None else synth.append(points)
@@ -295,9 +294,7 @@ class Session:
         sending: asyncio.Future[None] | None = None
         try:
             while True:
-                _w0 = time.perf_counter()
                 message = await self.next_live()
-                _T['wait_points'] += time.perf_counter() - _w0
                 if message is None:
                     break
                 finishing = message.get("type") == "finish"
@@ -308,16 +305,11 @@ class Session:
                 except TrajectoryError as exc:
                     raise live.live_error(exc, "points") from None
                 self.state.metrics.synthesis_seconds += time.perf_counter() - t0
-                _T['step'] += time.perf_counter() - t0
-                _w0 = time.perf_counter()
                 if sending is not None:
                     await sending  # in order, and its failure (a slow consumer) raised here
                     sending = None
-                _T['wait_send'] += time.perf_counter() - _w0
-                _w0 = time.perf_counter()
                 if made is not None:
                     await self.wait_for_room(sent)
-                    _T['wait_room'] += time.perf_counter() - _w0
                     self.check()
                     sending = asyncio.ensure_future(self.send(made[1]))
                     self.state.metrics.character_frames += C * made[0]
@@ -331,7 +323,6 @@ class Session:
             if sending is not None:  # leaving on an error: let its send finish first (this error wins)
                 with contextlib.suppress(Exception):
                     await sending
-        log.warning("live timing %s", {k: round(v, 3) for k, v in _T.items()})
         cancelled = self.cancel.is_set()
         self.cancel.clear()
         self.live_open = False

@@ -518,15 +518,15 @@ def _render_windows(poses: Any, height: Any, surge: Any, rows: Any, weights: Any
                     bends: Any, sink_limit: float, foot_lock: bool, workers: int, begin: Any, end: Any,
                     start: int, out_rot: Any, out_root: Any, known_feet: Any, known: Any) -> None:
     """Frames ``[start, start + out.shape[1])`` of each character, rendered over its own context
-    ``[begin[c], end[c])`` of the plan (see :func:`render_window`); ``known_feet (C, T, 4, 3)``
-    (or none: ``(C, 0, 4, 3)``) the feet of plan frames ``[0, known[c])``, made by earlier
+    ``[begin[c], end[c])`` of the plan (see :func:`render_window`); ``known_feet (T, C, 4, 3)``
+    (or none: ``(0, C, 4, 3)``) the feet of plan frames ``[0, known[c])``, made by earlier
     windows, and kept for the next: ``known`` is moved on to ``end``."""
     C, n, J = out_rot.shape[0], out_rot.shape[1], out_rot.shape[2]
     longest = 0
     for c in range(C):
         longest = max(longest, end[c] - begin[c])
     workers = min(C, workers)
-    keep = known_feet.shape[1] > 0
+    keep = known_feet.shape[0] > 0
     for worker in _prange(workers):
         rot = np.empty((longest, J, 4), np.float32)
         root = np.empty((longest, 3))
@@ -544,7 +544,7 @@ def _render_windows(poses: Any, height: Any, surge: Any, rows: Any, weights: Any
             _character(poses, height, surge, rows[c, b:e], weights[c, b:e], yaw[c, b:e], path[c, b:e],
                        scales[c], contacts[c, b:e], parents, offsets, fk_joints, rigs, bends, sink_limit,
                        foot_lock, rot[:k], root[:k], g_pos[:k], g_rot[:k], feet[:k], targets[:k],
-                       sink[:k], eased[:k], start - b, start - b + n, known_feet[c, b:e], a)
+                       sink[:k], eased[:k], start - b, start - b + n, known_feet[b:e, c], a)
             out_rot[c] = rot[start - b:start - b + n]
             out_root[c] = root[start - b:start - b + n]
             if keep and foot_lock and known[c] >= b:  # frames [0, e) known now (else a gap before b)
@@ -635,7 +635,8 @@ def render_window(bank: Bank, plan: Plan, start: int, stop: int, begin: NDArray[
     :func:`synth_core.streaming.lock_context`): the same numbers as :func:`render` of the whole
     (with ``known``: to rounding, see tests/test_live.py).
 
-    ``known``: (feet ``(C, T, 4, 3)`` float64, ``frames (C,)``) -- the feet of each character's
+    ``known``: (feet ``(T, C, 4, 3)`` float64, C-contiguous (frames first: every view of them
+    is, so the kernel is compiled for one layout), ``frames (C,)``) -- the feet of each character's
     plan frames ``[0, frames[c])``, kept from earlier windows over the same plan: those are not
     posed again (a live session's windows share most of their context: it was two-fifths of
     their render). The feet of the frames posed are written there, ``frames`` moved on."""
@@ -645,9 +646,10 @@ def render_window(bank: Bank, plan: Plan, start: int, stop: int, begin: NDArray[
     J = bank.skeleton.n_joints
     # Only the frames some context reads are made contiguous.
     cb, ce = int(np.min(begin)), int(np.max(end))
-    feet, frames = (np.empty((C, 0, 4, 3)), np.zeros(C, np.int64)) if known is None else known
+    feet, frames = (np.empty((0, C, 4, 3)), np.zeros(C, np.int64)) if known is None else known
     if known is not None:
-        assert feet.shape[:2] == plan.yaw.shape and feet.dtype == np.float64 and frames.dtype == np.int64
+        assert feet.shape[:2] == plan.yaw.shape[::-1] and feet.dtype == np.float64 and feet.flags.c_contiguous
+        assert frames.dtype == np.int64 and frames.flags.c_contiguous
     frames -= cb  # in the window's frames (moved back after)
     out_root = np.empty((C, stop - start, 3), np.float64)
     out_rot = np.empty((C, stop - start, J, 4), np.float32)
@@ -656,7 +658,7 @@ def render_window(bank: Bank, plan: Plan, start: int, stop: int, begin: NDArray[
         _render_windows(*table, *_plan_arrays(plan.window(cb, ce)), *skeleton, foot_lock,
                         numba.get_num_threads(), np.asarray(begin, np.int64) - cb,
                         np.asarray(end, np.int64) - cb, start - cb, out_rot, out_root,
-                        feet[:, cb:ce] if known is not None else feet, frames)
+                        feet[cb:ce] if known is not None else feet, frames)
     finally:
         frames += cb
     return out_root.astype(np.float32), out_rot

@@ -234,7 +234,9 @@ class LiveSynth:
         self.buffer = _Planned(self.scales, 2 * (self.lock_lag + self.kept_frames + 2 * self.step))
         # The feet of the frames sent and of those after them posed by the foot lock so far (frames
         # [0, known_feet) of each character's): see kernels.render_window.
-        self.feet = _Columns(C, [((4, 3), np.float64)], self.buffer.arrays[0].shape[1] // self.out_step + 1)
+        # One row of (frames, C, 4, 3): its views are C-contiguous, as the kernel takes them.
+        self.feet = _Columns(1, [((C, 4, 3), np.float64)],
+                             self.buffer.arrays[0].shape[1] // self.out_step + 1)
         self.known_feet = np.zeros(C, np.int64)
 
     @property
@@ -638,7 +640,7 @@ class LiveSynth:
             self.feet.reserve(max(o0 + n - self.feet.stop, 0))
             known = self.known_feet - o0
             root, rot = kernels.render_window(self.bank, buf, lo, hi, begin, end, self.foot_lock,
-                                              (self.feet.columns(o0, o0 + n)[0], known))
+                                              (self.feet.columns(o0, o0 + n)[0][0], known))
             self.known_feet = known + o0
         else:
             cb, ce = int(begin.min()), int(end.max())

@@ -203,7 +203,7 @@ def test_feet_kept_from_earlier_windows_are_the_feet_posed_again(bank: Bank, her
     prep, h, keys = prepare_batch(bank, herd, 60.0, None, options, None, None)
     p = plan(bank, prep, h, keys, options.margin, compiled=True)
     C, T = p.yaw.shape
-    feet, known = np.empty((C, T, 4, 3)), np.zeros(C, np.int64)
+    feet, known = np.empty((T, C, 4, 3)), np.zeros(C, np.int64)
     read = 0
     for a in range(0, T, 25):
         b = min(a + 25, T)
@@ -215,3 +215,8 @@ def test_feet_kept_from_earlier_windows_are_the_feet_posed_again(bank: Bank, her
         np.testing.assert_allclose(got[1], want[1], rtol=0, atol=1e-6)
         assert (known == end).all()  # each character's feet known up to its context's end
     assert read > 10 * C * T // 25  # most windows read more than ten frames' feet of each
+    # A live session's known feet are always C-contiguous views (so one compiled kernel serves
+    # every session: a new layout would compile one mid-session), one character's too.
+    for n in (1, 3):
+        LiveSynth(bank, n, 60.0).append(herd[:n, :300])
+    assert {str(sig[-2]) for sig in kernels._render_windows.signatures} == {"array(float64, 4d, C)"}
