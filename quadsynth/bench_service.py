@@ -37,6 +37,7 @@ import numpy as np
 
 from api_schemas.client import read_body
 from api_schemas.wire import blob
+from quadsynth.bench_ws import LeanSocket
 from synth_core import crowd
 
 CHARACTERS, FRAMES = 500, 500
@@ -124,10 +125,9 @@ def live(url: str, characters: int = LIVE_CHARACTERS, seconds: float = LIVE_SECO
          paced: bool = False) -> tuple[float, float]:
     """A live session of ``characters`` fed ``seconds`` of 30 fps points, LIVE_TICK at a time --
     as fast as the service takes them, or ``paced`` as a simulation makes them -- acking every
-    chunk, not decoding it (the client must not take the cores it measures). Returns
+    chunk, reading it as a game client would, into one buffer, not decoding it
+    (:mod:`quadsynth.bench_ws`: the client must not take the cores it measures). Returns
     (characters it keeps at 30 fps, the longest from sending a frame's point to getting its pose)."""
-    from websockets.sync.client import connect
-
     F = int(seconds * 30) + 1
     paths = crowd.simulate(characters, F, seed=0, fps=30.0).astype(np.float32)
     ticks = [msgpack.packb({"type": "points", "points": blob(tick(paths, i))},
@@ -137,9 +137,9 @@ def live(url: str, characters: int = LIVE_CHARACTERS, seconds: float = LIVE_SECO
                "characters": [{"id": f"h{c}"} for c in range(characters)]}
     sent_at: list[float] = []
     worst, frames = 0.0, 0
-    with connect(url.replace("http://", "ws://") + "/v1/stream", compression=None, max_size=None) as ws:
+    with LeanSocket(url.replace("http://", "ws://") + "/v1/stream") as ws:
         ws.send(msgpack.packb(opening, use_bin_type=True))
-        header = msgpack.unpackb(ws.recv(timeout=300))
+        header = ws.recv_head()
         if header["type"] != "start":
             raise SystemExit(f"bench-service: the live session failed: {header}")
         settled = F - header["latency_frames"]  # frames sure to come before finish
@@ -153,7 +153,7 @@ def live(url: str, characters: int = LIVE_CHARACTERS, seconds: float = LIVE_SECO
                     ws.send(msgpack.packb({"type": "finish"}))
                 continue
             try:
-                message = msgpack.unpackb(ws.recv(timeout=0.01 if len(sent_at) < len(ticks) else 300))
+                message = ws.recv_head(timeout=0.01 if len(sent_at) < len(ticks) else None)
             except TimeoutError:
                 continue
             if message["type"] == "chunk":
