@@ -94,17 +94,15 @@ def rest(url: str, body: dict[str, Any], repeats: int) -> tuple[float, bytes | b
 
 
 def stream(url: str, body: dict[str, Any], repeats: int) -> tuple[float, float]:
-    """Best seconds to the first chunk and to the end."""
-    from websockets.sync.client import connect
-
+    """Best seconds to the first chunk and to the end (chunks read as :func:`live` reads them)."""
     raw = msgpack.packb({"type": "synthesize", "chunk_frames": 30, **body}, use_bin_type=True)
     first, whole = float("inf"), float("inf")
-    with connect(url.replace("http://", "ws://") + "/v1/stream", compression=None, max_size=None) as ws:
+    with LeanSocket(url.replace("http://", "ws://") + "/v1/stream") as ws:
         for _ in range(repeats):
             t0 = time.perf_counter()
             ws.send(raw)
             while True:
-                message = msgpack.unpackb(ws.recv(timeout=300))
+                message = ws.recv_head()
                 if message["type"] == "chunk":
                     if message["chunk"] == 0:
                         first = min(first, time.perf_counter() - t0)

@@ -311,3 +311,38 @@ def test_live_cancel_ends_the_session_and_the_next_can_start(server: str) -> Non
         assert message["cancelled"] is True
         send(ws, {"type": "live", "characters": [{"id": "again"}]})
         assert receive(ws)["type"] == "start"
+
+
+def test_the_benchmarks_lean_client_reads_what_the_service_sends(server: str) -> None:
+    """quadsynth.bench_ws (bench-service's client: RFC 6455 framing on a plain socket, chunks
+    read into one buffer, only their heads decoded) against the service: a stream's chunks as
+    the websockets library reads them (the batch sent with the 64-bit length, masked over a
+    length not a multiple of four), and a live session (16-bit lengths)."""
+    from quadsynth import bench_service
+    from quadsynth.bench_ws import LeanSocket
+
+    paths = crowd.simulate(40, 500, seed=4).astype(np.float32)
+    raw = msgpack.packb({"type": "synthesize", "chunk_frames": 70, "seed": 3,
+                         "characters": [{"id": f"h{c}", "points": blob(p)} for c, p in enumerate(paths)]},
+                        use_bin_type=True)
+    assert len(raw) > 1 << 16 and len(raw) % 4
+    heads = []
+    with LeanSocket(ws_url(server)) as lean:
+        lean.send(raw)
+        while (head := lean.recv_head())["type"] != "end":
+            heads.append(head)
+            if head["type"] == "chunk":
+                lean.send(msgpack.packb({"type": "ack", "chunk": head["chunk"]}))
+    with connect(ws_url(server), compression=None, max_size=None) as ws:
+        ws.send(raw)
+        whole = []
+        for _ in heads:
+            whole.append(receive(ws))
+            if whole[-1]["type"] == "chunk":
+                send(ws, {"type": "ack", "chunk": whole[-1]["chunk"]})
+    assert heads[0] == whole[0] and heads[0]["type"] == "start"  # not a chunk: decoded whole
+    assert [h["chunk"] for h in heads[1:]] == list(range(len(heads) - 1)) == list(range(8))
+    for head, message in zip(heads[1:], whole[1:], strict=True):
+        assert head == {k: message[k] for k in ("type", "batch", "chunk", "start", "frames")}
+    rate, latency = bench_service.live(server, characters=40, seconds=3.0)
+    assert rate > 0 and 0 < latency < 60
