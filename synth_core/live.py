@@ -579,6 +579,12 @@ class LiveSynth:
         lo = max(t0 - 1, 0)
         hi = min(t1 + 1, self.n_path)
         pts = self._path(lo, hi)[..., _GROUND]
+        if self.plan_compiled:  # the same, a character at a time (a tenth of a shard's tick in numpy)
+            yaw, never = plan_kernels.live_headings(pts, t0 - lo, t1 - t0, self.bank.fps, MIN_TURN_SPEED,
+                                                    self.last_dir, self.moved)
+            if never.any():
+                yaw[never] = self._first_move(never, t1)[:, None]
+            return yaw
         d = np.gradient(pts, axis=1) if pts.shape[1] > 1 else np.zeros_like(pts)
         if lo == 0 and pts.shape[1] > 1:
             d[:, 0] = pts[:, 1] - pts[:, 0]

@@ -9,8 +9,9 @@ over its frames. The same float64 operations in the same order as the reference,
 fastmath: the plans are equal bit for bit (tested), and so are the live mode's blocks made here
 and by its numpy reference (``live_block``, tested).
 
-The per-frame quantities headings and speeds stay in numpy (shared with the live mode); the
-random draws are made beforehand (:func:`synth_core.draws.uniform`, one stream per decision).
+The per-frame quantities headings and speeds stay in numpy (shared with the live mode, whose
+blocks' headings are also made here: ``live_headings``); the random draws are made beforehand
+(:func:`synth_core.draws.uniform`, one stream per decision).
 """
 
 from __future__ import annotations
@@ -459,3 +460,51 @@ def live_block(tb: Tables, contacts_of: NDArray[np.bool_], max_rate: float, marg
                 start, kind, first, clock0, trav0, before, busy, rows.shape[1] == n, numba.get_num_threads(),
                 rows, weights, gait, contacts, stitches, walked_out)
     return walked_out
+
+
+@_jit()
+def _live_headings(pts: Any, off: int, fps: float, min_speed: float, last_dir: Any, moved: Any,
+                   yaw: Any, never: Any) -> None:
+    n = yaw.shape[1]
+    m = pts.shape[1]
+    for c in range(pts.shape[0]):
+        hx, hz = last_dir[c, 0], last_dir[c, 1]
+        first = -1
+        for i in range(n):
+            j = off + i
+            if m < 2:
+                dx = dz = 0.0
+            elif j == 0:
+                dx, dz = pts[c, 1, 0] - pts[c, 0, 0], pts[c, 1, 1] - pts[c, 0, 1]
+            elif j == m - 1:
+                dx, dz = pts[c, j, 0] - pts[c, j - 1, 0], pts[c, j, 1] - pts[c, j - 1, 1]
+            else:
+                dx = (pts[c, j + 1, 0] - pts[c, j - 1, 0]) / 2.0  # np.gradient's central difference
+                dz = (pts[c, j + 1, 1] - pts[c, j - 1, 1]) / 2.0
+            if math.sqrt(dx * dx + dz * dz) * fps >= min_speed:
+                hx, hz = dx, dz
+                if first < 0:
+                    first = i
+            yaw[c, i] = math.atan2(hx, hz)
+        never[c] = not moved[c] and first < 0
+        if first >= 0:
+            if not moved[c]:  # starts moving in this block: before, it faces that way
+                for i in range(first):
+                    yaw[c, i] = yaw[c, first]
+            last_dir[c, 0], last_dir[c, 1] = hx, hz
+            moved[c] = True
+
+
+def live_headings(pts: NDArray[np.float64], off: int, n: int, fps: float, min_speed: float,
+                  last_dir: NDArray[np.float64], moved: NDArray[np.bool_]) -> tuple[NDArray[np.float64],
+                                                                                  NDArray[np.bool_]]:
+    """A live block's yaw ``(C, n)``, as :meth:`synth_core.live.LiveSynth._headings` makes it:
+    ``pts (C, m, 2)`` the path's ground coordinates around the block (its frame 0 at ``pts``'
+    ``off``); ``last_dir`` and ``moved`` carried on. Also which characters have not moved yet
+    (their yaw, the known path's first move, is the caller's)."""
+    if not AVAILABLE:
+        raise RuntimeError("synth_core.plan_kernels needs numba; use the numpy backend")
+    C = pts.shape[0]
+    yaw, never = np.empty((C, n)), np.empty(C, np.bool_)
+    _live_headings(np.ascontiguousarray(pts), off, fps, min_speed, last_dir, moved, yaw, never)
+    return yaw, never
