@@ -30,8 +30,8 @@ def open_live(body: Any, settings: Settings, banks: dict[str, Bank]) -> tuple[Li
     seeds = np.array([-1 if c.seed is None else c.seed for c in req.characters], np.int64)
     try:
         live = LiveShards(bank, len(req.characters), req.fps, scales=scales, seed=req.seed, seeds=seeds,
-                         scale_range=(req.scale_min, req.scale_max), sigma=req.sigma,
-                         foot_lock=req.foot_lock, heading=req.heading)
+                          scale_range=(req.scale_min, req.scale_max), sigma=req.sigma,
+                          foot_lock=req.foot_lock, heading=req.heading)
     except TrajectoryError as exc:
         raise live_error(exc, "characters") from None
     return req, live

@@ -153,8 +153,7 @@ class Session:
             try:
                 # A packed chunk is a memoryview of its buffer (30 MB for a live tick of 4,000 horses:
                 # a copy into bytes cost two-thirds as much as packing it). ASGI says bytes; uvicorn's
-                # WebSocket protocols, websockets-sansio that `quadsynth serve` runs among them, send
-                # any bytes-like object.
+                # websockets-sansio protocol, which `quadsynth serve` runs, sends any bytes-like object.
                 await asyncio.wait_for(self.ws.send_bytes(raw), limit)  # type: ignore[arg-type]
             except TimeoutError:
                 raise Closing(TRY_LATER, ApiError(503, "", f"slow consumer: a message was not taken within "

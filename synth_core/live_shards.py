@@ -7,7 +7,7 @@ parallel part. Every character's frames depend on its own points and its own dra
 is :func:`synth_core.draws.character_keys` of its index in the session: a shard is told its
 first), so shards of characters, each advanced in its own thread with a one-thread render,
 make the same frames bit for bit (tested) while their numpy and kernels run side by side
-(both release the GIL). 4,000 horses fed 10 s at 30 fps, in-process: 2.2 -> 1.7 s.
+(both release the GIL). 4,000 horses fed 10 s at 30 fps, in-process: 2.2-3.0 -> 1.7-2.1 s.
 """
 
 from __future__ import annotations
@@ -66,6 +66,7 @@ class LiveShards:
         if not (isinstance(n_characters, int) and n_characters >= 1):
             raise TrajectoryError(f"characters: need at least one, got {n_characters}")
         self.cuts = shard_bounds(n_characters, shards)
+
         def each(name: str, values: ArrayLike | None, dtype: type) -> list[NDArray[Any] | None]:
             if values is None:
                 return [None] * (len(self.cuts) - 1)
