@@ -255,7 +255,10 @@ class LiveSynth:
     def append(self, points: ArrayLike) -> Window | None:
         """Points ``(C, n, 3)`` (n >= 1) at ``fps``, the next of every character's trajectory;
         the frames this settles (None: none yet)."""
-        arr = self.check(points)
+        return self.append_checked(self.check(points))
+
+    def append_checked(self, arr: Floats) -> Window | None:
+        """:meth:`append` of points :meth:`check` returned (not checked again)."""
         self.inputs = np.concatenate([self.inputs, arr], axis=1)
         self.n_inputs += arr.shape[1]
         self._retime()

@@ -115,9 +115,9 @@ class LiveShards:
         if arr.ndim != 3 or arr.shape[0] != C or arr.shape[2] != 3 or arr.shape[1] < 1:
             raise TrajectoryError(f"points: expected shape ({C}, n >= 1, 3), got {arr.shape}")
         cuts = self.cuts.tolist()
-        for i, part in enumerate(self.parts):  # all checked before any shard moves on
-            self._each_shard(functools.partial(part.check, arr[cuts[i]:cuts[i + 1]]), cuts[i])
-        return self._windows(self._run(lambda i, p: p.append(arr[cuts[i]:cuts[i + 1]])))
+        checked = [self._each_shard(functools.partial(part.check, arr[cuts[i]:cuts[i + 1]]), cuts[i])
+                   for i, part in enumerate(self.parts)]  # all checked before any shard moves on
+        return self._windows(self._run(lambda i, p: p.append_checked(checked[i])))
 
     def finish(self) -> list[Window] | None:
         """:meth:`LiveSynth.finish` for every shard."""
