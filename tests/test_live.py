@@ -220,3 +220,28 @@ def test_feet_kept_from_earlier_windows_are_the_feet_posed_again(bank: Bank, her
     for n in (1, 3):
         LiveSynth(bank, n, 60.0).append(herd[:n, :300])
     assert {str(sig[-2]) for sig in kernels._render_windows.signatures} == {"array(float64, 4d, C)"}
+
+
+def test_a_failing_shard_fails_the_tick_once_every_shard_is_done(bank: Bank,
+                                                                   monkeypatch: pytest.MonkeyPatch) -> None:
+    """An unexpected error in one shard's thread reaches the caller -- once the other shards'
+    work is over, none left running on the session's state."""
+    import threading
+    import time
+
+    sharded = LiveShards(bank, 6, 60.0, shards=2)
+    done = threading.Event()
+    first, second = sharded.parts
+
+    def fails(points: np.ndarray) -> None:
+        raise RuntimeError("shard 0 broke")
+
+    def slow(points: np.ndarray) -> None:
+        time.sleep(0.3)
+        done.set()
+
+    monkeypatch.setattr(first, "append_checked", fails)
+    monkeypatch.setattr(second, "append_checked", slow)
+    with pytest.raises(RuntimeError, match="shard 0 broke"):
+        sharded.append(np.zeros((6, 5, 3)))
+    assert done.is_set()
