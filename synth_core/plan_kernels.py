@@ -9,9 +9,9 @@ over its frames. The same float64 operations in the same order as the reference,
 fastmath: the plans are equal bit for bit (tested), and so are the live mode's blocks made here
 and by its numpy reference (``live_block``, tested).
 
-The per-frame quantities headings and speeds stay in numpy (shared with the live mode, whose
-blocks' headings are also made here: ``live_headings``); the random draws are made beforehand
-(:func:`synth_core.draws.uniform`, one stream per decision).
+A batch's per-frame headings and speeds stay in numpy (shared with the live mode, whose
+blocks' headings are compiled here as well: ``live_headings``); the random draws are made
+beforehand (:func:`synth_core.draws.uniform`, one stream per decision).
 """
 
 from __future__ import annotations
