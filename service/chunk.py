@@ -20,6 +20,7 @@ import numpy as np
 from api_schemas.wire import BYTES_PER_JOINT_FRAME, Encoding, blob, packed_dtype
 from service.answer import Hole, hole_blob, template
 from service.packing import contact_bits, pack_rotations
+from synth_core.scratch import Scratch
 from synth_core.streaming import Window
 
 _ALIGN = 8  # the rotations' place in the buffer: the compiled packer writes uint16 words there
@@ -35,11 +36,12 @@ def chunk_message(batch: int, index: int, window: Window, encoding: Encoding) ->
             "gait": blob(window.gait), "contacts": blob(contact_bits(window.contacts))}
 
 
-def packed_chunk(batch: int, index: int, windows: Sequence[Window], encoding: Encoding
-                 ) -> tuple[int, memoryview]:
+def packed_chunk(batch: int, index: int, windows: Sequence[Window], encoding: Encoding,
+                 scratch: Scratch | None = None, name: str = "chunk") -> tuple[int, memoryview]:
     """The frame count and the packed chunk message of ``windows`` (the same frames of
     consecutive characters; one window: all of them): ``msgpack.packb`` of
-    :func:`chunk_message` of them joined, made in the pool (CPU work the event loop must not do)."""
+    :func:`chunk_message` of them joined, made in the pool (CPU work the event loop must not do).
+    ``scratch``: packed on its buffer ``name`` (the message then holds until that is used again)."""
     first = windows[0]
     n = first.stop - first.start
     C = sum(w.root_pos.shape[0] for w in windows)
@@ -55,7 +57,8 @@ def packed_chunk(batch: int, index: int, windows: Sequence[Window], encoding: En
     starts = np.cumsum([0, *sizes]).tolist()
     holes = [i for i, p in enumerate(parts) if isinstance(p, Hole)]  # root, rotations, gait, contacts
     # Shifted in a slightly larger buffer so that the rotations start on an aligned address.
-    raw = np.empty(starts[-1] + _ALIGN, np.uint8)
+    size = starts[-1] + _ALIGN
+    raw = np.empty(size, np.uint8) if scratch is None else scratch.array(name, (size,), np.uint8)
     shift = -(raw.ctypes.data + starts[holes[1]]) % _ALIGN
     buf = raw[shift:shift + starts[-1]]
     for i, part in enumerate(parts):

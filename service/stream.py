@@ -17,7 +17,7 @@ import contextlib
 import logging
 import time
 from collections.abc import Iterator, MutableMapping
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Literal
 
 import msgpack
 import numpy as np
@@ -28,6 +28,7 @@ from service import jobs, live
 from service.chunk import packed_chunk
 from service.errors import ApiError, error_body
 from service.packing import skeleton_id
+from synth_core.scratch import Scratch
 from synth_core.streaming import BatchStream, Window
 from synth_core.trajectory import TrajectoryError
 
@@ -282,14 +283,29 @@ class Session:
         self.acked, sent = -1, 0
         self.state.metrics.syntheses += 1
 
-        def step(points: NDArray[np.float64] | None, index: int) -> tuple[int, memoryview] | None:
-            windows = synth.finish() if points is None else synth.append(points)
-            if windows is None or windows[0].stop <= windows[0].start:
-                return None
-            return packed_chunk(number, index, windows, req.encoding)
+        # Windows of at most a segment's frames: a finish (or a long points message) settling
+        # more comes as several chunks, each window rendered and packed over the last's pages
+        # (fresh pages, zeroed by the OS as they are first written, took a fifth of the server's
+        # CPU in a live session: perf).
+        scratch = Scratch()
 
-        # A chunk goes out while the next points are synthesized (a live tick of 4,000 horses is
-        # ~30 MB: sending it took a third as long as making it, the cores half idle meanwhile).
+        def step(points: NDArray[np.float64] | None | Literal["more"], index: int
+                 ) -> tuple[int, memoryview] | None:
+            """The next chunk of the frames ``points`` settle (or the finish's; "more": of
+            those left), None when there are none."""
+            while True:
+                W = synth.window_frames
+                windows = (synth.take(W) if isinstance(points, str) else
+                           synth.finish(W) if points is None else synth.append(points, W))
+                if windows is None:
+                    return None
+                if windows[0].stop > windows[0].start:  # (a window may hold no frame sent)
+                    # Two buffers in turn: one is sent while the next is packed.
+                    return packed_chunk(number, index, windows, req.encoding, scratch, f"chunk{index % 2}")
+                points = "more"
+
+        # A chunk goes out while the next is synthesized (a live tick of 4,000 horses is ~30 MB:
+        # sending it took a third as long as making it, the cores half idle meanwhile).
         sending: asyncio.Future[None] | None = None
         try:
             while True:
@@ -297,22 +313,26 @@ class Session:
                 if message is None:
                     break
                 finishing = message.get("type") == "finish"
-                points = None if finishing else live.points(message, C, settings)
-                t0 = time.perf_counter()
-                try:
-                    made = await self.in_pool(step, points, sent)
-                except TrajectoryError as exc:
-                    raise live.live_error(exc, "points") from None
-                self.state.metrics.synthesis_seconds += time.perf_counter() - t0
-                if sending is not None:
-                    await sending  # in order, and its failure (a slow consumer) raised here
-                    sending = None
-                if made is not None:
+                points: NDArray[np.float64] | None | Literal["more"] = (
+                    None if finishing else live.points(message, C, settings))
+                while True:
+                    t0 = time.perf_counter()
+                    try:
+                        made = await self.in_pool(step, points, sent)
+                    except TrajectoryError as exc:
+                        raise live.live_error(exc, "points") from None
+                    self.state.metrics.synthesis_seconds += time.perf_counter() - t0
+                    if sending is not None:
+                        await sending  # in order, and its failure (a slow consumer) raised here
+                        sending = None
+                    if made is None:
+                        break
                     await self.wait_for_room(sent)
                     self.check()
                     sending = asyncio.ensure_future(self.send(made[1]))
                     self.state.metrics.character_frames += C * made[0]
                     sent += 1
+                    points = "more"
                 if finishing:
                     break
             if sending is not None:

@@ -628,7 +628,8 @@ def _bank_tables(bank: Bank) -> tuple[tuple[Any, Any, Any], tuple[Any, Any, Any,
 
 def render_window(bank: Bank, plan: Plan, start: int, stop: int, begin: NDArray[np.int64],
                   end: NDArray[np.int64], foot_lock: bool = True,
-                  known: tuple[NDArray[np.float64], NDArray[np.int64]] | None = None
+                  known: tuple[NDArray[np.float64], NDArray[np.int64]] | None = None,
+                  out: NDArray[np.float32] | None = None
                   ) -> tuple[NDArray[np.float32], NDArray[np.float32]]:
     """Root ``(C, stop - start, 3)`` and rotations of frames ``[start, stop)`` only, each
     character rendered over its context ``[begin, end)`` of ``plan`` (from
@@ -639,7 +640,9 @@ def render_window(bank: Bank, plan: Plan, start: int, stop: int, begin: NDArray[
     is, so the kernel is compiled for one layout), ``frames (C,)``) -- the feet of each character's
     plan frames ``[0, frames[c])``, kept from earlier windows over the same plan: those are not
     posed again (a live session's windows share most of their context: it was two-fifths of
-    their render). The feet of the frames posed are written there, ``frames`` moved on."""
+    their render). The feet of the frames posed are written there, ``frames`` moved on.
+
+    ``out``: the rotations are written there (C-contiguous ``(C, stop - start, J, 4)`` float32)."""
     if not AVAILABLE:
         raise RuntimeError("synth_core.kernels needs numba; use the numpy backend")
     C = plan.yaw.shape[0]
@@ -652,7 +655,9 @@ def render_window(bank: Bank, plan: Plan, start: int, stop: int, begin: NDArray[
         assert frames.dtype == np.int64 and frames.flags.c_contiguous
     frames -= cb  # in the window's frames (moved back after)
     out_root = np.empty((C, stop - start, 3), np.float64)
-    out_rot = np.empty((C, stop - start, J, 4), np.float32)
+    out_rot = np.empty((C, stop - start, J, 4), np.float32) if out is None else out
+    assert out_rot.shape == (C, stop - start, J, 4) and out_rot.dtype == np.float32
+    assert out_rot.flags.c_contiguous
     table, skeleton = _bank_tables(bank)
     try:
         _render_windows(*table, *_plan_arrays(plan.window(cb, ce)), *skeleton, foot_lock,

@@ -43,6 +43,7 @@ from synth_core import kernels, plan_kernels
 from synth_core.bank import Bank
 from synth_core.draws import SCHEDULE_STREAM, character_keys, uniform
 from synth_core.footlock import EASE_FRAMES, PAD
+from synth_core.scratch import Scratch
 from synth_core.streaming import Window, lock_context
 from synth_core.synthesis import (
     MARGIN,
@@ -160,13 +161,21 @@ class LiveSynth:
     All characters advance together (a simulation steps every agent each tick): each ``append``
     brings the same number of points for every character, at ``fps``. Frames come back at the
     library's frame rate -- or at ``fps``, every k-th frame, where the library's rate is k times it.
+
+    ``reuse_windows``: each window's rotations are rendered over the last's (the compiled render;
+    on pages kept from window to window): a window's arrays then hold only until the next
+    :meth:`append`, :meth:`take` or :meth:`finish`. Fresh memory is dear
+    (:mod:`synth_core.scratch`): the pages of a 2,000-horse window's 36 MB, zeroed by the OS as
+    they were first written, were 6% of a live session's CPU here (perf). Without it, every
+    window is new arrays.
     """
 
     def __init__(self, bank: Bank, n_characters: int, fps: float | None = None, *,
                  scales: ArrayLike | None = None, seed: int = 0, seeds: ArrayLike | None = None,
                  scale_range: tuple[float, float] = (1.0, 1.0), sigma: float = DEFAULT_SIGMA,
                  margin: int = MARGIN, foot_lock: bool = True, backend: str = "auto",
-                 heading: float = 0.0, lock_lag: int = LOCK_LAG, first: int = 0) -> None:
+                 heading: float = 0.0, lock_lag: int = LOCK_LAG, first: int = 0,
+                 reuse_windows: bool = False) -> None:
         if not (isinstance(n_characters, int) and n_characters >= 1):
             raise TrajectoryError(f"characters: need at least one, got {n_characters}")
         fps = bank.fps if fps is None else float(fps)
@@ -177,8 +186,10 @@ class LiveSynth:
         C = n_characters
         self.bank, self.fps, self.sigma, self.margin = bank, fps, float(sigma), margin
         self.foot_lock, self.heading = foot_lock, float(heading)
+        self.scratch = Scratch() if reuse_windows else None
         self.lock_lag = lock_lag if foot_lock else 0
         self.rendered = 0  # library frames rendered
+        self.settled = 0  # library frames planned to send: [rendered, settled) wait for take()
         self.compiled = backend == "numba" or (backend == "auto" and kernels.AVAILABLE)
         # The plan's blocks by plan_kernels.live_block (the same plan, bit for bit; False: the
         # numpy reference, which tests compare it with).
@@ -240,6 +251,11 @@ class LiveSynth:
         self.known_feet = np.zeros(C, np.int64)
 
     @property
+    def window_frames(self) -> int:
+        """Frames (sent) one segment settles: a window's usual size, a bound for larger ones."""
+        return -(-self.m // self.out_step)
+
+    @property
     def kept_frames(self) -> int:
         """Planned frames before the next to send kept for the foot lock: whole plants reaching
         back past PAD, at most KEEP_PLANS of the slowest cycle."""
@@ -252,17 +268,30 @@ class LiveSynth:
 
     # -- input -------------------------------------------------------------------------------
 
-    def append(self, points: ArrayLike) -> Window | None:
+    def append(self, points: ArrayLike, frames: int | None = None) -> Window | None:
         """Points ``(C, n, 3)`` (n >= 1) at ``fps``, the next of every character's trajectory;
-        the frames this settles (None: none yet)."""
-        return self.append_checked(self.check(points))
+        the frames this settles (None: none yet) -- at most ``frames`` of them, the rest left
+        for :meth:`take`: so a caller bounds a window's memory (10,000 horses: 6.4 MB of float32
+        rotations a frame)."""
+        return self.append_checked(self.check(points), frames)
 
-    def append_checked(self, arr: Floats) -> Window | None:
+    def append_checked(self, arr: Floats, frames: int | None = None) -> Window | None:
         """:meth:`append` of points :meth:`check` returned (not checked again)."""
         self.inputs = np.concatenate([self.inputs, arr], axis=1)
         self.n_inputs += arr.shape[1]
         self._retime()
-        return self._advance()
+        self._advance()
+        return self.take(frames)
+
+    def take(self, frames: int | None = None) -> Window | None:
+        """The next frames settled and not yet given, at most ``frames`` of them (None: all);
+        None when there are none."""
+        start = self.rendered
+        stop = self.settled if frames is None else min(self.settled, start + frames * self.out_step)
+        if stop <= start:
+            return None
+        self.rendered = stop
+        return self._emit(start, stop)
 
     def check(self, points: ArrayLike) -> Floats:
         """The points :meth:`append` would take, as float64 -- or :class:`TrajectoryError` for
@@ -286,10 +315,15 @@ class LiveSynth:
                                   "a teleport, not locomotion)", c)
         return arr
 
-    def finish(self) -> Window | None:
-        """The trajectories end with the points given: the rest of the frames."""
-        if self.ended:
-            return None
+    def finish(self, frames: int | None = None) -> Window | None:
+        """The trajectories end with the points given: the rest of the frames (at most
+        ``frames`` of them, the rest left for :meth:`take`: the rest of a 10,000-horse session,
+        117 frames at 30 fps, is 750 MB of float32 rotations)."""
+        if not self.ended:
+            self._end()
+        return self.take(frames)
+
+    def _end(self) -> None:
         if self.made < 2:
             raise TrajectoryError(f"points: a trajectory needs at least 2 points, got {self.n_inputs}")
         self.ended = True
@@ -304,7 +338,7 @@ class LiveSynth:
         # ... and on, standing, until every decision that reads it is made.
         hold = np.repeat(tail[:, -1:] if tail.shape[1] else last, self.latency_frames + self.m, axis=1)
         self._raw(np.concatenate([tail, hold], axis=1))
-        return self._advance(limit=end)
+        self._advance(limit=end)
 
     def _retime(self) -> None:
         """Library-rate points from the inputs so far (linear, as :func:`trajectory.retime`)."""
@@ -398,9 +432,9 @@ class LiveSynth:
         m = self.m
         return int(np.ceil((self.n_seg - 1) * m + (m - 1) / 2)) if self.n_seg >= 2 else 0
 
-    def _advance(self, limit: int | None = None) -> Window | None:
+    def _advance(self, limit: int | None = None) -> None:
+        """Plan every frame the points so far settle (up to ``limit``, the last, at the end)."""
         self._smooth()
-        start = self.rendered
         while True:
             t0 = self.planned
             a = self.decisions * self.step
@@ -422,10 +456,7 @@ class LiveSynth:
                 break
             self._plan_block(t0, t1)
         stop = self.planned if limit is not None else self.planned - self.lock_lag
-        if stop <= start:
-            return None
-        self.rendered = stop
-        return self._emit(start, stop)
+        self.settled = max(self.settled, stop)
 
     def _decide(self, a: int, ahead: int) -> None:
         """Decision k at frame a on the speed at frame ``ahead`` (as :func:`synthesis.schedule`'s
@@ -648,8 +679,10 @@ class LiveSynth:
             n = buf.yaw.shape[1]
             self.feet.reserve(max(o0 + n - self.feet.stop, 0))
             known = self.known_feet - o0
+            out = None if self.scratch is None else self.scratch.array(
+                "live.rotations", (len(self.scales), hi - lo, self.bank.skeleton.n_joints, 4), np.float32)
             root, rot = kernels.render_window(self.bank, buf, lo, hi, begin, end, self.foot_lock,
-                                              (self.feet.columns(o0, o0 + n)[0][0], known))
+                                              (self.feet.columns(o0, o0 + n)[0][0], known), out)
             self.known_feet = known + o0
         else:
             cb, ce = int(begin.min()), int(end.max())
@@ -658,8 +691,13 @@ class LiveSynth:
         # Copies: the buffer's columns are written over by later blocks.
         window = Window(self.emitted, root, rot, buf.gait[:, lo:hi].copy(), buf.contacts[:, lo:hi].copy())
         self.emitted += hi - lo
-        self.buffer.drop_before(stop - self.kept_frames)  # the context the next frames' lock reads
-        self.feet.drop_before(-(-self.buffer.start // k))
+        if stop == self.settled:
+            # The context the next frames' lock reads. Not before every frame settled is given:
+            # a window bounded short of them leaves the rest as far a context as one window of
+            # them all would have (a standing horse's plant, longer than what is kept, is
+            # averaged over the same frames).
+            self.buffer.drop_before(stop - self.kept_frames)
+            self.feet.drop_before(-(-self.buffer.start // k))
         self.path.drop_before(self.planned - 2)  # the path the next block and heading read
         first_seg = max(int(np.floor((self.planned - self.m / 2) / self.m)) - 1, 0)  # the speeds still read
         if first_seg > self.seg_start:

@@ -83,6 +83,7 @@ class LiveShards:
                                               strict=True)]
         first = self.parts[0]
         self.latency_frames, self.out_step = first.latency_frames, first.out_step
+        self.window_frames = first.window_frames
         self.scales = np.concatenate([p.scales for p in self.parts])
         self.n_characters = n_characters
 
@@ -107,7 +108,7 @@ class LiveShards:
         wait(futures)  # every shard done before an error is raised: none left running
         return [f.result() for f in futures]
 
-    def append(self, points: ArrayLike) -> list[Window] | None:
+    def append(self, points: ArrayLike, frames: int | None = None) -> list[Window] | None:
         """:meth:`LiveSynth.append` for every shard: points ``(C, n, 3)``; nothing is taken
         unless every shard can take its characters' points."""
         arr = np.asarray(points)
@@ -117,11 +118,15 @@ class LiveShards:
         cuts = self.cuts.tolist()
         checked = [self._each_shard(functools.partial(part.check, arr[cuts[i]:cuts[i + 1]]), cuts[i])
                    for i, part in enumerate(self.parts)]  # all checked before any shard moves on
-        return self._windows(self._run(lambda i, p: p.append_checked(checked[i])))
+        return self._windows(self._run(lambda i, p: p.append_checked(checked[i], frames)))
 
-    def finish(self) -> list[Window] | None:
+    def finish(self, frames: int | None = None) -> list[Window] | None:
         """:meth:`LiveSynth.finish` for every shard."""
-        return self._windows(self._run(lambda i, p: p.finish()))
+        return self._windows(self._run(lambda i, p: p.finish(frames)))
+
+    def take(self, frames: int | None = None) -> list[Window] | None:
+        """:meth:`LiveSynth.take` for every shard."""
+        return self._windows(self._run(lambda i, p: p.take(frames)))
 
     @staticmethod
     def _windows(windows: list[Window | None]) -> list[Window] | None:

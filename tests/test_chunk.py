@@ -9,6 +9,7 @@ import pytest
 
 from service.chunk import chunk_message, packed_chunk
 from synth_core.live_shards import joined
+from synth_core.scratch import Scratch
 from synth_core.streaming import Window
 
 
@@ -39,3 +40,17 @@ def test_a_big_chunks_rotations_are_packed_in_place_aligned() -> None:
     want = msgpack.packb(chunk_message(0, 0, w, "s48"), use_bin_type=True)
     for _ in range(4):
         assert bytes(packed_chunk(0, 0, [w], "s48")[1]) == want
+
+
+def test_chunks_packed_on_a_scratch_reuse_its_buffer() -> None:
+    """On a Scratch buffer (a live session's: one sent while the next is packed), a chunk is
+    the same bytes, and a later one of no more bytes is packed over it."""
+    scratch = Scratch()
+    big, small = window(6, 9, 5, 0, 1), window(6, 4, 5, 9, 2)
+    first = packed_chunk(0, 0, [big], "s48", scratch, "a")[1]
+    assert bytes(first) == msgpack.packb(chunk_message(0, 0, big, "s48"), use_bin_type=True)
+    other = packed_chunk(0, 1, [small], "s48", scratch, "b")[1]
+    again = packed_chunk(0, 2, [small], "s48", scratch, "a")[1]
+    assert bytes(again) == msgpack.packb(chunk_message(0, 2, small, "s48"), use_bin_type=True)
+    assert np.shares_memory(np.frombuffer(first, np.uint8), np.frombuffer(again, np.uint8))
+    assert not np.shares_memory(np.frombuffer(other, np.uint8), np.frombuffer(again, np.uint8))

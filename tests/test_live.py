@@ -170,6 +170,37 @@ def test_shards_make_the_sessions_frames_bit_for_bit(bank: Bank, herd: np.ndarra
     assert windows >= 5
 
 
+def test_bounded_windows_join_to_the_unbounded_ones(bank: Bank, herd: np.ndarray) -> None:
+    """append(points, frames) and finish(frames) give at most ``frames`` frames a window and
+    take() the rest: joined, the frames of unbounded windows, bit for bit (a bounded window keeps
+    the lock's whole context for the rest: dropping it after each, standing horses' long plants
+    were averaged over fewer frames, 37 um apart). reuse_windows renders each window on the last
+    one's pages."""
+    options = {"seed": 5, "scale_range": (0.8, 1.2)}
+    whole = LiveSynth(bank, len(herd), 60.0, **options)  # type: ignore[arg-type]
+    bounded = LiveSynth(bank, len(herd), 60.0, reuse_windows=True, **options)  # type: ignore[arg-type]
+    rng = np.random.default_rng(2)
+    want, got, sizes, shared = [], [], [], 0
+    i = 0
+    while i <= herd.shape[1]:
+        n = int(rng.integers(1, 90))
+        done = i >= herd.shape[1]
+        w = whole.finish() if done else whole.append(herd[:, i:i + n])
+        want += [w] if w is not None else []
+        b = bounded.finish(7) if done else bounded.append(herd[:, i:i + n], 7)
+        last = None
+        while b is not None:
+            sizes.append(b.stop - b.start)
+            shared += last is not None and np.shares_memory(last, b.rotations)
+            last = b.rotations
+            got.append(Window(b.start, b.root_pos, b.rotations.copy(), b.gait, b.contacts))
+            b = bounded.take(7)
+        i += n
+    assert max(sizes) == 7 and len(got) > 2 * len(want) and shared > 0
+    for a, b in zip(joined(got), joined(want), strict=True):
+        np.testing.assert_array_equal(a, b)
+
+
 def test_shards_refuse_bad_points_whole_naming_the_character(bank: Bank) -> None:
     sharded = LiveShards(bank, 6, 60.0, shards=3)
     ok = np.zeros((6, 5, 3))
@@ -233,10 +264,10 @@ def test_a_failing_shard_fails_the_tick_once_every_shard_is_done(bank: Bank,
     done = threading.Event()
     first, second = sharded.parts
 
-    def fails(points: np.ndarray) -> None:
+    def fails(points: np.ndarray, frames: int | None) -> None:
         raise RuntimeError("shard 0 broke")
 
-    def slow(points: np.ndarray) -> None:
+    def slow(points: np.ndarray, frames: int | None) -> None:
         time.sleep(0.3)
         done.set()
 

@@ -252,9 +252,12 @@ def test_live_session_sends_the_frames_live_synthesis_makes(server: str, bank: B
             chunks += session.push(herd[:, i:i + 12], wait=0.2)
             frames = sum(c.root.shape[1] for c in chunks)
             assert frames >= (i + 12) - header["latency_frames"] - 1  # within the documented latency
-        chunks += session.finish()
+        rest = session.finish()
+        chunks += rest
     assert [c.start for c in chunks] == list(np.cumsum([0] + [c.root.shape[1] for c in chunks[:-1]]))
     local = LiveSynth(bank, 6, 30.0, seed=4, scale_range=(0.8, 1.2))  # the server's built-in horse
+    # The finish's frames (the latency's worth) come in chunks of a segment's frames at most.
+    assert len(rest) >= 2 and max(c.root.shape[1] for c in chunks) <= local.window_frames
     assert [c["scale"] for c in header["characters"]] == local.scales.tolist()
     windows = [w for i in range(0, 240, 12) if (w := local.append(herd[:, i:i + 12])) is not None]
     windows.append(local.finish())
