@@ -29,7 +29,8 @@ from typing import TypeVar
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.ndimage import gaussian_filter1d
+
+from synth_core import gaussian
 
 Floats = NDArray[np.float64]
 
@@ -150,8 +151,7 @@ def smooth(positions: Floats, sigma: float) -> Floats:
     head = 2 * positions[:, :1] - positions[:, pad:0:-1]
     tail = 2 * positions[:, -1:] - positions[:, -2:-2 - pad:-1]
     longer = np.concatenate([head, positions, tail], axis=1)
-    out = gaussian_filter1d(longer, sigma, axis=1, mode="nearest")
-    return np.asarray(out[:, pad:pad + F])
+    return gaussian.smooth_frames(longer, sigma, pad, F)
 
 
 def segment_speeds(positions: Floats, m: int, fps: float) -> Floats:
