@@ -6,6 +6,7 @@ Each uvicorn worker process has its own counters (a scrape reaches one of them);
 
 from __future__ import annotations
 
+import gc
 import os
 from collections import Counter
 from dataclasses import dataclass, field
@@ -54,6 +55,14 @@ class Metrics:
             "# HELP quadsynth_websocket_sessions Open WebSocket sessions.",
             "# TYPE quadsynth_websocket_sessions gauge",
             f'quadsynth_websocket_sessions{{pid="{pid}"}} {self.ws_sessions}',
+            "# HELP python_gc_collections_total Runs of the cyclic garbage collector, by generation "
+            "(a full one, 2, pauses the process).",
+            "# TYPE python_gc_collections_total counter",
+            *(f'python_gc_collections_total{{pid="{pid}",generation="{g}"}} {stats["collections"]}'
+              for g, stats in enumerate(gc.get_stats())),
+            "# HELP quadsynth_gc_frozen_objects Objects start-up made, kept out of full collections.",
+            "# TYPE quadsynth_gc_frozen_objects gauge",
+            f'quadsynth_gc_frozen_objects{{pid="{pid}"}} {gc.get_freeze_count()}',
         ]
         return "\n".join(lines) + "\n"
 

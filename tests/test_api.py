@@ -225,6 +225,9 @@ def test_metrics_count_requests_and_character_frames(server: str, herd: np.ndarr
     assert value(after, ok) - value(before, ok) >= 3
     assert 'route="/v1/synthesize",status="422"' in after
     assert "quadsynth_synthesis_seconds_count" in after and "quadsynth_in_flight" in after
+    assert value(after, 'python_gc_collections_total{pid=') > 0
+    # What start-up made (libraries, kernels, frameworks) is frozen out of full collections.
+    assert value(after, "quadsynth_gc_frozen_objects") > 50_000
 
 
 def test_overload_gets_503_with_retry_after_while_livez_stays_fast(server: str, herd: np.ndarray) -> None:
