@@ -293,8 +293,8 @@ class Session:
                  ) -> tuple[int, memoryview] | None:
             """The next chunk of the frames ``points`` settle (or the finish's; "more": of
             those left), None when there are none."""
+            W = synth.window_frames
             while True:
-                W = synth.window_frames
                 windows = (synth.take(W) if isinstance(points, str) else
                            synth.finish(W) if points is None else synth.append(points, W))
                 if windows is None:

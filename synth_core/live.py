@@ -285,6 +285,8 @@ class LiveSynth:
     def take(self, frames: int | None = None) -> Window | None:
         """The next frames settled and not yet given, at most ``frames`` of them (None: all);
         None when there are none."""
+        if frames is not None and frames < 1:
+            raise ValueError(f"frames: a window holds at least 1, got {frames}")
         start = self.rendered
         stop = self.settled if frames is None else min(self.settled, start + frames * self.out_step)
         if stop <= start:

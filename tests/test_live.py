@@ -197,6 +197,8 @@ def test_bounded_windows_join_to_the_unbounded_ones(bank: Bank, herd: np.ndarray
             b = bounded.take(7)
         i += n
     assert max(sizes) == 7 and len(got) > 2 * len(want) and shared > 0
+    with pytest.raises(ValueError, match="frames: a window holds at least 1"):
+        bounded.take(0)
     for a, b in zip(joined(got), joined(want), strict=True):
         np.testing.assert_array_equal(a, b)
 
