@@ -14,14 +14,13 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import functools
 import logging
 import time
-from collections.abc import Iterator, MutableMapping
-from typing import TYPE_CHECKING, Any, Literal
+from collections.abc import Callable, Iterator, MutableMapping
+from typing import TYPE_CHECKING, Any
 
 import msgpack
-import numpy as np
-from numpy.typing import NDArray
 from starlette.websockets import WebSocket, WebSocketDisconnect, WebSocketState
 
 from service import jobs, live
@@ -289,20 +288,18 @@ class Session:
         # CPU in a live session: perf).
         scratch = Scratch()
 
-        def step(points: NDArray[np.float64] | None | Literal["more"], index: int
-                 ) -> tuple[int, memoryview] | None:
-            """The next chunk of the frames ``points`` settle (or the finish's; "more": of
-            those left), None when there are none."""
-            W = synth.window_frames
-            while True:
-                windows = (synth.take(W) if isinstance(points, str) else
-                           synth.finish(W) if points is None else synth.append(points, W))
-                if windows is None:
-                    return None
-                if windows[0].stop > windows[0].start:  # (a window may hold no frame sent)
-                    # Two buffers in turn: one is sent while the next is packed.
-                    return packed_chunk(number, index, windows, req.encoding, scratch, f"chunk{index % 2}")
-                points = "more"
+        W = synth.window_frames
+
+        def step(advance: Callable[[], list[Window] | None], index: int) -> tuple[int, memoryview] | None:
+            """The next chunk: of the windows ``advance`` gives (then of those left), None
+            when there are none."""
+            windows = advance()
+            while windows is not None and windows[0].stop <= windows[0].start:  # no frame sent in it
+                windows = synth.take(W)
+            if windows is None:
+                return None
+            # Two buffers in turn: one is sent while the next is packed.
+            return packed_chunk(number, index, windows, req.encoding, scratch, f"chunk{index % 2}")
 
         # A chunk goes out while the next is synthesized (a live tick of 4,000 horses is ~30 MB:
         # sending it took a third as long as making it, the cores half idle meanwhile).
@@ -313,12 +310,12 @@ class Session:
                 if message is None:
                     break
                 finishing = message.get("type") == "finish"
-                points: NDArray[np.float64] | None | Literal["more"] = (
-                    None if finishing else live.points(message, C, settings))
+                advance = (functools.partial(synth.finish, W) if finishing else
+                           functools.partial(synth.append, live.points(message, C, settings), W))
                 while True:
                     t0 = time.perf_counter()
                     try:
-                        made = await self.in_pool(step, points, sent)
+                        made = await self.in_pool(step, advance, sent)
                     except TrajectoryError as exc:
                         raise live.live_error(exc, "points") from None
                     self.state.metrics.synthesis_seconds += time.perf_counter() - t0
@@ -332,7 +329,7 @@ class Session:
                     sending = asyncio.ensure_future(self.send(made[1]))
                     self.state.metrics.character_frames += C * made[0]
                     sent += 1
-                    points = "more"
+                    advance = functools.partial(synth.take, W)
                 if finishing:
                     break
             if sending is not None:
