@@ -118,11 +118,6 @@ def _norm3(a: Any) -> float:
 
 
 @_jit()
-def _unit3(a: Any) -> Any:
-    return _scale(a, 1.0 / max(_norm3(a), _EPS))
-
-
-@_jit()
 def _v3(a: Any) -> Any:
     return (float(a[0]), float(a[1]), float(a[2]))
 
@@ -335,20 +330,22 @@ def _solve_block(B: Any, toe_offset: Any, bend: Any) -> None:
         thigh = _sub(p_hinge, p_root)
         shin = _sub(p_ankle, p_hinge)
         # The hinge axis: thigh x shin, else thigh x (toe - hinge), else the leg's dominant
-        # axis; turned to the dominant axis's side (ik._hinge_axes).
-        unit_thigh = _unit3(thigh)
-        primary = _cross(unit_thigh, _unit3(shin))
-        by_toe = _cross(unit_thigh, _unit3(_sub(p_toe, p_hinge)))
+        # axis; turned to the dominant axis's side (ik._hinge_axes). Whether two vectors are
+        # HINGE_AXIS_MIN_SIN or more from parallel is asked of their cross product squared, not
+        # normalized: square roots and divisions were half of this IK's time.
+        to_toe = _sub(p_toe, p_hinge)
+        primary = _cross(thigh, shin)
+        by_toe = _cross(thigh, to_toe)
         dominant = _qrot(_quat(B, _R_ROOT, t), bend)
-        size1 = math.sqrt(_dot3(primary, primary))
-        size2 = math.sqrt(_dot3(by_toe, by_toe))
-        use1 = size1 >= HINGE_AXIS_MIN_SIN
-        use2 = size2 >= HINGE_AXIS_MIN_SIN
+        thigh2, shin2 = _dot3(thigh, thigh), _dot3(shin, shin)
+        least = HINGE_AXIS_MIN_SIN * HINGE_AXIS_MIN_SIN * thigh2
+        use1 = _dot3(primary, primary) >= max(least * shin2, _EPS * _EPS)
+        use2 = _dot3(by_toe, by_toe) >= max(least * _dot3(to_toe, to_toe), _EPS * _EPS)
         pick = _pick3(use1, primary, _pick3(use2, by_toe, dominant))
-        size = size1 if use1 else (size2 if use2 else max(math.sqrt(_dot3(dominant, dominant)), _EPS))
+        size = max(math.sqrt(_dot3(pick, pick)), _EPS)
         axis = _scale(pick, math.copysign(1.0 / size, _dot3(pick, dominant)))
         to_target = _sub(ankle_target, p_root)
-        distance = math.sqrt(_dot3(to_target, to_target))
+        distance2 = _dot3(to_target, to_target)
         # The hinge's turn (ik._turn_to_distance without its trigonometry): a cos + b sin = want;
         # both solutions' cosines and sines follow from a, b and want. The side the axis says
         # first (positive bend about it), then the smaller turn (the larger cosine).
@@ -357,7 +354,7 @@ def _solve_block(B: Any, toe_offset: Any, bend: Any) -> None:
         a = _dot3(thigh, shin) - c
         k = _cross(axis, shin)
         b = _dot3(thigh, k)
-        want = 0.5 * (distance * distance - _dot3(thigh, thigh) - _dot3(shin, shin)) - c
+        want = 0.5 * (distance2 - thigh2 - shin2) - c
         amp = math.sqrt(a * a + b * b)
         flat = amp <= _EPS
         inv = 1.0 / max(amp, _EPS)
@@ -378,7 +375,7 @@ def _solve_block(B: Any, toe_offset: Any, bend: Any) -> None:
         # The swing onto the target (quat.between; a half turn where the two are opposite).
         u = _add(thigh, _qrot(bend_q, shin))
         uu = _dot3(u, u)
-        lengths = math.sqrt(uu * _dot3(to_target, to_target))
+        lengths = math.sqrt(uu * distance2)
         w = lengths + _dot3(u, to_target)  # |u||v| (1 + cos): the quaternion, unnormalized
         opposite = w < 1e-9 * max(lengths, _EPS)
         x_ok = abs(u[0]) < 0.9 * math.sqrt(uu)
