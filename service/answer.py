@@ -5,8 +5,9 @@ go out in pieces -- the head, then each chunk of characters as soon as it is ren
 packed, then the tail -- with the same bytes as ``msgpack.packb`` of the whole answer (tested),
 and its length is known before the first rotation is made (ids, scales and frame counts are
 known once the batch is prepared): it goes out with a Content-Length, and the network carries
-one chunk while the next is synthesized. No batch-sized float32 rotations are made at all: the
-chunks are rendered and packed in a worker thread's own :class:`Scratch` pages.
+one chunk while the next are synthesized. No batch-sized float32 rotations are made at all: the
+chunks are rendered and packed side by side, each in its render thread's own :class:`Scratch`
+pages (:func:`produce`).
 """
 
 from __future__ import annotations
@@ -14,6 +15,7 @@ from __future__ import annotations
 import functools
 import math
 import struct
+import threading
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
@@ -24,9 +26,10 @@ import numpy as np
 from api_schemas.wire import BYTES_PER_JOINT_FRAME, Encoding, packed_dtype
 from service import jobs
 from service.packing import contact_bits, pack_rotations
+from synth_core import render_pool
 from synth_core.bank import Bank
 from synth_core.scratch import Scratch
-from synth_core.synthesis import prepare_batch, render_chunks
+from synth_core.synthesis import prepare_batch, render_chunk
 from synth_core.trajectory import TrajectoryError
 
 PIECE_BYTES = 8 * 1024 * 1024  # float32 rotations per chunk: the chunks stay small enough to stream
@@ -132,13 +135,28 @@ def filled(parts: Template, arrays: list[np.ndarray]) -> list[bytes | memoryview
     return out
 
 
-def produce(job: jobs.Job, bank: Bank, meta: dict[str, Any], scratch: Scratch,
-            emit: Callable[[Any], None]) -> int:
-    """The answer to ``job`` (in a worker thread): ``emit(length)``, the answer's whole length in
-    bytes, once the batch is prepared; then ``emit(piece)`` for each piece of it, in order.
-    ``meta``: the answer's fields before ``resample_rate`` (animal, skeleton_id, fps, encoding).
-    Returns the character-frames sent; 422 (:class:`ApiError`) for a bad trajectory, before
-    anything is emitted; :class:`jobs.Cancelled` between chunks once ``job.cancel`` is set."""
+_threads = threading.local()
+
+
+def _scratch() -> Scratch:
+    """This render thread's pages, kept from chunk to chunk and request to request."""
+    kept = getattr(_threads, "scratch", None)
+    if kept is None:
+        kept = _threads.scratch = Scratch()
+    return kept
+
+
+def produce(job: jobs.Job, bank: Bank, meta: dict[str, Any], emit: Callable[[Any], None]) -> int:
+    """The answer to ``job``: ``emit(length)``, the answer's whole length in bytes, once the
+    batch is prepared; then ``emit(piece)`` for each piece of it, in order. ``meta``: the
+    answer's fields before ``resample_rate`` (animal, skeleton_id, fps, encoding). Returns the
+    character-frames sent; 422 (:class:`ApiError`) for a bad trajectory, before anything is
+    emitted; :class:`jobs.Cancelled` between chunks once ``job.cancel`` is set.
+
+    The chunks are made side by side on :mod:`synth_core.render_pool`'s threads, each planned,
+    rendered (one thread), packed and joined in its thread's own :class:`Scratch` pages: the
+    numpy around the render runs on every core too (a 500 x 500 answer in-process: 0.26-0.28
+    -> 0.18-0.20 s; over HTTP, interleaved: best 0.226 -> 0.204 s, median 0.273 -> 0.230)."""
     req = job.request
     scales, seeds = jobs.character_scales_and_seeds(req)
     options = jobs.options(req)
@@ -146,7 +164,7 @@ def produce(job: jobs.Job, bank: Bank, meta: dict[str, Any], scratch: Scratch,
         prep, h, keys = prepare_batch(bank, job.positions, req.fps, scales, options, job.ids, seeds)
     except TrajectoryError as exc:
         raise jobs.trajectory_error(exc, job) from None
-    T = prep.positions.shape[1]
+    C, T = prep.positions.shape[:2]
     J = bank.skeleton.n_joints
     frames = jobs.output_frames(job, T, prep.kept)
     encoding: Encoding = req.encoding
@@ -160,9 +178,14 @@ def produce(job: jobs.Job, bank: Bank, meta: dict[str, Any], scratch: Scratch,
     holes = [i for i, p in enumerate(parts) if isinstance(p, Hole)]  # four per character, in order
     emit(b"".join(parts[:holes[0]] if holes else parts))  # type: ignore[arg-type]
     per_chunk = max(1, PIECE_BYTES // (T * J * 16))
-    for chunk in render_chunks(bank, prep, h, keys, options, chunk=per_chunk, scratch=scratch):
+
+    def piece(first: int) -> bytes:
+        """Characters ``[first, first + per_chunk)``: from their first hole up to the next
+        chunk's (the last: to the end)."""
         if job.cancel.is_set():
             raise jobs.Cancelled
+        scratch = _scratch()
+        chunk = render_chunk(bank, prep, h, keys, options, slice(first, min(first + per_chunk, C)), scratch)
         sl, p = chunk.characters, chunk.plan
         n = sl.stop - sl.start
         packed = pack_rotations(chunk.rotations, encoding,
@@ -174,7 +197,11 @@ def produce(job: jobs.Job, bank: Bank, meta: dict[str, Any], scratch: Scratch,
         for i in range(n):
             k = frames[sl.start + i]
             arrays += [chunk.root[i, :k], packed[i, :k], p.gait[i, :k], bits[i, :k]]
-        # From this chunk's first hole up to the next chunk's (the last: to the end).
         end = holes[4 * sl.stop] if 4 * sl.stop < len(holes) else len(parts)
-        emit(b"".join(filled(parts[holes[4 * sl.start]:end], arrays)))
+        return b"".join(filled(parts[holes[4 * sl.start]:end], arrays))
+
+    for made in render_pool.ordered(piece, range(0, C, per_chunk)):
+        if job.cancel.is_set():
+            raise jobs.Cancelled
+        emit(made)
     return sum(frames)

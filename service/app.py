@@ -48,7 +48,6 @@ from service.metrics import Metrics, MetricsMiddleware
 from service.packing import characters_out, skeleton_id
 from service.settings import Settings
 from synth_core.motion_graph import HUBS
-from synth_core.scratch import Scratch
 from synth_core.synthesis import Result
 
 Answer = TypeVar("Answer")
@@ -100,7 +99,6 @@ class State:
         self.hold = threading.Event()
         self.held = threading.Event()
         self.hold.set()
-        self.local = threading.local()  # per pool thread: its Scratch
 
     def _held(self) -> None:
         self.held.set()
@@ -164,13 +162,6 @@ class State:
         with contextlib.suppress(RuntimeError):  # the loop is gone: so is /metrics
             loop.call_soon_threadsafe(count)
 
-    def scratch(self) -> Scratch:
-        """This pool thread's own render and packing pages, kept from request to request."""
-        kept = getattr(self.local, "scratch", None)
-        if kept is None:
-            kept = self.local.scratch = Scratch()
-        return kept
-
     async def answer_in_pieces(self, job: jobs.Job, meta: dict[str, Any]) -> PiecesResponse:
         """The msgpack answer to ``job`` (:mod:`service.answer`), sent while it is made: the pool
         thread renders and packs a chunk of characters while the network carries the one before.
@@ -194,7 +185,7 @@ class State:
                 if self.settings.test_hooks:
                     self._held()
                 t0 = time.perf_counter()
-                frames = answer.produce(job, bank, meta, self.scratch(), emit)
+                frames = answer.produce(job, bank, meta, emit)
                 emit(Finished(frames, time.perf_counter() - t0))
             except BaseException as exc:  # noqa: BLE001 - handed to the event loop, raised there
                 if isinstance(exc, jobs.Cancelled):

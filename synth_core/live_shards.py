@@ -15,13 +15,13 @@ from __future__ import annotations
 import functools
 import os
 from collections.abc import Callable
-from concurrent.futures import ThreadPoolExecutor, wait
+from concurrent.futures import wait
 from typing import Any, TypeVar
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from synth_core import kernels
+from synth_core import render_pool
 from synth_core.bank import Bank
 from synth_core.live import LiveSynth
 from synth_core.streaming import Window
@@ -29,21 +29,6 @@ from synth_core.trajectory import TrajectoryError
 
 MIN_SHARD = 500  # characters: below this a shard's thread hops cost more than they save
 _R = TypeVar("_R")
-
-
-def _one_render_thread() -> None:
-    # A shard's thread runs its own render: with each kernel call fanning out to every core as
-    # well, two shards would run four threads on two cores.
-    if kernels.AVAILABLE:
-        import numba
-
-        numba.set_num_threads(1)  # per thread: other threads keep every core
-
-
-@functools.cache
-def _pool() -> ThreadPoolExecutor:
-    return ThreadPoolExecutor(os.cpu_count() or 1, thread_name_prefix="live-shard",
-                              initializer=_one_render_thread)
 
 
 def shard_bounds(n_characters: int, shards: int | None = None) -> NDArray[np.int64]:
@@ -104,7 +89,7 @@ class LiveShards:
                 for i, (p, a) in enumerate(zip(self.parts, self.cuts[:-1].tolist(), strict=True))]
         if len(jobs) == 1:
             return [jobs[0]()]
-        futures = [_pool().submit(job) for job in jobs]
+        futures = [render_pool.pool().submit(job) for job in jobs]
         wait(futures)  # every shard done before an error is raised: none left running
         return [f.result() for f in futures]
 

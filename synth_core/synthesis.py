@@ -562,6 +562,29 @@ class Rendered:
     plan: Plan
 
 
+def render_chunk(bank: Bank, prep: Prepared, h: Floats, keys: NDArray[np.uint64], options: Options,
+                 characters: slice, scratch: Scratch,
+                 out: tuple[NDArray[np.float32], NDArray[np.float32]] | None = None) -> Rendered:
+    """Plan and render rows ``characters`` of a prepared batch: one chunk of
+    :func:`render_chunks` (callers running chunks side by side call it for each). Root and
+    rotations go into ``out`` (those characters' rows) or else ``scratch``'s arrays, which then
+    hold until it renders again; the render kernel's working sets are kept in ``scratch``."""
+    sl = characters
+    part = replace(prep, positions=prep.positions[sl], segment_speeds=prep.segment_speeds[sl])
+    compiled = compiled_backend(options)
+    p = plan(bank, part, h[sl], keys[sl], options.margin, compiled=compiled)
+    if out is None:
+        n, T = p.yaw.shape
+        out = (scratch.array("root", (n, T, 3), np.float32),
+               scratch.array("rotations", (n, T, bank.skeleton.n_joints, 4), np.float32))
+    root, rotations = out
+    if compiled:
+        kernels.render(bank, p, options.foot_lock, out=(root, rotations), scratch=scratch)
+    else:
+        root[...], rotations[...] = render(bank, p, options.foot_lock)
+    return Rendered(sl, root, rotations, p)
+
+
 def render_chunks(bank: Bank, prep: Prepared, h: Floats, keys: NDArray[np.uint64], options: Options,
                   chunk: int = CHUNK, out: tuple[NDArray[np.float32], NDArray[np.float32]] | None = None,
                   fresh: bool = False, scratch: Scratch | None = None) -> Iterator[Rendered]:
@@ -572,33 +595,21 @@ def render_chunks(bank: Bank, prep: Prepared, h: Floats, keys: NDArray[np.uint64
     yet touched) or else into ``scratch`` (a new one if none), reused from chunk to chunk: a
     chunk's arrays then hold until the next is asked for. The render kernel's working sets are
     kept in ``scratch`` either way."""
-    C, T = prep.positions.shape[:2]
-    compiled = compiled_backend(options)
-    J = bank.skeleton.n_joints
+    C = prep.positions.shape[0]
     scratch = Scratch() if scratch is None else scratch
     for a in range(0, C, chunk):
         sl = slice(a, min(a + chunk, C))
-        part = replace(prep, positions=prep.positions[sl], segment_speeds=prep.segment_speeds[sl])
-        p = plan(bank, part, h[sl], keys[sl], options.margin, compiled=compiled)
+        rows = None
         if out is not None:
-            root, rotations = out[0][sl], out[1][sl]
-            if fresh and compiled:
+            rows = out[0][sl], out[1][sl]
+            if fresh and compiled_backend(options):
                 # Touch the chunk's output pages here, in one thread, before the kernel's workers
                 # write them: first-touch page faults taken by parallel workers contend for the
                 # process's memory map and cost as much as the render itself (measured: 0.9 ->
                 # 0.48 s per 1,000 characters x 500 frames; the memset is ~5% of that).
-                root.fill(0)
-                rotations.fill(0)
-        else:
-            assert scratch is not None
-            n = sl.stop - sl.start
-            root = scratch.array("root", (n, T, 3), np.float32)
-            rotations = scratch.array("rotations", (n, T, J, 4), np.float32)
-        if compiled:
-            kernels.render(bank, p, options.foot_lock, out=(root, rotations), scratch=scratch)
-        else:
-            root[...], rotations[...] = render(bank, p, options.foot_lock)
-        yield Rendered(sl, root, rotations, p)
+                rows[0].fill(0)
+                rows[1].fill(0)
+        yield render_chunk(bank, prep, h, keys, options, sl, scratch, rows)
 
 
 def synthesize(bank: Bank, positions: ArrayLike, fps: float | None = None,

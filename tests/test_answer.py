@@ -14,7 +14,6 @@ from service.packing import characters_out
 from service.settings import Settings
 from synth_core import crowd
 from synth_core.bank import Bank
-from synth_core.scratch import Scratch
 from synth_core.synthesis import synthesize
 
 
@@ -48,8 +47,7 @@ def test_the_answer_in_pieces_is_the_whole_answer_byte_for_byte(bank: Bank, enco
     job = jobs.parse(body(encoding), Settings(), {"horse": bank})
     meta = {"animal": "horse", "skeleton_id": "horse-x", "fps": bank.fps, "encoding": encoding}
     emitted: list[Any] = []
-    scratch = Scratch()
-    sent = answer.produce(job, bank, meta, scratch, emitted.append)
+    sent = answer.produce(job, bank, meta, emitted.append)
     length, pieces = emitted[0], emitted[1:]
     assert len(pieces) == 1 + 2  # the head, then 6 kept characters 3 at a time
     expected = whole(job, bank, meta)
@@ -57,9 +55,9 @@ def test_the_answer_in_pieces_is_the_whole_answer_byte_for_byte(bank: Bank, enco
     decoded = msgpack.unpackb(expected)
     assert [c["id"] for c in decoded["characters"]] == ["h0", "h1", "h2", "h3", "h5", "h6"]
     assert decoded["skipped"][0]["index"] == 4 and sent == sum(c["frames"] for c in decoded["characters"])
-    # The scratch pages are reused by the next answer, and it is the same again.
+    # The render threads' scratch pages are reused by the next answer, and it is the same again.
     emitted.clear()
-    answer.produce(job, bank, meta, scratch, emitted.append)
+    answer.produce(job, bank, meta, emitted.append)
     assert b"".join(emitted[1:]) == expected
 
 
@@ -74,7 +72,7 @@ def test_a_cancelled_answer_stops_between_chunks(bank: Bank, monkeypatch: pytest
             job.cancel.set()
 
     with pytest.raises(jobs.Cancelled):
-        answer.produce(job, bank, {"animal": "horse"}, Scratch(), emit)
+        answer.produce(job, bank, {"animal": "horse"}, emit)
     assert len(emitted) == 3
 
 
