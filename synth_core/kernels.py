@@ -180,7 +180,8 @@ def _assemble(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, yaw:
             _nlerp_into(poses[r0], poses[r1], w, pose)
         frame = out_rot[t]
         for j in range(J):
-            frame[j, 0], frame[j, 1], frame[j, 2], frame[j, 3] = pose[0, j], pose[1, j], pose[2, j], pose[3, j]
+            for k in range(4):
+                frame[j, k] = pose[k, j]
         # The heading's half-angle sine and cosine give the whole angle's too (two calls, not four).
         sh, ch = math.sin(0.5 * yaw[t]), math.cos(0.5 * yaw[t])
         _put(frame[0], _qmul((0.0, sh, 0.0, ch), _q4(frame[0])))
@@ -621,7 +622,8 @@ def _bank_tables(bank: Bank) -> tuple[tuple[Any, Any, Any], tuple[Any, Any, Any,
         while j >= 0:
             needed[j] = True
             j = int(sk.parents[j])
-    return ((np.ascontiguousarray(bank.poses.transpose(0, 2, 1)), bank.height.astype(np.float64), bank.surge.astype(np.float64)),
+    poses = np.ascontiguousarray(bank.poses.transpose(0, 2, 1))  # components first: see _nlerp_into
+    return ((poses, bank.height.astype(np.float64), bank.surge.astype(np.float64)),
             (sk.parents.astype(np.int64), sk.offsets.astype(np.float64),
              np.flatnonzero(needed).astype(np.int64), rig_table, np.asarray(bank.bends, np.float64),
              MAX_SINK * sk.leg_length()))
