@@ -13,7 +13,6 @@ make the same frames bit for bit (tested) while their numpy and kernels run side
 from __future__ import annotations
 
 import functools
-import os
 from collections.abc import Callable
 from concurrent.futures import wait
 from typing import Any, TypeVar
@@ -35,7 +34,7 @@ def shard_bounds(n_characters: int, shards: int | None = None) -> NDArray[np.int
     """``shards + 1`` cuts of ``[0, n_characters)`` into near-equal shards: by default one per
     core, each at least MIN_SHARD characters (one shard for fewer)."""
     if shards is None:
-        shards = min(os.cpu_count() or 1, n_characters // MIN_SHARD)
+        shards = min(render_pool.size(), n_characters // MIN_SHARD)
     shards = max(1, min(shards, n_characters))
     return np.linspace(0, n_characters, shards + 1).round().astype(np.int64)
 
