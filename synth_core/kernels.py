@@ -14,7 +14,7 @@ One character, in four passes over its frames:
 2. plant targets per foot (:func:`synth_core.footlock.plant_targets`);
 3. the root's sink where a target needs a leg straighter than ``REACH`` (eased, bounded);
 4. limb IK (:func:`synth_core.ik.solve`, without the ground tipping) on the upper joint, hinge
-   and ankle of each leg -- 32 frames at a time in SIMD lanes (see the section on it).
+   and ankle of each leg -- 16 frames at a time in SIMD lanes (see the section on it).
 """
 
 from __future__ import annotations
@@ -48,12 +48,21 @@ _EPS = 1e-9
 F = TypeVar("F", bound=Callable[..., Any])
 
 
+# Fast-math flags that change no finite result's rounding: no reassociation, no contraction to
+# fused multiply-adds, no approximate reciprocals. With those, LLVM's choices depend on how a
+# kernel's callees reach it -- compiled in the process or loaded from numba's cache as bitcode
+# -- and a kernel compiled in one process rounded differently from the same kernel loaded from
+# the cache in another (live windows then differed from the whole batch in the last bits).
+# Keeping only these three cost the kernel 0-5% (one thread, 500 x 500 horses, interleaved).
+_FASTMATH = {"nnan", "ninf", "nsz"}
+
+
 def _jit(parallel: bool = False, inline: Literal["never", "always"] = "never") -> Callable[[F], F]:
     # nogil: a service calls these from a worker thread; its event loop must keep answering.
     def wrap(f: F) -> F:
         if not AVAILABLE:
             return f
-        return cast(F, numba.njit(cache=True, parallel=parallel, fastmath=True, error_model="numpy",
+        return cast(F, numba.njit(cache=True, parallel=parallel, fastmath=_FASTMATH, error_model="numpy",
                                   nogil=True, inline=inline)(f))
     return wrap
 
@@ -191,21 +200,6 @@ def _assemble(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, yaw:
 
 
 @_jit()
-def _fk(rot: Any, root: Any, h: float, parents: Any, offsets: Any, joints: Any, g_pos: Any,
-        g_rot: Any) -> None:
-    """World positions / rotations (unit space: root / h) of ``joints`` (parent order) per frame."""
-    for t in range(rot.shape[0]):
-        _put(g_rot[t, 0], _q4(rot[t, 0]))
-        _put(g_pos[t, 0], _scale(_v3(root[t]), 1.0 / h))
-        for i in range(1, len(joints)):
-            j = joints[i]
-            p = parents[j]
-            parent = _q4(g_rot[t, p])
-            _put(g_rot[t, j], _qmul(parent, _q4(rot[t, j])))
-            _put(g_pos[t, j], _add(_v3(g_pos[t, p]), _qrot(parent, _v3(offsets[j]))))
-
-
-@_jit()
 def _plant_targets(feet: Any, contacts: Any, out: Any) -> None:
     """footlock.plant_targets for one character: feet (T, 4, 3), contacts (T, 4)."""
     T = feet.shape[0]
@@ -290,7 +284,7 @@ def _ease_sink(sink: Any, limit: float, out: Any) -> None:
         out[t] = acc / total
 
 
-# --- limb IK, 32 frames at a time in SIMD lanes -----------------------------------------------
+# --- limb IK, 16 frames at a time in SIMD lanes -----------------------------------------------
 #
 # The leg IK is ~700 cycles of dependent scalar arithmetic per leg and frame; written once per
 # frame it ran at one frame per instruction (200 ns a leg). Here it runs over a block of frames
@@ -299,9 +293,10 @@ def _ease_sink(sink: Any, limit: float, out: Any) -> None:
 # that loops over it, so every row's address is a known constant offset: with rows of separate
 # arrays LLVM cannot rule out that a store overlaps a load and does not vectorize.
 
-# Frames per block: a short window (a live tick's 28 frames) solves a whole block, so no more
-# than needed -- 64 cost live windows 7% more and batches no less.
-LANES = 32
+# Frames per block, here and in the forward kinematics (whose blocks of world poses the IK
+# solves as they are: see :func:`_fk`). Two AVX-512 vectors of float64; a short window (a live
+# tick's 28 frames) wastes few lanes -- 64 cost live windows 7% more and batches no less.
+LANES = 16
 # Rows of the block: per frame, the leg's inputs, then its three joints' local rotations.
 _P_UP, _P_HI, _P_AN, _P_TOE = 0, 3, 6, 9  # positions, unit space
 _R_PUP, _R_UP, _R_HI, _R_PAN, _R_AN, _R_ROOT = 12, 16, 20, 24, 28, 32  # world rotations
@@ -407,48 +402,101 @@ def _solve_block(B: Any, toe_offset: Any, bend: Any) -> None:
         B[_OUT + 8, t], B[_OUT + 9, t], B[_OUT + 10, t], B[_OUT + 11, t] = q2
 
 
+# --- forward kinematics, 16 frames at a time in SIMD lanes -----------------------------------
+#
+# The world poses are kept in blocks of frames, ``world (blocks, 7 J, LANES)``: joint j's
+# world rotation in rows 7 j .. 7 j + 3, its position in the next three, frame t in block
+# t // LANES, lane t % LANES. Each joint (parent order) is then made for a whole block
+# straight from its parent's rows, with no branch (8 float64 frames an AVX-512 instruction;
+# frame by frame it was 7 ns a joint, now 3.5 with the gathering of the local rotations). Its
+# local rotations are gathered into a block of their own first: read from ``rot (T, J, 4)``
+# in the same loop, LLVM does not vectorize it.
+
+
 @_jit()
-def _solve_legs(g_pos: Any, g_rot: Any, targets: Any, sink: Any, rigs: Any, parents: Any, offsets: Any,
-                bends: Any, out_rot: Any) -> None:
-    """Each leg's IK on every frame, the root lowered by ``sink``: the upper joint's, hinge's and
-    ankle's local rotations of ``out_rot`` replaced."""
-    T = out_rot.shape[0]
+def _world_position(world: Any, j: int, t: int) -> Any:
+    b, lane, r = t // LANES, t % LANES, 7 * j + 4
+    return (world[b, r, lane], world[b, r + 1, lane], world[b, r + 2, lane])
+
+
+@_jit()
+def _fk(rot: Any, root: Any, h: float, parents: Any, offsets: Any, joints: Any, world: Any,
+        a: int, T: int) -> None:
+    """World rotations and positions (unit space: root / h) of ``joints`` (parent order) on frames
+    ``[a, T)`` of ``rot (T, J, 4)``, into ``world`` (see the section's comment); a block's lanes
+    outside those frames repeat the nearest one."""
+    local = np.empty((4, LANES))
+    for b in range(a // LANES, (T + LANES - 1) // LANES):
+        block = world[b]
+        for t in range(LANES):
+            u = min(max(b * LANES + t, a), T - 1)
+            for k in range(4):
+                block[k, t] = rot[u, 0, k]
+            for k in range(3):
+                block[4 + k, t] = root[u, k] / h
+        for i in range(1, len(joints)):
+            j = joints[i]
+            p, q = 7 * parents[j], 7 * j
+            offset = _v3(offsets[j])
+            for t in range(LANES):
+                u = min(max(b * LANES + t, a), T - 1)
+                for k in range(4):
+                    local[k, t] = rot[u, j, k]
+            for t in range(LANES):
+                parent = _quat(block, p, t)
+                g = _qmul(parent, _quat(local, 0, t))
+                x = _add(_vec3(block, p + 4, t), _qrot(parent, offset))
+                block[q, t], block[q + 1, t], block[q + 2, t], block[q + 3, t] = g
+                block[q + 4, t], block[q + 5, t], block[q + 6, t] = x
+
+
+@_jit()
+def _solve_legs(world: Any, targets: Any, sink: Any, rigs: Any, parents: Any, offsets: Any,
+                bends: Any, out_rot: Any, a: int, T: int) -> None:
+    """Each leg's IK on frames ``[a, T)`` (``world``: see :func:`_fk`), the root lowered by
+    ``sink``: the upper joint's, hinge's and ankle's local rotations of ``out_rot`` replaced.
+    Solved a block of ``world`` at a time: lanes outside the frames are solved too (on the
+    nearest frame's target), not written."""
     B = np.empty((_ROWS, LANES))  # here, not passed in: see the section's comment
     for f in range(4):
-        up, hi, an, ef = rigs[f, 0], rigs[f, 1], rigs[f, 2], rigs[f, 3]
-        toe_offset = _v3(offsets[ef])
+        up, hi, an, ef = 7 * rigs[f, 0], 7 * rigs[f, 1], 7 * rigs[f, 2], 7 * rigs[f, 3]
+        pup, pan = 7 * parents[rigs[f, 0]], 7 * parents[rigs[f, 2]]
+        toe_offset = _v3(offsets[rigs[f, 3]])
         bend = _v3(bends[f])
-        for b0 in range(0, T, LANES):
-            n = min(LANES, T - b0)
+        for b in range(a // LANES, (T + LANES - 1) // LANES):
+            block, b0 = world[b], b * LANES
             for t in range(LANES):
-                u = b0 + min(t, n - 1)  # a short last block repeats its last frame
+                u = min(max(b0 + t, a), T - 1)
                 for k in range(3):
-                    B[_P_UP + k, t] = g_pos[u, up, k]
-                    B[_P_HI + k, t] = g_pos[u, hi, k]
-                    B[_P_AN + k, t] = g_pos[u, an, k]
-                    B[_P_TOE + k, t] = g_pos[u, ef, k]
                     B[_TARGET + k, t] = targets[u, f, k]
-                for k in range(4):
-                    B[_R_PUP + k, t] = g_rot[u, parents[up], k]
-                    B[_R_UP + k, t] = g_rot[u, up, k]
-                    B[_R_HI + k, t] = g_rot[u, hi, k]
-                    B[_R_PAN + k, t] = g_rot[u, parents[an], k]
-                    B[_R_AN + k, t] = g_rot[u, an, k]
-                    B[_R_ROOT + k, t] = g_rot[u, 0, k]
                 B[_SINK, t] = sink[u]
+            for k in range(3):
+                for t in range(LANES):
+                    B[_P_UP + k, t] = block[up + 4 + k, t]
+                    B[_P_HI + k, t] = block[hi + 4 + k, t]
+                    B[_P_AN + k, t] = block[an + 4 + k, t]
+                    B[_P_TOE + k, t] = block[ef + 4 + k, t]
+            for k in range(4):
+                for t in range(LANES):
+                    B[_R_PUP + k, t] = block[pup + k, t]
+                    B[_R_UP + k, t] = block[up + k, t]
+                    B[_R_HI + k, t] = block[hi + k, t]
+                    B[_R_PAN + k, t] = block[pan + k, t]
+                    B[_R_AN + k, t] = block[an + k, t]
+                    B[_R_ROOT + k, t] = block[k, t]
             _solve_block(B, toe_offset, bend)
-            for t in range(n):
+            for t in range(max(a - b0, 0), min(T - b0, LANES)):
                 for k in range(4):
-                    out_rot[b0 + t, up, k] = B[_OUT + k, t]
-                    out_rot[b0 + t, hi, k] = B[_OUT + 4 + k, t]
-                    out_rot[b0 + t, an, k] = B[_OUT + 8 + k, t]
+                    out_rot[b0 + t, rigs[f, 0], k] = B[_OUT + k, t]
+                    out_rot[b0 + t, rigs[f, 1], k] = B[_OUT + 4 + k, t]
+                    out_rot[b0 + t, rigs[f, 2], k] = B[_OUT + 8 + k, t]
 
 
 @_jit()
 def _character(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, yaw: Any, path: Any,
                     h: float, contacts: Any, parents: Any, offsets: Any, fk_joints: Any, rigs: Any,
                     bends: Any, sink_limit: float, foot_lock: bool, out_rot: Any, out_root: Any,
-                    g_pos: Any, g_rot: Any, feet: Any, targets: Any, sink: Any, eased: Any,
+                    world: Any, feet: Any, targets: Any, sink: Any, eased: Any,
                     keep_from: int, keep_to: int, known_feet: Any, known: int) -> None:
     """All four passes for one character (scratch arrays given). Only frames ``[keep_from,
     keep_to)`` are wanted (a window rendered over its foot lock's context): the legs' IK, which
@@ -463,11 +511,12 @@ def _character(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, yaw
     _assemble(poses, height, surge, rows[a:], weights[a:], yaw[a:], path[a:], h, out_rot[a:], out_root[a:])
     if not foot_lock:
         return
-    _fk(out_rot[a:], out_root[a:], h, parents, offsets, fk_joints, g_pos[a:], g_rot[a:])
+    _fk(out_rot, out_root, h, parents, offsets, fk_joints, world, a, T)
     keep = known_feet.shape[0] > 0
     for f in range(4):
         feet[:a, f, :] = known_feet[:a, f, :]
-        feet[a:, f, :] = g_pos[a:, rigs[f, 3], :]
+        for t in range(a, T):
+            feet[t, f, 0], feet[t, f, 1], feet[t, f, 2] = _world_position(world, rigs[f, 3], t)
         if keep:
             known_feet[a:, f, :] = feet[a:, f, :]
     _plant_targets(feet, contacts, targets)
@@ -478,9 +527,10 @@ def _character(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, yaw
             if targets[t, f, 1] < floor:
                 targets[t, f, 1] = floor
             up, hi, an, ef = rigs[f, 0], rigs[f, 1], rigs[f, 2], rigs[f, 3]
-            p_up, p_hi, p_an = _v3(g_pos[t, up]), _v3(g_pos[t, hi]), _v3(g_pos[t, an])
+            p_up, p_hi = _world_position(world, up, t), _world_position(world, hi, t)
+            p_an = _world_position(world, an, t)
             reach = _norm3(_sub(p_hi, p_up)) + _norm3(_sub(p_an, p_hi))
-            to_ankle = _sub(_sub(_v3(targets[t, f]), _sub(_v3(g_pos[t, ef]), p_an)), p_up)
+            to_ankle = _sub(_sub(_v3(targets[t, f]), _sub(_world_position(world, ef, t), p_an)), p_up)
             allowed = REACH * reach
             across2 = to_ankle[0] ** 2 + to_ankle[2] ** 2
             s = -to_ankle[1] - math.sqrt(max(allowed * allowed - across2, 0.0))
@@ -491,26 +541,26 @@ def _character(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, yaw
     for t in range(a, T):
         out_root[t, 1] = (out_root[t, 1] / h - eased[t]) * h
     a, b = keep_from, keep_to
-    _solve_legs(g_pos[a:b], g_rot[a:b], targets[a:b], eased[a:b], rigs, parents, offsets, bends, out_rot[a:b])
+    _solve_legs(world, targets, eased, rigs, parents, offsets, bends, out_rot, a, b)
 
 
 @_jit(parallel=True)
 def _render_all(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, yaw: Any, path: Any,
                 scales: Any, contacts: Any, parents: Any, offsets: Any, fk_joints: Any, rigs: Any,
                 bends: Any, sink_limit: float, foot_lock: bool, out_rot: Any, out_root: Any,
-                w_pos: Any, w_rot: Any, w_feet: Any, w_targets: Any, w_sink: Any, w_eased: Any) -> None:
+                w_world: Any, w_feet: Any, w_targets: Any, w_sink: Any, w_eased: Any) -> None:
     """``w_*``: one working set per worker (first axis), reused for its characters: a fresh
     megabyte per character would cost more in page faults than the lock's arithmetic."""
     C = out_rot.shape[0]
-    workers = min(C, w_pos.shape[0])
+    workers = min(C, w_world.shape[0])
     none_known = np.empty((0, 4, 3))
     for worker in _prange(workers):
-        g_pos, g_rot, feet, targets = w_pos[worker], w_rot[worker], w_feet[worker], w_targets[worker]
+        world, feet, targets = w_world[worker], w_feet[worker], w_targets[worker]
         sink, eased = w_sink[worker], w_eased[worker]
         for c in range(worker, C, workers):
             _character(poses, height, surge, rows[c], weights[c], yaw[c], path[c], scales[c],
                        contacts[c], parents, offsets, fk_joints, rigs, bends, sink_limit, foot_lock,
-                       out_rot[c], out_root[c], g_pos, g_rot, feet, targets, sink, eased, 0, out_rot.shape[1],
+                       out_rot[c], out_root[c], world, feet, targets, sink, eased, 0, out_rot.shape[1],
                        none_known, 0)
 
 
@@ -532,8 +582,7 @@ def _render_windows(poses: Any, height: Any, surge: Any, rows: Any, weights: Any
     for worker in _prange(workers):
         rot = np.empty((longest, J, 4), np.float32)
         root = np.empty((longest, 3))
-        g_pos = np.empty((longest, J, 3))
-        g_rot = np.empty((longest, J, 4))
+        world = np.empty(((longest + LANES - 1) // LANES, 7 * J, LANES))  # see _fk
         feet = np.empty((longest, 4, 3))
         targets = np.empty((longest, 4, 3))
         sink = np.empty(longest)
@@ -545,7 +594,7 @@ def _render_windows(poses: Any, height: Any, surge: Any, rows: Any, weights: Any
             a = min(max(min(known[c], start - PAD) - b, 0), k) if keep else 0
             _character(poses, height, surge, rows[c, b:e], weights[c, b:e], yaw[c, b:e], path[c, b:e],
                        scales[c], contacts[c, b:e], parents, offsets, fk_joints, rigs, bends, sink_limit,
-                       foot_lock, rot[:k], root[:k], g_pos[:k], g_rot[:k], feet[:k], targets[:k],
+                       foot_lock, rot[:k], root[:k], world, feet[:k], targets[:k],
                        sink[:k], eased[:k], start - b, start - b + n, known_feet[b:e, c], a)
             out_rot[c] = rot[start - b:start - b + n]
             out_root[c] = root[start - b:start - b + n]
@@ -686,7 +735,7 @@ def render(bank: Bank, plan: Plan, foot_lock: bool = True,
     W = min(C, numba.get_num_threads())
     scratch = Scratch() if scratch is None else scratch
     work = [scratch.array(f"render.{name}", shape, np.float64)
-            for name, shape in (("pos", (W, T, J, 3)), ("rot", (W, T, J, 4)), ("feet", (W, T, 4, 3)),
+            for name, shape in (("world", (W, -(-T // LANES), 7 * J, LANES)), ("feet", (W, T, 4, 3)),
                                 ("targets", (W, T, 4, 3)), ("sink", (W, T)), ("eased", (W, T)),
                                 ("root", (C, T, 3)))]
     out_root = work.pop()
