@@ -55,15 +55,23 @@ def footfall_preserved(bank: Bank, result: Result) -> float:
     return matched / total if total else float("nan")
 
 
+def near_stitches(stitches: NDArray[np.bool_], window: int) -> NDArray[np.bool_]:
+    """``(C, F)``: frames within ``window`` frames of a stitch of the same character (a stitch
+    near one end marks nothing near the other)."""
+    F = stitches.shape[1]
+    padded = np.pad(stitches, ((0, 0), (window, window)))
+    near = np.zeros_like(stitches)
+    for d in range(2 * window + 1):
+        near |= padded[:, d:d + F]
+    return near
+
+
 def pop_ratio(bank: Bank, result: Result) -> float:
     """Largest joint angular acceleration near stitches over the largest within the library's clips."""
     if not result.stitches.any():
         return 0.0
     acc = M.angular_acceleration(result.rotations[:, :, 1:], bank.fps)  # the root turns with the path
-    near = np.zeros_like(result.stitches)
-    for d in range(-STITCH_WINDOW, STITCH_WINDOW + 1):
-        near |= np.roll(result.stitches, d, axis=1)
-    near = near[:, 1:-1]  # acc frame f is centred on frame f + 1
+    near = near_stitches(result.stitches, STITCH_WINDOW)[:, 1:-1]  # acc frame f is centred on f + 1
     clips = [bank.poses[p.offset + i * p.frames:p.offset + (i + 1) * p.frames, 1:]
              for p in bank.gaits.values() for i in range(p.clips)]
     reference = max(float(M.angular_acceleration(np.concatenate([c, c[:2]]), bank.fps).max())

@@ -184,3 +184,11 @@ def test_issue_5_quality_figures_on_the_standard_scenario(animal: str) -> None:
     assert fig["pop_ratio"] <= 1.5
     assert fig["penetration_mm"] <= 5.0 and fig["nan_count"] == 0
     assert min(fig["gait_frames"].values()) > 0.05 * 500 * 500  # every gait used, and not in passing
+
+
+def test_pops_are_looked_for_near_each_stitch_only() -> None:
+    stitches = np.zeros((2, 10), bool)
+    stitches[0, 9] = stitches[1, 4] = True
+    near = evaluate.near_stitches(stitches, 2)
+    assert near[0].tolist() == [False] * 7 + [True] * 3  # the last frame's stitch does not wrap round
+    assert near[1].tolist() == [False] * 2 + [True] * 5 + [False] * 3
