@@ -220,7 +220,7 @@ def build_from_manifest(path: Path) -> Library:
     for name in TRANSITIONS:
         if name in given:
             # Mocap feet roll and slide a little in every plant; the library's feet do not.
-            transitions[name] = lock_feet(_clip(files, given[name], f"transitions.{name}.", name,
+            transitions[name] = _hold_plants(_clip(files, given[name], f"transitions.{name}.", name,
                                                 manual.get(name)))
         else:
             source, target = name.split("2")
@@ -348,10 +348,10 @@ def _crossfade(first: Motion, second: Motion, name: str, strides: int = 2) -> Mo
     contacts = np.where((w < 0.5)[:, None],
                         np.concatenate([first.contacts, np.repeat(first.contacts[-1:], Fb - W, axis=0)]),
                         np.concatenate([np.repeat(con_b[:1], Fa - W, axis=0), con_b]))
-    return lock_feet(Motion(first.skeleton, root, rotations, first.fps, contacts, name, None))
+    return _hold_plants(Motion(first.skeleton, root, rotations, first.fps, contacts, name, None))
 
 
-def lock_feet(motion: Motion) -> Motion:
+def _hold_plants(motion: Motion) -> Motion:
     """Every plant held at its average place, swings eased between (as in the speed map), by IK."""
     feet = motion.foot_positions()
     root = np.asarray(motion.root_pos, np.float64)
