@@ -118,7 +118,11 @@ class _Columns:
         cap = self.arrays[0].shape[1]
         if self.hi + n > cap:  # move the kept frames to the front, into larger arrays if need be
             kept = self.hi - self.lo
-            arrays = self.arrays if kept + n <= cap // 2 else self._alloc(2 * (kept + n))
+            # In place when that leaves half the room free, or when the frames kept are no more
+            # than those coming (a big block, as at the finish: the copy costs no more than the
+            # writing; fresh arrays would cost page faults on top).
+            in_place = kept + n <= cap // 2 or (kept + n <= cap and kept <= n)
+            arrays = self.arrays if in_place else self._alloc(2 * (kept + n))
             for new, old in zip(arrays, self.arrays, strict=True):
                 new[:, :kept] = old[:, self.lo:self.hi]
             self.arrays, self.lo, self.hi = arrays, 0, kept
@@ -222,7 +226,9 @@ class LiveSynth:
         self.n_raw = 0  # raw points in `longer` (after its head)
         self.ended = False
         # Smoothed path, segment speeds, and what the plan carries from block to block.
-        self.path = _Columns(C, [((3,), np.float64)], 2 * self.latency_frames)
+        # Room for the path the finish adds too (see _end): growing at the finish moved it into
+        # fresh memory, 20-30 ms of a 2,000-horse session's finish (page faults).
+        self.path = _Columns(C, [((3,), np.float64)], 2 * self.latency_frames + self._end_frames)
         self.n_path = 0
         self.seg = np.zeros((C, 0))  # segment speeds / scale
         self.seg_start = 0
@@ -246,7 +252,7 @@ class LiveSynth:
         # [0, known_feet) of each character's): see kernels.render_window.
         # One row of (frames, C, 4, 3): its views are C-contiguous, as the kernel takes them.
         self.feet = _Columns(1, [((C, 4, 3), np.float64)],
-                             self.buffer.arrays[0].shape[1] // self.out_step + 1)
+                             (self.buffer.arrays[0].shape[1] + self._end_frames) // self.out_step + 1)
         self.known_feet = np.zeros(C, np.int64)
 
     @property
@@ -323,6 +329,11 @@ class LiveSynth:
         if not self.ended:
             self._end()
         return self.take(frames)
+
+    @property
+    def _end_frames(self) -> int:
+        """The most path :meth:`_end` adds: the reflected tail, then the hold."""
+        return self.pad + self.latency_frames + self.m
 
     def _end(self) -> None:
         if self.made < 2:

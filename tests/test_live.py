@@ -8,7 +8,7 @@ import pytest
 
 from synth_core import crowd
 from synth_core.bank import Bank
-from synth_core.live import LiveSynth
+from synth_core.live import LiveSynth, _Columns
 from synth_core.live_shards import LiveShards
 from synth_core.live_shards import joined as shards_joined
 from synth_core.metrics import foot_skate
@@ -278,3 +278,18 @@ def test_a_failing_shard_fails_the_tick_once_every_shard_is_done(bank: Bank,
     with pytest.raises(RuntimeError, match="shard 0 broke"):
         sharded.append(np.zeros((6, 5, 3)))
     assert done.is_set()
+
+
+def test_columns_keep_their_frames_through_moves_in_place_and_into_larger_arrays() -> None:
+    cols = _Columns(2, [((3,), np.float64)], room=8)
+    frame, arrays_seen = 0, set()
+    for n in (3, 3, 2, 5, 1, 12, 4, 30, 2):
+        cols.reserve(n)[0][...] = np.arange(frame, frame + n)[None, :, None]  # each frame: its index
+        frame += n
+        arrays_seen.add(id(cols.arrays[0]))
+        cols.drop_before(frame - 4)
+        (kept,) = cols.columns(cols.start, cols.stop)
+        assert cols.stop == frame and cols.frames == min(4, frame)
+        want = np.arange(cols.start, cols.stop)
+        np.testing.assert_array_equal(kept[:, :, 0], np.broadcast_to(want, (2, len(want))))
+    assert len(arrays_seen) > 1  # it grew too
