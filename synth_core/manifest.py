@@ -221,7 +221,7 @@ def build_from_manifest(path: Path) -> Library:
         if name in given:
             # Mocap feet roll and slide a little in every plant; the library's feet do not.
             transitions[name] = _hold_plants(_clip(files, given[name], f"transitions.{name}.", name,
-                                                manual.get(name)))
+                                                   manual.get(name)))
         else:
             source, target = name.split("2")
             transitions[name] = generate_transition(maps.get(source), maps.get(target), idle, name)
