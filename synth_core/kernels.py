@@ -49,10 +49,11 @@ F = TypeVar("F", bound=Callable[..., Any])
 
 
 # Fast-math flags that change no finite result's rounding: no reassociation, no contraction to
-# fused multiply-adds, no approximate reciprocals. With those, LLVM's choices depend on how a
-# kernel's callees reach it -- compiled in the process or loaded from numba's cache as bitcode
-# -- and a kernel compiled in one process rounded differently from the same kernel loaded from
-# the cache in another (live windows then differed from the whole batch in the last bits).
+# fused multiply-adds, no approximate reciprocals or functions. With reassociation, LLVM's
+# choices depended on how a kernel's callees reach it -- compiled in the process or loaded from
+# numba's cache as bitcode -- and a kernel compiled in one process rounded differently from the
+# same kernel loaded from the cache in another (a batch's windows then differed from the whole
+# batch in the last bits); the other three can depend on it the same way.
 # Keeping only these three cost the kernel 0-5% (one thread, 500 x 500 horses, interleaved).
 _FASTMATH = {"nnan", "ninf", "nsz"}
 
