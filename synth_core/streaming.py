@@ -16,23 +16,33 @@ Why the windows can be exact:
 
 The context costs extra frames (a stride or two either side), so after the first window the
 frames are rendered ``RENDER_CHUNKS`` chunks at a time.
+
+The first window is what a client waits for. Its plan and render are small calls the compiled
+kernels hardly speed up on more threads (500 horses: 1.2-1.3x on two), so its characters are
+cut into parts planned and rendered side by side on :mod:`synth_core.render_pool`, each with a
+one-thread kernel (characters are independent: the same numbers, tested).
 """
 
 from __future__ import annotations
 
 from collections.abc import Iterator
-from dataclasses import dataclass, field
+from concurrent.futures import wait
+from dataclasses import dataclass, field, fields, replace
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from synth_core import kernels
+from synth_core import kernels, render_pool
 from synth_core.bank import Bank
 from synth_core.footlock import PAD
 from synth_core.synthesis import Options, Plan, compiled_backend, plan, prepare_batch, render
 
 RENDER_CHUNKS = 4  # chunks rendered at once after the first (the context's cost spread over more)
-FIRST_PLAN_STRIDES = 3  # the first window's plan reaches this many of the slowest gait's cycles on
+# The first window's plan reaches this many mean cycles past its lock's pad, then (if a plant runs
+# past that) the next, then the whole: 500 crowd-sim horses' contexts end 1.2 cycles past it,
+# dogs' 3.2, a slow walk's 3.1-3.7, a standing animal's not before the batch does.
+FIRST_PLAN_STRIDES = (1.5, 4.0)
+MIN_PART = 32  # characters: a first window's part no smaller (a thread hop costs ~0.1 ms)
 
 
 def runs(contacts: NDArray[np.bool_]) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
@@ -131,33 +141,72 @@ class BatchStream:
         return lock_context(p.contacts, start, stop, bounds)
 
     def _render(self, p: Plan, start: int, stop: int,
-                bounds: tuple[NDArray[np.int64], NDArray[np.int64]] | None) -> Window:
+                bounds: tuple[NDArray[np.int64], NDArray[np.int64]] | None,
+                context: tuple[NDArray[np.int64], NDArray[np.int64]] | None = None,
+                out: NDArray[np.float32] | None = None) -> Window:
+        """Frames ``[start, stop)`` of plan ``p`` (``context``: their lock contexts, if known;
+        ``out``: where the compiled render writes the rotations)."""
         lock = self.options.foot_lock
         C = p.yaw.shape[0]
-        if lock:
-            begin, end = self._context(p, start, stop, bounds)
-        else:
+        if not lock:
             begin, end = np.full(C, start), np.full(C, stop)
+        else:
+            begin, end = self._context(p, start, stop, bounds) if context is None else context
         if compiled_backend(self.options):
-            root, rot = kernels.render_window(self.bank, p, start, stop, begin, end, lock)
+            root, rot = kernels.render_window(self.bank, p, start, stop, begin, end, lock, out=out)
         else:  # the reference: one context for all, the widest
             b, e = int(begin.min()), int(end.max())
             root, rot = render(self.bank, p.window(b, e), lock)
             root, rot = root[:, start - b:stop - b], rot[:, start - b:stop - b]
         return Window(start, root, rot, p.gait[:, start:stop], p.contacts[:, start:stop])
 
+    def _first_part(self, rows: slice, stop: int,
+                    out: NDArray[np.float32] | None) -> tuple[Window, Plan | None]:
+        """Frames ``[0, stop)`` of characters ``rows``, from a plan of just those frames and
+        their lock context's if that is enough; and the part's whole plan if it took it."""
+        prep = replace(self.prep, positions=self.prep.positions[rows],
+                       segment_speeds=self.prep.segment_speeds[rows])
+        h, keys = self.character_scales[rows], self.keys[rows]
+        compiled, T = compiled_backend(self.options), self.frames
+        margin, lock = self.options.margin, self.options.foot_lock
+        for strides in FIRST_PLAN_STRIDES:
+            reach = stop + PAD + int(strides * self.bank.mean_cycle)
+            early = plan(self.bank, prep, h, keys, margin, frames=reach, compiled=compiled)
+            if early.yaw.shape[1] == T:  # that was all of it
+                return self._render(early, 0, stop, None, None, out), early
+            context = self._context(early, 0, stop) if lock else None
+            if context is None or context[1].max() < early.yaw.shape[1]:
+                return self._render(early, 0, stop, None, context, out), None
+        whole = plan(self.bank, prep, h, keys, margin, compiled=compiled)  # a plant runs past them all
+        return self._render(whole, 0, stop, None, None, out), whole
+
+    def _first_window(self, stop: int) -> Window:
+        """Frames ``[0, stop)``: the characters in parts side by side (see the module doc)."""
+        C = self.prep.positions.shape[0]
+        parts = min(render_pool.size(), C // MIN_PART) if compiled_backend(self.options) else 1
+        if parts <= 1:
+            window, whole = self._first_part(slice(0, C), stop, None)
+            self._plan = whole if whole is not None else self._plan
+            return window
+        cuts = np.linspace(0, C, parts + 1).round().astype(np.int64).tolist()
+        rotations = np.empty((C, stop, self.bank.skeleton.n_joints, 4), np.float32)
+        futures = [render_pool.pool().submit(self._first_part, slice(a, b), stop, rotations[a:b])
+                   for a, b in zip(cuts[:-1], cuts[1:], strict=True)]
+        wait(futures)  # every part done before an error is raised: none left running
+        done = [f.result() for f in futures]
+        plans = [whole for _, whole in done]
+        if all(p is not None for p in plans):  # every part planned whole: that is the whole plan
+            self._plan = Plan(*(np.concatenate([getattr(p, f.name) for p in plans]) for f in fields(Plan)))
+        windows = [w for w, _ in done]
+        return Window(0, np.concatenate([w.root_pos for w in windows]), rotations,
+                      np.concatenate([w.gait for w in windows]),
+                      np.concatenate([w.contacts for w in windows]))
+
     def windows(self) -> Iterator[Window]:
         """The motion, ``chunk_frames`` frames at a time, in order."""
         K, T = self.chunk_frames, self.frames
         first_stop = min(K, T)
-        # The first window from a plan of its own frames and its lock context's, if that is enough.
-        reach = first_stop + PAD + FIRST_PLAN_STRIDES * int(self.bank.mean_cycle)
-        early = plan(self.bank, self.prep, self.character_scales, self.keys, self.options.margin,
-                     frames=reach, compiled=compiled_backend(self.options))
-        begin_end = self._context(early, 0, first_stop) if self.options.foot_lock else None
-        if early.yaw.shape[1] < T and begin_end is not None and begin_end[1].max() >= early.yaw.shape[1]:
-            early = self._whole_plan()  # a plant runs past it: plan it all now
-        yield self._render(early, 0, first_stop, None)
+        yield self._first_window(first_stop)
         if first_stop == T:
             return
         whole = self._whole_plan()

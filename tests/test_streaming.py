@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from synth_core import crowd
+from synth_core import crowd, render_pool, streaming
 from synth_core.bank import Bank
 from synth_core.streaming import BatchStream, lock_context, runs
 from synth_core.synthesis import Options, synthesize
@@ -51,6 +51,53 @@ def test_windows_equal_the_whole_batch(bank: Bank, backend: str, foot_lock: bool
         assert stream.resample_rate == whole.resample_rate > 1.0
         windows = list(stream.windows())
         assert [w.start for w in windows] == list(range(0, whole.root_pos.shape[1], chunk))
+        for name in ("root_pos", "rotations", "gait", "contacts"):
+            joined = np.concatenate([getattr(w, name) for w in windows], axis=1)
+            assert np.array_equal(joined, getattr(whole, name)), (name, chunk)
+
+
+@pytest.mark.parametrize(("standing", "slow"), [((), ()), ((0,), ()), ((0, 11), ()), ((), (11,))])
+def test_first_window_in_parts_equals_the_whole_batch(bank: Bank, monkeypatch: pytest.MonkeyPatch,
+                                                      standing: tuple[int, ...],
+                                                      slow: tuple[int, ...]) -> None:
+    pytest.importorskip("numba")
+    monkeypatch.setattr(streaming, "MIN_PART", 4)  # 12 characters: a part per core
+    paths = crowd.simulate(12, 500, seed=3, top=9.0)
+    # Standing throughout: a plant runs past every early plan, so that character's part is planned
+    # whole -- one part (the rest early), or every part (their plans are then the whole plan).
+    paths[list(standing)] = paths[list(standing), :1]
+    # A slow walk: its strides reach past the first early plan, not the second.
+    paths[list(slow)] = np.arange(500)[:, None] * np.array([0.0, 0.0, 0.4 / 60])
+    opts = Options(scale_range=(0.8, 1.2), backend="numba", seed=5)
+    whole = synthesize(bank, paths, options=opts)
+    parts: list[tuple[slice, bool]] = []
+    reaches: list[int | None] = []
+    first_part, plan = streaming.BatchStream._first_part, streaming.plan
+
+    def spy(self: BatchStream, rows: slice, stop: int, out: np.ndarray | None) -> object:
+        window, plan = first_part(self, rows, stop, out)
+        parts.append((rows, plan is not None))
+        return window, plan
+
+    def planned(*args: object, frames: int | None = None, **kwargs: object) -> object:
+        reaches.append(frames)
+        return plan(*args, frames=frames, **kwargs)
+
+    monkeypatch.setattr(streaming.BatchStream, "_first_part", spy)
+    monkeypatch.setattr(streaming, "plan", planned)
+    for chunk in (7, 30):
+        parts.clear()
+        reaches.clear()
+        stream = BatchStream(bank, paths, options=opts, chunk_frames=chunk)
+        windows = list(stream.windows())
+        cores = min(render_pool.size(), 3)
+        assert sorted((r.start, r.stop) for r, _ in parts) == [(a * 12 // cores, (a + 1) * 12 // cores)
+                                                              for a in range(cores)]
+        planned_whole = [r for r, taken in parts if taken]
+        assert len(planned_whole) == len({c * cores // 12 for c in standing})
+        early = [chunk + streaming.PAD + int(s * bank.mean_cycle) for s in streaming.FIRST_PLAN_STRIDES]
+        if chunk == 30:  # the crowd's contexts end within the first rung, the others' do not
+            assert (early[1] in reaches) == bool(standing or slow)
         for name in ("root_pos", "rotations", "gait", "contacts"):
             joined = np.concatenate([getattr(w, name) for w in windows], axis=1)
             assert np.array_equal(joined, getattr(whole, name)), (name, chunk)
