@@ -380,8 +380,8 @@ def _live_block(offset: Any, frames_of: Any, clips: Any, cyclic: Any, source: An
                 high: Any, curve_at: Any, curves: Any, contacts_of: Any, max_rate: float, margin: int,
                 n_hubs: int, creep: float, t0: int, v: Any, pts: Any, h: Any, clock: Any, walked_in: Any,
                 start: Any, kind: Any, first: Any, clock0: Any, trav0: Any, before: Any, busy: Any,
-                with_rows: bool, workers: int, rows: Any, weights: Any, gait: Any, contacts: Any,
-                stitches: Any, walked_out: Any) -> None:
+                with_rows: bool, out_step: int, workers: int, rows: Any, weights: Any, gait: Any,
+                contacts: Any, stitches: Any, walked_out: Any) -> None:
     C, n = v.shape
     S = start.shape[1]
     workers = min(C, workers)
@@ -400,8 +400,9 @@ def _live_block(offset: Any, frames_of: Any, clips: Any, cyclic: Any, source: An
             # The frame's rows, fade, gait and contacts below are _frames' too, written twice on
             # purpose: shared as one function (its tables and outputs as arguments), the batch
             # plan took 1.7x as long (_frames 0.067 -> 0.117 us a character-frame, even inlined).
-            for tt in range(n):
+            for tt in range(-t0 % out_step, n, out_step):  # the frames sent: multiples of out_step
                 t = t0 + tt
+                i = tt // out_step  # its row in the outputs
                 e = 1  # the slot playing: the last started
                 for j in range(2, S):
                     if t >= start[c, j]:
@@ -411,9 +412,9 @@ def _live_block(offset: Any, frames_of: Any, clips: Any, cyclic: Any, source: An
                 ws = (walked[tt] / hc - trav0[c, e] / hc) + creep * float(local)
                 r0, r1, w = _row(k, local, v[c, tt], ws, True, offset, frames_of, clips, cyclic, curve_at,
                                  curves)
-                rows[c, tt, 0], rows[c, tt, 1], weights[c, tt, 0] = r0, r1, w
-                rows[c, tt, 2], rows[c, tt, 3], weights[c, tt, 1] = r0, r1, w
-                weights[c, tt, 2] = 0.0
+                rows[c, i, 0], rows[c, i, 1], weights[c, i, 0] = r0, r1, w
+                rows[c, i, 2], rows[c, i, 3], weights[c, i, 1] = r0, r1, w
+                weights[c, i, 2] = 0.0
                 since = t - start[c, e]
                 if (e >= 2 or before[c]) and since < margin:  # the piece before fades out
                     pk = kind[c, e - 1]
@@ -424,33 +425,35 @@ def _live_block(offset: Any, frames_of: Any, clips: Any, cyclic: Any, source: An
                     p0, p1, pw = _row(pk, p_local, v[c, tt], 0.0, False, offset, frames_of, clips, cyclic,
                                       curve_at, curves)
                     u = (since + 1) / (margin + 1)
-                    rows[c, tt, 2], rows[c, tt, 3], weights[c, tt, 1] = p0, p1, pw
-                    weights[c, tt, 2] = 1 - u * u * (3 - 2 * u)
+                    rows[c, i, 2], rows[c, i, 3], weights[c, i, 1] = p0, p1, pw
+                    weights[c, i, 2] = 1 - u * u * (3 - 2 * u)
                 first_half = (r0 - offset[k]) < frames_of[k] // 2
-                gait[c, tt] = source[k] if first_half else target[k]
+                gait[c, i] = source[k] if first_half else target[k]
                 for f in range(4):
-                    contacts[c, tt, f] = contacts_of[r0, f]
+                    contacts[c, i, f] = contacts_of[r0, f]
                 stitch = False
                 if t >= 1:
                     for j in range(1, S):
                         stitch = stitch or start[c, j] == t
-                stitches[c, tt] = stitch
+                stitches[c, i] = stitch
 
 
 def live_block(tb: Tables, contacts_of: NDArray[np.bool_], max_rate: float, margin: int, creep: float,
                t0: int, v: NDArray[np.float64], pts: NDArray[np.float64], h: NDArray[np.float64],
                clock: NDArray[np.float64], walked: NDArray[np.float64], slots: tuple[NDArray[Any], ...],
                before: NDArray[np.bool_], busy: NDArray[np.int64],
-               out: tuple[NDArray[Any], ...] | None) -> NDArray[np.float64]:
+               out: tuple[NDArray[Any], ...] | None, out_step: int = 1) -> NDArray[np.float64]:
     """Frames ``[t0, t0 + n)`` of a live plan (``v (C, n)`` speeds, ``pts (C, n + 1, 3)`` path):
     the pieces' ``slots`` (start, kind, first, clock0, trav0, each ``(C, SLOTS)``) and ``busy``
-    brought up to date; with ``out`` (rows, weights, gait, contacts, stitches, each ``(C, n,
-    ...)``) the frames' rows too, and ``clock (kinds, C)`` carried on to ``t0 + n``. Returns the
-    distance walked at ``t0 + n`` (to carry when ``out`` is given)."""
+    brought up to date; with ``out`` (rows, weights, gait, contacts, stitches, each ``(C, n',
+    ...)``) the rows of the frames sent -- those a multiple of ``out_step``, n' of them -- too,
+    and ``clock (kinds, C)`` carried on to ``t0 + n``. Returns the distance walked at ``t0 + n``
+    (to carry when ``out`` is given)."""
     if not AVAILABLE:
         raise RuntimeError("synth_core.plan_kernels needs numba; use the numpy backend")
     C, n = v.shape
     walked_out = np.empty(C)
+    with_rows = out is not None
     if out is None:
         none = np.empty((C, 0, 4), np.int32)
         out = (none, np.empty((C, 0, 3), np.float32), np.empty((C, 0), np.int8), np.empty((C, 0, 4), bool),
@@ -458,9 +461,11 @@ def live_block(tb: Tables, contacts_of: NDArray[np.bool_], max_rate: float, marg
     k = tb.kinds
     start, kind, first, clock0, trav0 = slots
     rows, weights, gait, contacts, stitches = out
+    sent = -(-(t0 + n) // out_step) - -(-t0 // out_step)
+    assert not with_rows or all(a.shape[:2] == (C, sent) for a in out), "out: a row per frame sent"
     _live_block(k.offset, k.frames, k.clips, k.cyclic, k.source, k.target, tb.total, tb.high, tb.curve_at,
                 tb.curves, contacts_of, max_rate, margin, len(tb.low), creep, t0, v, pts, h, clock, walked,
-                start, kind, first, clock0, trav0, before, busy, rows.shape[1] == n, numba.get_num_threads(),
+                start, kind, first, clock0, trav0, before, busy, with_rows, out_step, numba.get_num_threads(),
                 rows, weights, gait, contacts, stitches, walked_out)
     return walked_out
 

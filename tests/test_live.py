@@ -70,13 +70,16 @@ def test_live_frames_are_the_batch_plans_frames(bank: Bank, herd: np.ndarray, ba
     assert len(set(gait.ravel().tolist())) == 5  # standing and every gait: the test covers them
 
 
-def test_compiled_live_plan_is_the_numpy_reference(bank: Bank, herd: np.ndarray) -> None:
+@pytest.mark.parametrize("fps", [60.0, 30.0, 20.0])
+def test_compiled_live_plan_is_the_numpy_reference(bank: Bank, herd: np.ndarray, fps: float) -> None:
     """plan_kernels.live_block against LiveSynth's numpy blocks: with the same render, the same
-    windows bit for bit (foot lock on: its contexts read the kept plan too)."""
+    windows bit for bit (foot lock on: its contexts read the kept plan too) -- at the library's
+    rate, and at a half and a third of it (the plan kept for frames sent only)."""
     pytest.importorskip("numba")
+    herd = herd[:, ::round(60 / fps)]
     sessions = []
     for compiled in (True, False):
-        live = LiveSynth(bank, len(herd), 60.0, seed=5, scale_range=(0.8, 1.2), backend="numba")
+        live = LiveSynth(bank, len(herd), fps, seed=5, scale_range=(0.8, 1.2), backend="numba")
         live.plan_compiled = compiled
         sessions.append(joined(feed(live, herd, seed=3)[0]))
     for got, want in zip(*sessions, strict=True):
