@@ -681,6 +681,8 @@ class LiveSynth:
 
     def _emit(self, start: int, stop: int) -> Window:
         """Render planned frames [start, stop) (every ``out_step``-th frame of the library's)."""
+        # Only the frames sent are rendered -- the foot lock too works on them alone (a plant's
+        # average over its frames sent), so 30 fps out costs half of 60; the buffer holds those.
         k, o0 = self.out_step, self.buffer.start  # o0: the first frame kept, by frame sent
         buf = self.buffer.plan()
         lo, hi = -(-start // k) - o0, -(-stop // k) - o0
