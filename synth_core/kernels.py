@@ -22,7 +22,7 @@ from __future__ import annotations
 import functools
 import math
 from collections.abc import Callable
-from typing import TYPE_CHECKING, Any, Literal, TypeVar, cast
+from typing import TYPE_CHECKING, Any, Literal, NamedTuple, TypeVar, cast
 
 import numpy as np
 from numpy.typing import NDArray
@@ -407,30 +407,33 @@ def _solve_block(B: Any, toe_offset: Any, bend: Any) -> None:
 #
 # The world poses are kept in blocks of frames, ``world (blocks, 7 J, LANES)``: joint j's
 # world rotation in rows 7 j .. 7 j + 3, its position in the next three, frame t in block
-# t // LANES, lane t % LANES. Each joint (parent order) is then made for a whole block
-# straight from its parent's rows, with no branch (8 float64 frames an AVX-512 instruction;
-# frame by frame it was 7 ns a joint, now 3.5 with the gathering of the local rotations). Its
-# local rotations are gathered into a block of their own first: read from ``rot (T, J, 4)``
-# in the same loop, LLVM does not vectorize it.
+# (t - o) // LANES, lane (t - o) % LANES, where the origin o is a frame the caller picks (the
+# first frame wanted: a live window's 25 frames are then two blocks of IK, not two or three).
+# Each joint (parent order) is then made for a whole block straight from its parent's rows,
+# with no branch (8 float64 frames an AVX-512 instruction; frame by frame it was 7 ns a joint,
+# now 3.5 with the gathering of the local rotations). Its local rotations are gathered into a
+# block of their own first: read from ``rot (T, J, 4)`` in the same loop, LLVM does not
+# vectorize it.
 
 
 @_jit()
 def _world_position(world: Any, j: int, t: int) -> Any:
+    """Joint j's position on frame t - o (the origin: see the section's comment)."""
     b, lane, r = t // LANES, t % LANES, 7 * j + 4
     return (world[b, r, lane], world[b, r + 1, lane], world[b, r + 2, lane])
 
 
 @_jit()
 def _fk(rot: Any, root: Any, h: float, parents: Any, offsets: Any, joints: Any, world: Any,
-        a: int, T: int) -> None:
+        a: int, T: int, o: int) -> None:
     """World rotations and positions (unit space: root / h) of ``joints`` (parent order) on frames
-    ``[a, T)`` of ``rot (T, J, 4)``, into ``world`` (see the section's comment); a block's lanes
-    outside those frames repeat the nearest one."""
+    ``[a, T)`` of ``rot (T, J, 4)``, into ``world`` from origin ``o`` <= a (see the section's
+    comment); a block's lanes outside those frames repeat the nearest one."""
     local = np.empty((4, LANES))
-    for b in range(a // LANES, (T + LANES - 1) // LANES):
+    for b in range((a - o) // LANES, (T - o + LANES - 1) // LANES):
         block = world[b]
         for t in range(LANES):
-            u = min(max(b * LANES + t, a), T - 1)
+            u = min(max(o + b * LANES + t, a), T - 1)
             for k in range(4):
                 block[k, t] = rot[u, 0, k]
             for k in range(3):
@@ -440,7 +443,7 @@ def _fk(rot: Any, root: Any, h: float, parents: Any, offsets: Any, joints: Any, 
             p, q = 7 * parents[j], 7 * j
             offset = _v3(offsets[j])
             for t in range(LANES):
-                u = min(max(b * LANES + t, a), T - 1)
+                u = min(max(o + b * LANES + t, a), T - 1)
                 for k in range(4):
                     local[k, t] = rot[u, j, k]
             for t in range(LANES):
@@ -453,8 +456,8 @@ def _fk(rot: Any, root: Any, h: float, parents: Any, offsets: Any, joints: Any, 
 
 @_jit()
 def _solve_legs(world: Any, targets: Any, sink: Any, rigs: Any, parents: Any, offsets: Any,
-                bends: Any, out_rot: Any, a: int, T: int) -> None:
-    """Each leg's IK on frames ``[a, T)`` (``world``: see :func:`_fk`), the root lowered by
+                bends: Any, out_rot: Any, a: int, T: int, o: int) -> None:
+    """Each leg's IK on frames ``[a, T)`` (``world`` from origin ``o``: see :func:`_fk`), the root lowered by
     ``sink``: the upper joint's, hinge's and ankle's local rotations of ``out_rot`` replaced.
     Solved a block of ``world`` at a time: lanes outside the frames are solved too (on the
     nearest frame's target), not written."""
@@ -464,8 +467,8 @@ def _solve_legs(world: Any, targets: Any, sink: Any, rigs: Any, parents: Any, of
         pup, pan = 7 * parents[rigs[f, 0]], 7 * parents[rigs[f, 2]]
         toe_offset = _v3(offsets[rigs[f, 3]])
         bend = _v3(bends[f])
-        for b in range(a // LANES, (T + LANES - 1) // LANES):
-            block, b0 = world[b], b * LANES
+        for b in range((a - o) // LANES, (T - o + LANES - 1) // LANES):
+            block, b0 = world[b], o + b * LANES
             for t in range(LANES):
                 u = min(max(b0 + t, a), T - 1)
                 for k in range(3):
@@ -493,87 +496,115 @@ def _solve_legs(world: Any, targets: Any, sink: Any, rigs: Any, parents: Any, of
                     out_rot[b0 + t, rigs[f, 2], k] = B[_OUT + 8 + k, t]
 
 
+# What the sink of a frame reads of its pose, per foot (see :func:`_character`): the ankle-to-toe
+# vector, the upper joint's position and the leg's reach. A live window keeps them for its last
+# PAD frames, whose sink the next window's first frames read: those are then not posed again.
+_LEG_TOE, _LEG_UP, _LEG_REACH = 0, 3, 6
+LEG_WIDTH = 7
+NOWHERE = -(1 << 62)  # Posed.legs_at of a character whose last window kept no legs
+
+
 @_jit()
 def _character(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, yaw: Any, path: Any,
                     h: float, contacts: Any, parents: Any, offsets: Any, fk_joints: Any, rigs: Any,
                     bends: Any, sink_limit: float, foot_lock: bool, out_rot: Any, out_root: Any,
-                    world: Any, feet: Any, targets: Any, sink: Any, eased: Any,
-                    keep_from: int, keep_to: int, known_feet: Any, known: int) -> None:
+                    world: Any, feet: Any, legs: Any, targets: Any, sink: Any, eased: Any,
+                    keep_from: int, keep_to: int, known_feet: Any, known: int, recent: Any,
+                    recent_known: bool) -> bool:
     """All four passes for one character (scratch arrays given). Only frames ``[keep_from,
     keep_to)`` are wanted (a window rendered over its foot lock's context): the legs' IK, which
-    reads nothing of other frames, is solved for those alone. ``known_feet (T, 4, 3)``: the
-    feet of frames ``[0, known)`` made already (a live session's earlier windows), read there,
-    not posed again, and written for the frames posed (an empty array: none kept); ``known``
-    is at most ``keep_from - PAD``, the first frame whose sink the wanted frames read."""
+    reads nothing of other frames, is solved for those alone.
+
+    ``known_feet (T, 4, 3)``: the feet of frames ``[0, known)`` made already (a live session's
+    earlier windows), read there, not posed again, and written for the frames posed (an empty
+    array: none kept). ``recent (PAD, 4, LEG_WIDTH)``: what the sink reads of the PAD frames
+    before ``keep_from``, if ``recent_known`` (then ``known >= keep_from``): those are not posed
+    either. On return it holds the same of the PAD frames before ``keep_to``: True if it does
+    (the first frames of a plan have fewer than PAD frames before them)."""
     T = out_rot.shape[0]
     if not foot_lock:
-        keep_from, keep_to, known = 0, T, 0  # no context
-    a = known
+        keep_from, keep_to, known, recent_known = 0, T, 0, False  # no context
+    # Posed from a; the sink from s, the first frame the wanted frames' eased sink reads.
+    if recent_known:
+        s, a = keep_from - PAD, keep_from
+        legs[s:a] = recent
+    else:
+        s = a = max(min(known, keep_from - PAD), 0)
     _assemble(poses, height, surge, rows[a:], weights[a:], yaw[a:], path[a:], h, out_rot[a:], out_root[a:])
     if not foot_lock:
-        return
-    _fk(out_rot, out_root, h, parents, offsets, fk_joints, world, a, T)
-    keep = known_feet.shape[0] > 0
-    for f in range(4):
-        feet[:a, f, :] = known_feet[:a, f, :]
-        for t in range(a, T):
-            feet[t, f, 0], feet[t, f, 1], feet[t, f, 2] = _world_position(world, rigs[f, 3], t)
-        if keep:
-            known_feet[a:, f, :] = feet[a:, f, :]
-    _plant_targets(feet, contacts, targets)
+        return False
+    # The world's origin: a block starts at the first wanted frame (the frames posed before it
+    # in blocks of their own), so a window of up to LANES frames is one block of IK.
+    o = keep_from - LANES * ((keep_from - a + LANES - 1) // LANES)
+    _fk(out_rot, out_root, h, parents, offsets, fk_joints, world, a, T, o)
+    feet[:a] = known_feet[:a]
     for t in range(a, T):
+        for f in range(4):
+            up, hi, an, ef = rigs[f, 0], rigs[f, 1], rigs[f, 2], rigs[f, 3]
+            p_up, p_hi = _world_position(world, up, t - o), _world_position(world, hi, t - o)
+            p_an, p_ef = _world_position(world, an, t - o), _world_position(world, ef, t - o)
+            feet[t, f, 0], feet[t, f, 1], feet[t, f, 2] = p_ef
+            leg = legs[t, f]
+            leg[_LEG_TOE], leg[_LEG_TOE + 1], leg[_LEG_TOE + 2] = _sub(p_ef, p_an)
+            leg[_LEG_UP], leg[_LEG_UP + 1], leg[_LEG_UP + 2] = p_up
+            leg[_LEG_REACH] = _norm3(_sub(p_hi, p_up)) + _norm3(_sub(p_an, p_hi))
+    if known_feet.shape[0] > 0:
+        known_feet[a:] = feet[a:]
+    _plant_targets(feet, contacts, targets)
+    for t in range(s, T):
         floor = path[t, 1] / h
         worst = 0.0
         for f in range(4):
             if targets[t, f, 1] < floor:
                 targets[t, f, 1] = floor
-            up, hi, an, ef = rigs[f, 0], rigs[f, 1], rigs[f, 2], rigs[f, 3]
-            p_up, p_hi = _world_position(world, up, t), _world_position(world, hi, t)
-            p_an = _world_position(world, an, t)
-            reach = _norm3(_sub(p_hi, p_up)) + _norm3(_sub(p_an, p_hi))
-            to_ankle = _sub(_sub(_v3(targets[t, f]), _sub(_world_position(world, ef, t), p_an)), p_up)
-            allowed = REACH * reach
+            leg = legs[t, f]
+            to_ankle = _sub(_sub(_v3(targets[t, f]), _v3(leg[_LEG_TOE:])), _v3(leg[_LEG_UP:]))
+            allowed = REACH * leg[_LEG_REACH]
             across2 = to_ankle[0] ** 2 + to_ankle[2] ** 2
-            s = -to_ankle[1] - math.sqrt(max(allowed * allowed - across2, 0.0))
-            worst = max(worst, s)
+            worst = max(worst, -to_ankle[1] - math.sqrt(max(allowed * allowed - across2, 0.0)))
         sink[t] = worst
-    # Eased from frame a on: the wanted frames, PAD or more after it, read nothing before it.
-    _ease_sink(sink[a:], sink_limit, eased[a:])
+    # Eased from frame s on: the wanted frames, PAD or more after it, read nothing before it.
+    _ease_sink(sink[s:], sink_limit, eased[s:])
     for t in range(a, T):
         out_root[t, 1] = (out_root[t, 1] / h - eased[t]) * h
-    a, b = keep_from, keep_to
-    _solve_legs(world, targets, eased, rigs, parents, offsets, bends, out_rot, a, b)
+    _solve_legs(world, targets, eased, rigs, parents, offsets, bends, out_rot, keep_from, keep_to, o)
+    if keep_to - PAD < s:
+        return False
+    recent[...] = legs[keep_to - PAD:keep_to]
+    return True
 
 
 @_jit(parallel=True)
 def _render_all(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, yaw: Any, path: Any,
                 scales: Any, contacts: Any, parents: Any, offsets: Any, fk_joints: Any, rigs: Any,
                 bends: Any, sink_limit: float, foot_lock: bool, out_rot: Any, out_root: Any,
-                w_world: Any, w_feet: Any, w_targets: Any, w_sink: Any, w_eased: Any) -> None:
+                w_world: Any, w_feet: Any, w_legs: Any, w_targets: Any, w_sink: Any, w_eased: Any) -> None:
     """``w_*``: one working set per worker (first axis), reused for its characters: a fresh
     megabyte per character would cost more in page faults than the lock's arithmetic."""
     C = out_rot.shape[0]
     workers = min(C, w_world.shape[0])
     none_known = np.empty((0, 4, 3))
     for worker in _prange(workers):
-        world, feet, targets = w_world[worker], w_feet[worker], w_targets[worker]
+        world, feet, legs, targets = w_world[worker], w_feet[worker], w_legs[worker], w_targets[worker]
         sink, eased = w_sink[worker], w_eased[worker]
+        recent = np.empty((PAD, 4, LEG_WIDTH))
         for c in range(worker, C, workers):
             _character(poses, height, surge, rows[c], weights[c], yaw[c], path[c], scales[c],
                        contacts[c], parents, offsets, fk_joints, rigs, bends, sink_limit, foot_lock,
-                       out_rot[c], out_root[c], world, feet, targets, sink, eased, 0, out_rot.shape[1],
-                       none_known, 0)
+                       out_rot[c], out_root[c], world, feet, legs, targets, sink, eased, 0,
+                       out_rot.shape[1], none_known, 0, recent, False)
 
 
 @_jit(parallel=True)
 def _render_windows(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, yaw: Any, path: Any,
                     scales: Any, contacts: Any, parents: Any, offsets: Any, fk_joints: Any, rigs: Any,
                     bends: Any, sink_limit: float, foot_lock: bool, workers: int, begin: Any, end: Any,
-                    start: int, out_rot: Any, out_root: Any, known_feet: Any, known: Any) -> None:
+                    start: int, out_rot: Any, out_root: Any, known_feet: Any, known: Any,
+                    known_legs: Any, legs_at: Any) -> None:
     """Frames ``[start, start + out.shape[1])`` of each character, rendered over its own context
     ``[begin[c], end[c])`` of the plan (see :func:`render_window`); ``known_feet (T, C, 4, 3)``
-    (or none: ``(0, C, 4, 3)``) the feet of plan frames ``[0, known[c])``, made by earlier
-    windows, and kept for the next: ``known`` is moved on to ``end``."""
+    (or none: ``(0, C, 4, 3)``), ``known``, ``known_legs``, ``legs_at``: a :class:`Posed`'s,
+    moved on (``known`` to ``end``, ``legs_at`` to the window's end)."""
     C, n, J = out_rot.shape[0], out_rot.shape[1], out_rot.shape[2]
     longest = 0
     for c in range(C):
@@ -583,24 +614,30 @@ def _render_windows(poses: Any, height: Any, surge: Any, rows: Any, weights: Any
     for worker in _prange(workers):
         rot = np.empty((longest, J, 4), np.float32)
         root = np.empty((longest, 3))
-        world = np.empty(((longest + LANES - 1) // LANES, 7 * J, LANES))  # see _fk
+        # See _fk: from an origin up to LANES - 1 frames before the first posed.
+        world = np.empty(((longest + 2 * LANES - 2) // LANES, 7 * J, LANES))
         feet = np.empty((longest, 4, 3))
+        legs = np.empty((longest, 4, LEG_WIDTH))
         targets = np.empty((longest, 4, 3))
         sink = np.empty(longest)
         eased = np.empty(longest)
+        no_recent = np.empty((PAD, 4, LEG_WIDTH))
         for c in range(worker, C, workers):
             b, e = begin[c], end[c]
             k = e - b
-            # Frames whose feet are known, up to the first whose sink the wanted frames read.
-            a = min(max(min(known[c], start - PAD) - b, 0), k) if keep else 0
-            _character(poses, height, surge, rows[c, b:e], weights[c, b:e], yaw[c, b:e], path[c, b:e],
-                       scales[c], contacts[c, b:e], parents, offsets, fk_joints, rigs, bends, sink_limit,
-                       foot_lock, rot[:k], root[:k], world, feet[:k], targets[:k],
-                       sink[:k], eased[:k], start - b, start - b + n, known_feet[b:e, c], a)
+            kn = min(max(known[c] - b, 0), k) if keep else 0  # frames with their feet known
+            recent_known = keep and legs_at[c] == start and start - b >= PAD and kn >= start - b
+            made = _character(poses, height, surge, rows[c, b:e], weights[c, b:e], yaw[c, b:e],
+                              path[c, b:e], scales[c], contacts[c, b:e], parents, offsets, fk_joints, rigs,
+                              bends, sink_limit, foot_lock, rot[:k], root[:k], world, feet[:k], legs[:k],
+                              targets[:k], sink[:k], eased[:k], start - b, start - b + n,
+                              known_feet[b:e, c], kn, known_legs[c] if keep else no_recent, recent_known)
             out_rot[c] = rot[start - b:start - b + n]
             out_root[c] = root[start - b:start - b + n]
-            if keep and foot_lock and known[c] >= b:  # frames [0, e) known now (else a gap before b)
-                known[c] = max(known[c], e)
+            if keep and foot_lock:
+                legs_at[c] = start + n if made else NOWHERE
+                if known[c] >= b:  # frames [0, e) known now (else a gap before b)
+                    known[c] = max(known[c], e)
 
 
 @_jit()
@@ -679,9 +716,26 @@ def _bank_tables(bank: Bank) -> tuple[tuple[Any, Any, Any], tuple[Any, Any, Any,
              MAX_SINK * sk.leg_length()))
 
 
+class Posed(NamedTuple):
+    """What a live session's windows keep of the frames they posed, for the later windows over
+    the same plan (see :func:`render_window`): the feet ``(T, C, 4, 3)`` float64, C-contiguous
+    (frames first: every view of them is, so the kernel is compiled for one layout), of each
+    character's plan frames ``[0, frames[c])``; what the sink reads of the legs on the PAD
+    frames before ``legs_at[c]`` (``(C, PAD, 4, LEG_WIDTH)``; ``NOWHERE``: none kept)."""
+
+    feet: NDArray[np.float64]
+    frames: NDArray[np.int64]
+    legs: NDArray[np.float64]
+    legs_at: NDArray[np.int64]
+
+    @classmethod
+    def none(cls, C: int, feet: NDArray[np.float64]) -> Posed:
+        """Nothing posed yet, the feet to be kept in ``feet``."""
+        return cls(feet, np.zeros(C, np.int64), np.empty((C, PAD, 4, LEG_WIDTH)), np.full(C, NOWHERE))
+
+
 def render_window(bank: Bank, plan: Plan, start: int, stop: int, begin: NDArray[np.int64],
-                  end: NDArray[np.int64], foot_lock: bool = True,
-                  known: tuple[NDArray[np.float64], NDArray[np.int64]] | None = None,
+                  end: NDArray[np.int64], foot_lock: bool = True, known: Posed | None = None,
                   out: NDArray[np.float32] | None = None
                   ) -> tuple[NDArray[np.float32], NDArray[np.float32]]:
     """Root ``(C, stop - start, 3)`` and rotations of frames ``[start, stop)`` only, each
@@ -689,11 +743,11 @@ def render_window(bank: Bank, plan: Plan, start: int, stop: int, begin: NDArray[
     :func:`synth_core.streaming.lock_context`): the same numbers as :func:`render` of the whole
     (with ``known``: to rounding, see tests/test_live.py).
 
-    ``known``: (feet ``(T, C, 4, 3)`` float64, C-contiguous (frames first: every view of them
-    is, so the kernel is compiled for one layout), ``frames (C,)``) -- the feet of each character's
-    plan frames ``[0, frames[c])``, kept from earlier windows over the same plan: those are not
-    posed again (a live session's windows share most of their context: it was two-fifths of
-    their render). The feet of the frames posed are written there, ``frames`` moved on.
+    ``known``: what earlier windows over the same plan posed (a live session's windows share
+    most of their context: posing it again was two-fifths of their render). Frames whose feet
+    are known are not posed again but where wanted; nor, after a window that ended at ``start``,
+    the PAD frames before it (their sink read from ``known.legs``: a third of the posing left).
+    What the frames posed give is written there, ``frames`` and ``legs_at`` moved on.
 
     ``out``: the rotations are written there (C-contiguous ``(C, stop - start, J, 4)`` float32)."""
     if not AVAILABLE:
@@ -702,11 +756,18 @@ def render_window(bank: Bank, plan: Plan, start: int, stop: int, begin: NDArray[
     J = bank.skeleton.n_joints
     # Only the frames some context reads are made contiguous.
     cb, ce = int(np.min(begin)), int(np.max(end))
-    feet, frames = (np.empty((0, C, 4, 3)), np.zeros(C, np.int64)) if known is None else known
+    posed = Posed(np.empty((0, C, 4, 3)), np.zeros(C, np.int64), np.empty((0, PAD, 4, LEG_WIDTH)),
+                  np.zeros(C, np.int64)) if known is None else known
     if known is not None:
-        assert feet.shape[:2] == plan.yaw.shape[::-1] and feet.dtype == np.float64 and feet.flags.c_contiguous
-        assert frames.dtype == np.int64 and frames.flags.c_contiguous
-    frames -= cb  # in the window's frames (moved back after)
+        feet = known.feet
+        assert feet.shape == (*plan.yaw.shape[::-1], 4, 3) and feet.dtype == np.float64
+        assert feet.flags.c_contiguous
+        assert known.legs.shape == (C, PAD, 4, LEG_WIDTH) and known.legs.flags.c_contiguous
+        for frames in (known.frames, known.legs_at):
+            assert frames.dtype == np.int64 and frames.flags.c_contiguous
+    # In the window's frames (moved back after).
+    posed.frames[...] -= cb
+    posed.legs_at[...] -= cb
     out_root = np.empty((C, stop - start, 3), np.float64)
     out_rot = np.empty((C, stop - start, J, 4), np.float32) if out is None else out
     assert out_rot.shape == (C, stop - start, J, 4) and out_rot.dtype == np.float32
@@ -716,9 +777,11 @@ def render_window(bank: Bank, plan: Plan, start: int, stop: int, begin: NDArray[
         _render_windows(*table, *_plan_arrays(plan.window(cb, ce)), *skeleton, foot_lock,
                         numba.get_num_threads(), np.asarray(begin, np.int64) - cb,
                         np.asarray(end, np.int64) - cb, start - cb, out_rot, out_root,
-                        feet[cb:ce] if known is not None else feet, frames)
+                        posed.feet[cb:ce] if known is not None else posed.feet, posed.frames, posed.legs,
+                        posed.legs_at)
     finally:
-        frames += cb
+        posed.frames[...] += cb
+        posed.legs_at[...] += cb
     return out_root.astype(np.float32), out_rot
 
 
@@ -737,6 +800,7 @@ def render(bank: Bank, plan: Plan, foot_lock: bool = True,
     scratch = Scratch() if scratch is None else scratch
     work = [scratch.array(f"render.{name}", shape, np.float64)
             for name, shape in (("world", (W, -(-T // LANES), 7 * J, LANES)), ("feet", (W, T, 4, 3)),
+                                ("legs", (W, T, 4, LEG_WIDTH)),
                                 ("targets", (W, T, 4, 3)), ("sink", (W, T)), ("eased", (W, T)),
                                 ("root", (C, T, 3)))]
     out_root = work.pop()

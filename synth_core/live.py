@@ -258,6 +258,9 @@ class LiveSynth:
         self.feet = _Columns(1, [((C, 4, 3), np.float64)],
                              self.buffer.arrays[0].shape[1] + self._end_frames // self.out_step + 1)
         self.known_feet = np.zeros(C, np.int64)
+        # What the sink reads of the legs on the last PAD frames sent (see kernels.Posed).
+        self.recent_legs = np.empty((C, PAD, 4, kernels.LEG_WIDTH))
+        self.legs_at = np.full(C, kernels.NOWHERE)
 
     @property
     def window_frames(self) -> int:
@@ -695,12 +698,12 @@ class LiveSynth:
             # The feet of frames posed by earlier windows, by frame sent (from 0), kept for later ones.
             n = buf.yaw.shape[1]
             self.feet.reserve(max(o0 + n - self.feet.stop, 0))
-            known = self.known_feet - o0
+            posed = kernels.Posed(self.feet.columns(o0, o0 + n)[0][0], self.known_feet - o0, self.recent_legs,
+                                  self.legs_at - o0)
             out = None if self.scratch is None else self.scratch.array(
                 "live.rotations", (len(self.scales), hi - lo, self.bank.skeleton.n_joints, 4), np.float32)
-            root, rot = kernels.render_window(self.bank, buf, lo, hi, begin, end, self.foot_lock,
-                                              (self.feet.columns(o0, o0 + n)[0][0], known), out)
-            self.known_feet = known + o0
+            root, rot = kernels.render_window(self.bank, buf, lo, hi, begin, end, self.foot_lock, posed, out)
+            self.known_feet, self.legs_at = posed.frames + o0, posed.legs_at + o0
         else:
             cb, ce = int(begin.min()), int(end.max())
             root, rot = render(self.bank, buf.window(cb, ce), self.foot_lock)

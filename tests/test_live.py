@@ -224,12 +224,13 @@ def test_shards_refuse_bad_points_whole_naming_the_character(bank: Bank) -> None
         LiveShards(bank, 6, 60.0, shards=2, scales=[1, 1, 1, 1, -1, 1])
 
 
-def test_feet_kept_from_earlier_windows_are_the_feet_posed_again(bank: Bank, herd: np.ndarray) -> None:
-    """kernels.render_window reading the feet earlier windows posed (a live session's windows
-    share most of their lock context) gives the numbers of posing each whole context again, to
-    rounding: the feet read were posed by another window's call, whose compiled path (a frame
-    posed as sent or as context) may round a last bit differently -- seen once, on a fresh
-    compile: 2 of 96,000 root numbers, 7e-17 m apart."""
+def test_frames_kept_from_earlier_windows_are_the_frames_posed_again(bank: Bank, herd: np.ndarray) -> None:
+    """kernels.render_window reading what earlier windows posed (a live session's windows share
+    most of their lock context: the feet, and the legs of the PAD frames before a window, which
+    its sink reads) gives the numbers of posing each whole context again, to rounding: what is
+    read was posed by another window's call, whose compiled path (a frame posed as sent or as
+    context) may round a last bit differently -- seen once, on a fresh compile: 2 of 96,000 root
+    numbers, 7e-17 m apart."""
     pytest.importorskip("numba")
     from synth_core import kernels
     from synth_core.footlock import PAD
@@ -239,23 +240,37 @@ def test_feet_kept_from_earlier_windows_are_the_feet_posed_again(bank: Bank, her
     prep, h, keys = prepare_batch(bank, herd, 60.0, None, options, None, None)
     p = plan(bank, prep, h, keys, options.margin, compiled=True)
     C, T = p.yaw.shape
-    feet, known = np.empty((T, C, 4, 3)), np.zeros(C, np.int64)
-    read = 0
+    posed = kernels.Posed.none(C, np.empty((T, C, 4, 3)))
+    read = windows = 0
     for a in range(0, T, 25):
         b = min(a + 25, T)
         begin, end = kernels.lock_context(p.contacts, a, b)
-        read += int(np.clip(np.minimum(known, a - PAD) - begin, 0, None).sum())  # frames not posed
-        got = kernels.render_window(bank, p, a, b, begin, end, True, (feet, known))
+        # Frames not posed: those before the window with their feet known, when the last window
+        # kept the legs of the PAD frames before it (else those PAD frames are posed).
+        after_last = posed.legs_at == a
+        assert after_last.all() == (a >= PAD)  # every window after the first keeps them
+        first_posed = np.minimum(posed.frames, np.where(after_last, a, a - PAD))
+        read += int(np.clip(first_posed - begin, 0, None).sum())
+        got = kernels.render_window(bank, p, a, b, begin, end, True, posed)
         want = kernels.render_window(bank, p, a, b, begin, end, True)
         np.testing.assert_allclose(got[0], want[0], rtol=0, atol=1e-6)
         np.testing.assert_allclose(got[1], want[1], rtol=0, atol=1e-6)
-        assert (known == end).all()  # each character's feet known up to its context's end
-    assert read > 10 * C * T // 25  # most windows read more than ten frames' feet of each
+        assert (posed.frames == end).all()  # each character's feet known up to its context's end
+        assert (posed.legs_at == b).all()
+        windows += 1
+    assert read > 20 * C * (windows - 1)  # after the first, none of a context's 20+ frames before it
+    # A window that does not start where the last ended poses the PAD frames before it.
+    a = T // 2
+    begin, end = kernels.lock_context(p.contacts, a, a + 25)
+    got = kernels.render_window(bank, p, a, a + 25, begin, end, True, posed)
+    want = kernels.render_window(bank, p, a, a + 25, begin, end, True)
+    np.testing.assert_allclose(got[0], want[0], rtol=0, atol=1e-6)
+    np.testing.assert_allclose(got[1], want[1], rtol=0, atol=1e-6)
     # A live session's known feet are always C-contiguous views (so one compiled kernel serves
     # every session: a new layout would compile one mid-session), one character's too.
     for n in (1, 3):
         LiveSynth(bank, n, 60.0).append(herd[:n, :300])
-    assert {str(sig[-2]) for sig in kernels._render_windows.signatures} == {"array(float64, 4d, C)"}
+    assert {str(sig[-4]) for sig in kernels._render_windows.signatures} == {"array(float64, 4d, C)"}
 
 
 def test_a_failing_shard_fails_the_tick_once_every_shard_is_done(bank: Bank,
