@@ -39,7 +39,7 @@ from api_schemas import (
     SynthesizeResponse,
 )
 from api_schemas.wire import MSGPACK
-from service import answer, body, jobs, stream
+from service import answer, body, jobs, memory, stream
 from service.admission import Admission
 from service.body import PiecesResponse
 from service.errors import ApiError, handle_api_error, handle_http_error, handle_validation_error
@@ -312,6 +312,8 @@ def create_app(directory: Path | None = None, settings: Settings | None = None) 
     state = State(settings, LibraryRegistry(directory if directory is not None else library_dir()))
 
     def load() -> None:
+        if settings.memory_tuning:
+            state.metrics.memory_tuning = memory.tune()
         state.registry.load()
         warm_up(state.registry)
         # What start-up made lives as long as the process (libraries, compiled kernels, the

@@ -24,6 +24,7 @@ class Metrics:
     cancelled: int = 0  # syntheses stopped before their end: the client left or the deadline passed
     in_flight: int = 0
     ws_sessions: int = 0
+    memory_tuning: dict[str, bool] = field(default_factory=dict)  # service.memory.tune()'s, if run
 
     def render(self) -> str:
         pid = os.getpid()
@@ -63,6 +64,10 @@ class Metrics:
             "# HELP quadsynth_gc_frozen_objects Objects start-up made, kept out of full collections.",
             "# TYPE quadsynth_gc_frozen_objects gauge",
             f'quadsynth_gc_frozen_objects{{pid="{pid}"}} {gc.get_freeze_count()}',
+            "# HELP quadsynth_memory_tuning Allocation settings this worker took (service.memory).",
+            "# TYPE quadsynth_memory_tuning gauge",
+            *(f'quadsynth_memory_tuning{{pid="{pid}",setting="{name}"}} {int(took)}'
+              for name, took in sorted(self.memory_tuning.items())),
         ]
         return "\n".join(lines) + "\n"
 

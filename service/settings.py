@@ -23,6 +23,7 @@ class Settings:
     ws_send_timeout_s: float = 10.0
     drain_grace_s: float = 20.0
     test_hooks: bool = False  # routes that hold the workers on an event (tests only)
+    memory_tuning: bool = True  # freed memory kept, no huge pages for numpy: see service.memory
 
     @classmethod
     def from_env(cls) -> Settings:

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import base64
 import json
+import platform
 import signal
 import threading
 import time
@@ -228,6 +229,9 @@ def test_metrics_count_requests_and_character_frames(server: str, herd: np.ndarr
     assert value(after, 'python_gc_collections_total{pid=') > 0
     # What start-up made (libraries, kernels, frameworks) is frozen out of full collections.
     assert value(after, "quadsynth_gc_frozen_objects") > 50_000
+    # Freed memory kept, no huge pages (service.memory): on by default.
+    if platform.system() == "Linux" and platform.libc_ver()[0] == "glibc":
+        assert value(after, 'quadsynth_memory_tuning{pid=') == 2
 
 
 def test_overload_gets_503_with_retry_after_while_livez_stays_fast(server: str, herd: np.ndarray) -> None:
