@@ -105,7 +105,8 @@ def test_eval_prints_the_issue_figures(capsys: pytest.CaptureFixture[str]) -> No
     assert main(["eval", "--animal", "dog", "--characters", "8", "--frames", "300", "--json"]) == 0
     figures = json.loads(capsys.readouterr().out)
     for key in ("path_error_cm_max", "path_error_cm_mean", "timing_error_cm_max", "skate_mm_mean",
-                "skate_mm_p95", "skating_ratio", "footfall_preserved", "pop_ratio", "penetration_mm",
+                "skate_mm_p95", "skating_ratio", "footfall_preserved", "footfall_across_transitions",
+                "pop_ratio", "penetration_mm",
                 "gait_frames", "nan_count", "resample_rate"):
         assert key in figures
     assert figures["nan_count"] == 0 and figures["path_error_cm_max"] <= 1.0
