@@ -214,32 +214,48 @@ class Session:
         frames = jobs.output_frames(job, stream.frames, stream.kept)
         ids = [job.ids[c] for c in stream.kept]
         count = -(-stream.frames // chunk_frames)
-        await self.send({
-            "type": "start", "batch": number, "animal": req.animal,
-            "skeleton_id": skeleton_id(req.animal, registry.libraries[req.animal].skeleton),
-            "fps": bank.fps, "encoding": req.encoding, "resample_rate": stream.resample_rate,
-            "frames": stream.frames, "chunk_frames": chunk_frames, "chunks": count,
-            "characters": [{"id": i, "scale": float(h), "frames": n}
-                           for i, h, n in zip(ids, stream.character_scales, frames, strict=True)],
-            "skipped": jobs.skipped(job, stream)})
-        windows: Iterator[Window] = stream.windows()
+        chunks: Iterator[list[Window]] = stream.chunks()
 
         def next_chunk(index: int) -> tuple[int, memoryview]:
-            return packed_chunk(number, index, [next(windows)], req.encoding)
+            # A chunk's windows (the first's parts) are packed side by side.
+            return packed_chunk(number, index, next(chunks), req.encoding)
 
         self.acked, sent = -1, 0
         self.state.metrics.syntheses += 1
-        while sent < count:
-            await self.wait_for_room(sent)
-            self.check()
-            if self.gone.is_set() or self.cancel.is_set():
-                break
-            t0 = time.perf_counter()
-            n, message = await self.in_pool(next_chunk, sent)
-            self.state.metrics.synthesis_seconds += time.perf_counter() - t0
-            await self.send(message)
-            self.state.metrics.character_frames += len(ids) * n
-            sent += 1
+        # The first chunk is made while `start` goes out (a client waits for that chunk).
+        t0 = time.perf_counter()
+        making: asyncio.Future[tuple[int, memoryview]] | None = asyncio.ensure_future(
+            self.in_pool(next_chunk, 0)) if count else None
+        try:
+            await self.send({
+                "type": "start", "batch": number, "animal": req.animal,
+                "skeleton_id": skeleton_id(req.animal, registry.libraries[req.animal].skeleton),
+                "fps": bank.fps, "encoding": req.encoding, "resample_rate": stream.resample_rate,
+                "frames": stream.frames, "chunk_frames": chunk_frames, "chunks": count,
+                "characters": [{"id": i, "scale": float(h), "frames": n}
+                               for i, h, n in zip(ids, stream.character_scales, frames, strict=True)],
+                "skipped": jobs.skipped(job, stream)})
+            while sent < count:
+                if making is None:  # chunks after the first: made when the window has room
+                    await self.wait_for_room(sent)
+                    self.check()
+                    if self.gone.is_set() or self.cancel.is_set():
+                        break
+                    t0 = time.perf_counter()
+                    making = asyncio.ensure_future(self.in_pool(next_chunk, sent))
+                n, message = await making
+                making = None
+                self.state.metrics.synthesis_seconds += time.perf_counter() - t0
+                self.check()
+                if self.gone.is_set() or self.cancel.is_set():
+                    break
+                await self.send(message)
+                self.state.metrics.character_frames += len(ids) * n
+                sent += 1
+        finally:
+            if making is not None:  # leaving early: the chunk under way finishes first (none left running)
+                with contextlib.suppress(BaseException):
+                    await making
         cancelled = self.cancel.is_set()
         self.cancel.clear()
         await self.send({"type": "end", "batch": number, "chunks": sent, "cancelled": cancelled})

@@ -42,7 +42,7 @@ def shard_bounds(n_characters: int, shards: int | None = None) -> NDArray[np.int
 class LiveShards:
     """:class:`LiveSynth`'s interface for a session of ``n_characters`` (same arguments), its
     characters in shards: :meth:`append` and :meth:`finish` give one :class:`Window` per
-    shard, characters in order (:func:`joined` makes them one)."""
+    shard, characters in order (:func:`synth_core.streaming.joined` makes them one)."""
 
     def __init__(self, bank: Bank, n_characters: int, fps: float | None = None, *,
                  scales: ArrayLike | None = None, seeds: ArrayLike | None = None,
@@ -117,10 +117,3 @@ class LiveShards:
         # The shards advance in step: all have frames or none.
         return None if windows[0] is None else [w for w in windows if w is not None]
 
-
-def joined(windows: list[Window]) -> Window:
-    """Shards' windows of the same frames as one window of all their characters."""
-    if len(windows) == 1:
-        return windows[0]
-    return Window(windows[0].start, *(np.concatenate([getattr(w, f) for w in windows])
-                                      for f in ("root_pos", "rotations", "gait", "contacts")))

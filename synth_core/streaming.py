@@ -180,30 +180,34 @@ class BatchStream:
         whole = plan(self.bank, prep, h, keys, margin, compiled=compiled)  # a plant runs past them all
         return self._render(whole, 0, stop, None, None, out), whole
 
-    def _first_window(self, stop: int) -> Window:
-        """Frames ``[0, stop)``: the characters in parts side by side (see the module doc)."""
+    def _first_window(self, stop: int) -> list[Window]:
+        """Frames ``[0, stop)``: the characters in parts side by side (see the module doc), a
+        window per part."""
         C = self.prep.positions.shape[0]
         parts = min(render_pool.size(), C // MIN_PART) if compiled_backend(self.options) else 1
         if parts <= 1:
             window, whole = self._first_part(slice(0, C), stop, None)
             self._plan = whole if whole is not None else self._plan
-            return window
+            return [window]
         cuts = np.linspace(0, C, parts + 1).round().astype(np.int64).tolist()
-        rotations = np.empty((C, stop, self.bank.skeleton.n_joints, 4), np.float32)
-        futures = [render_pool.pool().submit(self._first_part, slice(a, b), stop, rotations[a:b])
+        futures = [render_pool.pool().submit(self._first_part, slice(a, b), stop, None)
                    for a, b in zip(cuts[:-1], cuts[1:], strict=True)]
         wait(futures)  # every part done before an error is raised: none left running
         done = [f.result() for f in futures]
         plans = [whole for _, whole in done]
         if all(p is not None for p in plans):  # every part planned whole: that is the whole plan
             self._plan = Plan(*(np.concatenate([getattr(p, f.name) for p in plans]) for f in fields(Plan)))
-        windows = [w for w, _ in done]
-        return Window(0, np.concatenate([w.root_pos for w in windows]), rotations,
-                      np.concatenate([w.gait for w in windows]),
-                      np.concatenate([w.contacts for w in windows]))
+        return [w for w, _ in done]
 
     def windows(self) -> Iterator[Window]:
         """The motion, ``chunk_frames`` frames at a time, in order."""
+        for chunk in self.chunks():
+            yield joined(chunk)
+
+    def chunks(self) -> Iterator[list[Window]]:
+        """:meth:`windows`, each as the windows of consecutive characters it was made in: the
+        first in its parts (packed side by side: :func:`service.chunk.packed_chunk`, a tenth of
+        its time when joined first), the others whole."""
         K, T = self.chunk_frames, self.frames
         first_stop = min(K, T)
         yield self._first_window(first_stop)
@@ -218,4 +222,12 @@ class BatchStream:
             w = self._render(whole, a, b, bounds)
             for s in range(a, b, K):
                 n = slice(s - a, min(s + K, b) - a)
-                yield Window(s, w.root_pos[:, n], w.rotations[:, n], w.gait[:, n], w.contacts[:, n])
+                yield [Window(s, w.root_pos[:, n], w.rotations[:, n], w.gait[:, n], w.contacts[:, n])]
+
+
+def joined(windows: list[Window]) -> Window:
+    """Windows of the same frames of consecutive characters as one window of them all."""
+    if len(windows) == 1:
+        return windows[0]
+    return Window(windows[0].start, *(np.concatenate([getattr(w, f) for w in windows])
+                                      for f in ("root_pos", "rotations", "gait", "contacts")))

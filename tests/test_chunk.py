@@ -8,9 +8,8 @@ import numpy as np
 import pytest
 
 from service.chunk import chunk_message, packed_chunk
-from synth_core.live_shards import joined
 from synth_core.scratch import Scratch
-from synth_core.streaming import Window
+from synth_core.streaming import Window, joined
 
 
 def window(C: int, n: int, J: int, start: int, seed: int) -> Window:

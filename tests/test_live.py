@@ -10,10 +10,10 @@ from synth_core import crowd
 from synth_core.bank import Bank
 from synth_core.live import LiveSynth, _Columns
 from synth_core.live_shards import LiveShards
-from synth_core.live_shards import joined as shards_joined
 from synth_core.metrics import foot_skate
 from synth_core.skeleton import forward_kinematics
 from synth_core.streaming import Window
+from synth_core.streaming import joined as shards_joined
 from synth_core.synthesis import Options, synthesize
 from synth_core.trajectory import TrajectoryError
 

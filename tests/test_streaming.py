@@ -101,6 +101,12 @@ def test_first_window_in_parts_equals_the_whole_batch(bank: Bank, monkeypatch: p
         for name in ("root_pos", "rotations", "gait", "contacts"):
             joined = np.concatenate([getattr(w, name) for w in windows], axis=1)
             assert np.array_equal(joined, getattr(whole, name)), (name, chunk)
+        # As chunks (what the service packs): the first in its parts, characters in order.
+        chunks = list(BatchStream(bank, paths, options=opts, chunk_frames=chunk).chunks())
+        assert [len(c) for c in chunks] == [cores] + [1] * (len(windows) - 1)
+        for name in ("root_pos", "rotations", "gait", "contacts"):
+            first = np.concatenate([getattr(w, name) for w in chunks[0]])
+            assert np.array_equal(first, getattr(windows[0], name)), name
 
 
 def test_bad_batches_fail_before_any_window(bank: Bank) -> None:
