@@ -142,10 +142,8 @@ class BatchStream:
 
     def _render(self, p: Plan, start: int, stop: int,
                 bounds: tuple[NDArray[np.int64], NDArray[np.int64]] | None,
-                context: tuple[NDArray[np.int64], NDArray[np.int64]] | None = None,
-                out: NDArray[np.float32] | None = None) -> Window:
-        """Frames ``[start, stop)`` of plan ``p`` (``context``: their lock contexts, if known;
-        ``out``: where the compiled render writes the rotations)."""
+                context: tuple[NDArray[np.int64], NDArray[np.int64]] | None = None) -> Window:
+        """Frames ``[start, stop)`` of plan ``p`` (``context``: their lock contexts, if known)."""
         lock = self.options.foot_lock
         C = p.yaw.shape[0]
         if not lock:
@@ -153,15 +151,14 @@ class BatchStream:
         else:
             begin, end = self._context(p, start, stop, bounds) if context is None else context
         if compiled_backend(self.options):
-            root, rot = kernels.render_window(self.bank, p, start, stop, begin, end, lock, out=out)
+            root, rot = kernels.render_window(self.bank, p, start, stop, begin, end, lock)
         else:  # the reference: one context for all, the widest
             b, e = int(begin.min()), int(end.max())
             root, rot = render(self.bank, p.window(b, e), lock)
             root, rot = root[:, start - b:stop - b], rot[:, start - b:stop - b]
         return Window(start, root, rot, p.gait[:, start:stop], p.contacts[:, start:stop])
 
-    def _first_part(self, rows: slice, stop: int,
-                    out: NDArray[np.float32] | None) -> tuple[Window, Plan | None]:
+    def _first_part(self, rows: slice, stop: int) -> tuple[Window, Plan | None]:
         """Frames ``[0, stop)`` of characters ``rows``, from a plan of just those frames and
         their lock context's if that is enough; and the part's whole plan if it took it."""
         prep = replace(self.prep, positions=self.prep.positions[rows],
@@ -173,12 +170,12 @@ class BatchStream:
             reach = stop + PAD + int(strides * self.bank.mean_cycle)
             early = plan(self.bank, prep, h, keys, margin, frames=reach, compiled=compiled)
             if early.yaw.shape[1] == T:  # that was all of it
-                return self._render(early, 0, stop, None, None, out), early
+                return self._render(early, 0, stop, None), early
             context = self._context(early, 0, stop) if lock else None
             if context is None or context[1].max() < early.yaw.shape[1]:
-                return self._render(early, 0, stop, None, context, out), None
+                return self._render(early, 0, stop, None, context), None
         whole = plan(self.bank, prep, h, keys, margin, compiled=compiled)  # a plant runs past them all
-        return self._render(whole, 0, stop, None, None, out), whole
+        return self._render(whole, 0, stop, None), whole
 
     def _first_window(self, stop: int) -> list[Window]:
         """Frames ``[0, stop)``: the characters in parts side by side (see the module doc), a
@@ -186,11 +183,11 @@ class BatchStream:
         C = self.prep.positions.shape[0]
         parts = min(render_pool.size(), C // MIN_PART) if compiled_backend(self.options) else 1
         if parts <= 1:
-            window, whole = self._first_part(slice(0, C), stop, None)
+            window, whole = self._first_part(slice(0, C), stop)
             self._plan = whole if whole is not None else self._plan
             return [window]
         cuts = np.linspace(0, C, parts + 1).round().astype(np.int64).tolist()
-        futures = [render_pool.pool().submit(self._first_part, slice(a, b), stop, None)
+        futures = [render_pool.pool().submit(self._first_part, slice(a, b), stop)
                    for a, b in zip(cuts[:-1], cuts[1:], strict=True)]
         wait(futures)  # every part done before an error is raised: none left running
         done = [f.result() for f in futures]
@@ -206,8 +203,9 @@ class BatchStream:
 
     def chunks(self) -> Iterator[list[Window]]:
         """:meth:`windows`, each as the windows of consecutive characters it was made in: the
-        first in its parts (packed side by side: :func:`service.chunk.packed_chunk`, a tenth of
-        its time when joined first), the others whole."""
+        first in its parts, the others whole. The service packs a chunk's windows side by side
+        (:func:`service.chunk.packed_chunk`): joined first, the first chunk was packed on one
+        thread, ~2 ms of the ~40-50 a client waits for it."""
         K, T = self.chunk_frames, self.frames
         first_stop = min(K, T)
         yield self._first_window(first_stop)
