@@ -59,6 +59,7 @@ from synth_core.synthesis import (
     decision_step,
     distance_since,
     entry_frame,
+    hub_clocks,
     lookahead,
     render,
     stride_clocks,
@@ -503,8 +504,7 @@ class LiveSynth:
         n = np.arange(len(go))
         # The gait's stride clock on to its entry phase (these characters only: a stride ahead).
         v = self._speeds(np.arange(a, a + self.horizon + 1), go)
-        ahead_clocks = stride_clocks(self.bank, self.kinds, v, a, self.clock[:, go])
-        clock = ahead_clocks[cur, n]
+        clock = hub_clocks(self.bank, cur, v, a, self.clock[:, go])
         wait, tr, resume = switch(self.kinds, cur, new, P.first[go, j], clock[n, d - a] - P.clock0[go, j])
         begin = entry_frame(clock, d - a, wait) + a
         assert (begin <= a + self.horizon).all(), "the horizon covers a stride from the decision on"

@@ -184,10 +184,26 @@ def stride_clocks(bank: Bank, kinds: _Kinds, speed: Floats, t0: int = 0,
     C, T = speed.shape
     clocks = np.broadcast_to(np.arange(t0, t0 + T + 1, dtype=np.float64), (N_HUBS + 1, C, T + 1)).copy()
     for hub, s in bank.speeds.items():
-        rate = np.clip(speed / s[-1], 1.0, MAX_RATE)
-        begin = np.zeros(C) if at is None else at[hub]
-        clocks[hub] = np.cumsum(np.concatenate([begin[:, None], rate], axis=1), axis=1)
+        clocks[hub] = _stride_clock(speed, s[-1], np.zeros(C) if at is None else at[hub])
     return clocks
+
+
+def hub_clocks(bank: Bank, hubs: NDArray[np.int64], speed: Floats, t0: int, at: Floats) -> Floats:
+    """(C, T+1): :func:`stride_clocks`' row of each character's own hub ``hubs (C,)`` only (the
+    same numbers; a live decision reads no other: a fifth of the work)."""
+    C, T = speed.shape
+    clocks = np.broadcast_to(np.arange(t0, t0 + T + 1, dtype=np.float64), (C, T + 1)).copy()
+    for hub, s in bank.speeds.items():
+        who = np.flatnonzero(hubs == hub)
+        if len(who):
+            clocks[who] = _stride_clock(speed[who], s[-1], at[hub, who])
+    return clocks
+
+
+def _stride_clock(speed: Floats, fastest: float, begin: Floats) -> Floats:
+    """One hub's clock from ``begin (C,)``: a clip frame per frame, up to MAX_RATE faster."""
+    rate = np.clip(speed / fastest, 1.0, MAX_RATE)
+    return np.asarray(np.cumsum(np.concatenate([begin[:, None], rate], axis=1), axis=1))
 
 
 def switch(kinds: _Kinds, cur: NDArray[np.int64], new: NDArray[np.int64], first: NDArray[np.int64],
