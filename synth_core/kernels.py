@@ -600,16 +600,17 @@ def _render_windows(poses: Any, height: Any, surge: Any, rows: Any, weights: Any
                     scales: Any, contacts: Any, parents: Any, offsets: Any, fk_joints: Any, rigs: Any,
                     bends: Any, sink_limit: float, foot_lock: bool, workers: int, begin: Any, end: Any,
                     start: int, out_rot: Any, out_root: Any, known_feet: Any, known: Any,
-                    known_legs: Any, legs_at: Any) -> None:
-    """Frames ``[start, start + out.shape[1])`` of each character, rendered over its own context
-    ``[begin[c], end[c])`` of the plan (see :func:`render_window`); ``known_feet (T, C, 4, 3)``
-    (or none: ``(0, C, 4, 3)``), ``known``, ``known_legs``, ``legs_at``: a :class:`Posed`'s,
-    moved on (``known`` to ``end``, ``legs_at`` to the window's end)."""
-    C, n, J = out_rot.shape[0], out_rot.shape[1], out_rot.shape[2]
+                    known_legs: Any, legs_at: Any, c0: int, c1: int) -> None:
+    """Frames ``[start, start + out.shape[1])`` of characters ``[c0, c1)``, each rendered over
+    its own context ``[begin[c], end[c])`` of the plan (see :func:`render_window`);
+    ``known_feet (T, C, 4, 3)`` (or none: ``(0, C, 4, 3)``), ``known``, ``known_legs``,
+    ``legs_at``: a :class:`Posed`'s, moved on (``known`` to ``end``, ``legs_at`` to the
+    window's end). Calls for disjoint character ranges may run side by side."""
+    n, J = out_rot.shape[1], out_rot.shape[2]
     longest = 0
-    for c in range(C):
+    for c in range(c0, c1):
         longest = max(longest, end[c] - begin[c])
-    workers = min(C, workers)
+    workers = min(c1 - c0, workers)
     keep = known_feet.shape[0] > 0
     for worker in _prange(workers):
         rot = np.empty((longest, J, 4), np.float32)
@@ -622,7 +623,7 @@ def _render_windows(poses: Any, height: Any, surge: Any, rows: Any, weights: Any
         sink = np.empty(longest)
         eased = np.empty(longest)
         no_recent = np.empty((PAD, 4, LEG_WIDTH))
-        for c in range(worker, C, workers):
+        for c in range(c0 + worker, c1, workers):
             b, e = begin[c], end[c]
             k = e - b
             kn = min(max(known[c] - b, 0), k) if keep else 0  # frames with their feet known
@@ -716,6 +717,12 @@ def _bank_tables(bank: Bank) -> tuple[tuple[Any, Any, Any], tuple[Any, Any, Any,
              MAX_SINK * sk.leg_length()))
 
 
+# Parts of a shared window's characters (see render_window): enough that a thread done with its own
+# work takes a part of another's and the two end near together, few enough that each call's
+# overhead stays small.
+SHARED_PARTS = 4
+
+
 class Posed(NamedTuple):
     """What a live session's windows keep of the frames they posed, for the later windows over
     the same plan (see :func:`render_window`): the feet ``(T, C, 4, 3)`` float64, C-contiguous
@@ -736,7 +743,8 @@ class Posed(NamedTuple):
 
 def render_window(bank: Bank, plan: Plan, start: int, stop: int, begin: NDArray[np.int64],
                   end: NDArray[np.int64], foot_lock: bool = True, known: Posed | None = None,
-                  out: NDArray[np.float32] | None = None
+                  out: NDArray[np.float32] | None = None,
+                  share: Callable[[list[Callable[[], None]]], None] | None = None
                   ) -> tuple[NDArray[np.float32], NDArray[np.float32]]:
     """Root ``(C, stop - start, 3)`` and rotations of frames ``[start, stop)`` only, each
     character rendered over its context ``[begin, end)`` of ``plan`` (from
@@ -749,7 +757,12 @@ def render_window(bank: Bank, plan: Plan, start: int, stop: int, begin: NDArray[
     the PAD frames before it (their sink read from ``known.legs``: a third of the posing left).
     What the frames posed give is written there, ``frames`` and ``legs_at`` moved on.
 
-    ``out``: the rotations are written there (C-contiguous ``(C, stop - start, J, 4)`` float32)."""
+    ``out``: the rotations are written there (C-contiguous ``(C, stop - start, J, 4)`` float32).
+
+    ``share``: the characters are cut into SHARED_PARTS parts, each a one-thread render, which
+    ``share`` runs (:func:`synth_core.render_pool.shared`: threads with nothing else to do take
+    some): a live session's shards, each rendered by its own thread, finish together though one
+    has more to pose than the other."""
     if not AVAILABLE:
         raise RuntimeError("synth_core.kernels needs numba; use the numpy backend")
     C = plan.yaw.shape[0]
@@ -773,12 +786,17 @@ def render_window(bank: Bank, plan: Plan, start: int, stop: int, begin: NDArray[
     assert out_rot.shape == (C, stop - start, J, 4) and out_rot.dtype == np.float32
     assert out_rot.flags.c_contiguous
     table, skeleton = _bank_tables(bank)
+    args = (*table, *_plan_arrays(plan.window(cb, ce)), *skeleton, foot_lock,
+            1 if share else numba.get_num_threads(), np.asarray(begin, np.int64) - cb,
+            np.asarray(end, np.int64) - cb, start - cb, out_rot, out_root,
+            posed.feet[cb:ce] if known is not None else posed.feet, posed.frames, posed.legs, posed.legs_at)
     try:
-        _render_windows(*table, *_plan_arrays(plan.window(cb, ce)), *skeleton, foot_lock,
-                        numba.get_num_threads(), np.asarray(begin, np.int64) - cb,
-                        np.asarray(end, np.int64) - cb, start - cb, out_rot, out_root,
-                        posed.feet[cb:ce] if known is not None else posed.feet, posed.frames, posed.legs,
-                        posed.legs_at)
+        if share is None:
+            _render_windows(*args, 0, C)
+        else:
+            cuts = np.linspace(0, C, SHARED_PARTS + 1).round().astype(np.int64).tolist()
+            share([functools.partial(_render_windows, *args, a, b)
+                   for a, b in zip(cuts[:-1], cuts[1:], strict=True) if b > a])
     finally:
         posed.frames[...] += cb
         posed.legs_at[...] += cb

@@ -38,7 +38,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from synth_core import gaussian, kernels, plan_kernels
+from synth_core import gaussian, kernels, plan_kernels, render_pool
 from synth_core.bank import Bank
 from synth_core.draws import SCHEDULE_STREAM, character_keys, uniform
 from synth_core.footlock import EASE_FRAMES, PAD
@@ -175,6 +175,10 @@ class LiveSynth:
     (:mod:`synth_core.scratch`): the pages of a 2,000-horse window's 36 MB, zeroed by the OS as
     they were first written, were 6% of a live session's CPU here (perf). Without it, every
     window is new arrays.
+
+    ``share_render``: each window's render is cut into parts that idle render-pool threads may
+    take (:func:`synth_core.render_pool.shared`): for a session cut into shards, each advanced
+    by a pool thread (see :mod:`synth_core.live_shards`).
     """
 
     def __init__(self, bank: Bank, n_characters: int, fps: float | None = None, *,
@@ -182,7 +186,7 @@ class LiveSynth:
                  scale_range: tuple[float, float] = (1.0, 1.0), sigma: float = DEFAULT_SIGMA,
                  margin: int = MARGIN, foot_lock: bool = True, backend: str = "auto",
                  heading: float = 0.0, lock_lag: int = LOCK_LAG, first: int = 0,
-                 reuse_windows: bool = False) -> None:
+                 reuse_windows: bool = False, share_render: bool = False) -> None:
         if not (isinstance(n_characters, int) and n_characters >= 1):
             raise TrajectoryError(f"characters: need at least one, got {n_characters}")
         fps = bank.fps if fps is None else float(fps)
@@ -194,6 +198,7 @@ class LiveSynth:
         self.bank, self.fps, self.sigma, self.margin = bank, fps, float(sigma), margin
         self.foot_lock, self.heading = foot_lock, float(heading)
         self.scratch = Scratch() if reuse_windows else None
+        self.share = render_pool.shared if share_render else None
         self.lock_lag = lock_lag if foot_lock else 0
         self.rendered = 0  # library frames rendered
         self.settled = 0  # library frames planned to send: [rendered, settled) wait for take()
@@ -702,7 +707,8 @@ class LiveSynth:
                                   self.legs_at - o0)
             out = None if self.scratch is None else self.scratch.array(
                 "live.rotations", (len(self.scales), hi - lo, self.bank.skeleton.n_joints, 4), np.float32)
-            root, rot = kernels.render_window(self.bank, buf, lo, hi, begin, end, self.foot_lock, posed, out)
+            root, rot = kernels.render_window(self.bank, buf, lo, hi, begin, end, self.foot_lock, posed, out,
+                                              self.share)
             self.known_feet, self.legs_at = posed.frames + o0, posed.legs_at + o0
         else:
             cb, ce = int(begin.min()), int(end.max())

@@ -61,6 +61,9 @@ class LiveShards:
             return [arr[a:b] for a, b in zip(self.cuts[:-1], self.cuts[1:], strict=True)]
 
         shard_scales, shard_seeds = each("scales", scales, np.float64), each("seeds", seeds, np.int64)
+        # A shard done with its tick takes parts of another's render (the shards' characters pose
+        # unequal work: in a herd sorted by rows, one half's took a tenth longer than the other's).
+        options.setdefault("share_render", len(self.cuts) > 2)
         self.parts = [self._each_shard(functools.partial(LiveSynth, bank, int(b - a), fps, scales=sc,
                                                          seeds=sd, first=int(a), **options), int(a))
                       for a, b, sc, sd in zip(self.cuts[:-1], self.cuts[1:], shard_scales, shard_seeds,

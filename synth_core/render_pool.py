@@ -13,7 +13,7 @@ from __future__ import annotations
 import functools
 import os
 from collections import deque
-from collections.abc import Callable, Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from concurrent.futures import ThreadPoolExecutor, wait
 from itertools import islice
 from typing import TypeVar
@@ -41,6 +41,30 @@ def size() -> int:
 @functools.cache
 def pool() -> ThreadPoolExecutor:
     return ThreadPoolExecutor(size(), thread_name_prefix="render", initializer=_one_render_thread)
+
+
+def shared(jobs: Sequence[Callable[[], object]]) -> None:
+    """Run every job: the first in the caller's thread, the others offered to the pool -- a pool
+    thread with nothing else to do takes one -- and those no thread has begun when the caller
+    gets to them, the caller runs itself. The caller waits only for jobs already running, so a
+    pool thread may call it; work of one thread spreads to those that are idle (a live session's
+    shards: one has more to pose than the other). Errors are raised once all have ended."""
+    offered = [pool().submit(job) for job in jobs[1:]]
+    try:
+        if jobs:
+            jobs[0]()
+        for job, future in reversed(list(zip(jobs[1:], offered, strict=True))):  # the pool takes the first
+            if future.cancel():
+                job()
+    finally:
+        for future in offered:
+            future.cancel()
+        # Nothing left running. (Not waiting for the cancelled: one counts as done only once a
+        # pool thread has dropped it, and the pool's threads may all be callers waiting here.)
+        begun = [future for future in offered if not future.cancelled()]
+        wait(begun)
+    for future in begun:
+        future.result()
 
 
 def ordered(work: Callable[[_T], _R], items: Iterable[_T]) -> Iterator[_R]:

@@ -143,14 +143,16 @@ def test_bad_points_are_refused_naming_the_character(bank: Bank) -> None:
 
 
 def test_shards_make_the_sessions_frames_bit_for_bit(bank: Bank, herd: np.ndarray) -> None:
-    """A session cut into shards (each advanced in its own thread, rendering on one) makes one
-    LiveSynth's frames: its characters' draws (scales, gaits) by their index in the session."""
+    """A session cut into shards (each advanced in its own thread, rendering on one, parts of
+    its render taken by the threads done first) makes one LiveSynth's frames: its characters'
+    draws (scales, gaits) by their index in the session."""
     seeds = np.where(np.arange(len(herd)) % 5 == 0, 11, -1)  # some characters with their own seed
     scales = np.where(np.arange(len(herd)) % 4 == 1, 1.1, np.nan)  # some given, the rest drawn
     options = {"seed": 5, "scale_range": (0.8, 1.2), "scales": scales, "seeds": seeds}
     whole = LiveSynth(bank, len(herd), 60.0, **options)  # type: ignore[arg-type]
     sharded = LiveShards(bank, len(herd), 60.0, shards=3, **options)  # type: ignore[arg-type]
     assert [len(p.scales) for p in sharded.parts] == [8, 8, 8]
+    assert all(p.share is not None for p in sharded.parts) and whole.share is None
     np.testing.assert_array_equal(sharded.scales, whole.scales)
     assert sharded.latency_frames == whole.latency_frames
     rng = np.random.default_rng(1)

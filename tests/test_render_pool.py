@@ -1,10 +1,13 @@
 """synth_core.render_pool.ordered: parts of a work side by side, results in order, nothing left
-running when stopped early."""
+running when stopped early; render_pool.shared: a thread's parts taken by idle threads, every part
+run once, from every pool thread at once without a deadlock."""
 
 from __future__ import annotations
 
+import functools
 import threading
 import time
+from concurrent.futures import wait
 
 import pytest
 
@@ -57,3 +60,52 @@ def test_closing_early_waits_for_the_parts_running() -> None:
     finished = len(done)
     time.sleep(0.2)
     assert len(done) == finished < 50  # what was running had finished; nothing began after
+
+
+def test_shared_parts_run_once_each_and_idle_threads_take_some() -> None:
+    ran: list[tuple[int, str]] = []
+
+    def part(i: int) -> None:
+        time.sleep(0.02)
+        ran.append((i, threading.current_thread().name))
+
+    render_pool.shared([functools.partial(part, i) for i in range(8)])
+    assert sorted(i for i, _ in ran) == list(range(8))
+    assert dict(ran)[0] == threading.current_thread().name  # the first in the caller's thread
+    helpers = {name for _, name in ran if name != threading.current_thread().name}
+    assert helpers and all(name.startswith("render") for name in helpers)  # the idle pool took some
+
+
+def test_shared_from_every_pool_thread_at_once_ends() -> None:
+    """Each pool thread shares its own parts while the others are busy doing the same (a live
+    session's shards): no thread waits for a part nobody has begun."""
+    threads = render_pool.size()
+    ran: list[tuple[int, int]] = []
+    barrier = threading.Barrier(threads)
+
+    def shard(s: int) -> None:
+        barrier.wait()  # every pool thread busy here before any shares
+        render_pool.shared([functools.partial(ran.append, (s, i)) for i in range(6)])
+
+    futures = [render_pool.pool().submit(shard, s) for s in range(threads)]
+    done, running = wait(futures, timeout=10)
+    assert not running, "a pool thread waits for a part no thread has begun"
+    for f in futures:
+        f.result()
+    assert sorted(ran) == [(s, i) for s in range(threads) for i in range(6)]
+
+
+def test_shared_raises_a_parts_error_after_the_others_ended() -> None:
+    ended: list[int] = []
+
+    def part(i: int) -> None:
+        if i == 2:
+            raise ValueError("part 2 failed")
+        time.sleep(0.02)
+        ended.append(i)
+
+    with pytest.raises(ValueError, match="part 2 failed"):
+        render_pool.shared([functools.partial(part, i) for i in range(4)])
+    count = len(ended)
+    time.sleep(0.1)
+    assert len(ended) == count  # none was still running when it raised
