@@ -720,7 +720,7 @@ def _bank_tables(bank: Bank) -> tuple[tuple[Any, Any, Any], tuple[Any, Any, Any,
 # Parts of a shared window's characters (see render_window): enough that a thread done with its own
 # work takes a part of another's and the two end near together, few enough that each call's
 # overhead stays small.
-SHARED_PARTS = 4
+SHARED_PARTS = 8
 
 
 class Posed(NamedTuple):

@@ -142,8 +142,10 @@ class BatchStream:
 
     def _render(self, p: Plan, start: int, stop: int,
                 bounds: tuple[NDArray[np.int64], NDArray[np.int64]] | None,
-                context: tuple[NDArray[np.int64], NDArray[np.int64]] | None = None) -> Window:
-        """Frames ``[start, stop)`` of plan ``p`` (``context``: their lock contexts, if known)."""
+                context: tuple[NDArray[np.int64], NDArray[np.int64]] | None = None,
+                shared: bool = False) -> Window:
+        """Frames ``[start, stop)`` of plan ``p`` (``context``: their lock contexts, if known;
+        ``shared``: in parts the pool's idle threads may take, see kernels.render_window)."""
         lock = self.options.foot_lock
         C = p.yaw.shape[0]
         if not lock:
@@ -151,16 +153,19 @@ class BatchStream:
         else:
             begin, end = self._context(p, start, stop, bounds) if context is None else context
         if compiled_backend(self.options):
-            root, rot = kernels.render_window(self.bank, p, start, stop, begin, end, lock)
+            root, rot = kernels.render_window(self.bank, p, start, stop, begin, end, lock,
+                                              share=render_pool.shared if shared else None)
         else:  # the reference: one context for all, the widest
             b, e = int(begin.min()), int(end.max())
             root, rot = render(self.bank, p.window(b, e), lock)
             root, rot = root[:, start - b:stop - b], rot[:, start - b:stop - b]
         return Window(start, root, rot, p.gait[:, start:stop], p.contacts[:, start:stop])
 
-    def _first_part(self, rows: slice, stop: int) -> tuple[Window, Plan | None]:
+    def _first_part(self, rows: slice, stop: int, shared: bool = False) -> tuple[Window, Plan | None]:
         """Frames ``[0, stop)`` of characters ``rows``, from a plan of just those frames and
-        their lock context's if that is enough; and the part's whole plan if it took it."""
+        their lock context's if that is enough; and the part's whole plan if it took it.
+        ``shared``: one of parts side by side on the pool, whose renders the part done first
+        helps finish (the parts' plans and contexts differ: one ended up to 5 ms after the other)."""
         prep = replace(self.prep, positions=self.prep.positions[rows],
                        segment_speeds=self.prep.segment_speeds[rows])
         h, keys = self.character_scales[rows], self.keys[rows]
@@ -170,12 +175,12 @@ class BatchStream:
             reach = stop + PAD + int(strides * self.bank.mean_cycle)
             early = plan(self.bank, prep, h, keys, margin, frames=reach, compiled=compiled)
             if early.yaw.shape[1] == T:  # that was all of it
-                return self._render(early, 0, stop, None), early
+                return self._render(early, 0, stop, None, shared=shared), early
             context = self._context(early, 0, stop) if lock else None
             if context is None or context[1].max() < early.yaw.shape[1]:
-                return self._render(early, 0, stop, None, context), None
+                return self._render(early, 0, stop, None, context, shared), None
         whole = plan(self.bank, prep, h, keys, margin, compiled=compiled)  # a plant runs past them all
-        return self._render(whole, 0, stop, None), whole
+        return self._render(whole, 0, stop, None, shared=shared), whole
 
     def _first_window(self, stop: int) -> list[Window]:
         """Frames ``[0, stop)``: the characters in parts side by side (see the module doc), a
@@ -187,7 +192,7 @@ class BatchStream:
             self._plan = whole if whole is not None else self._plan
             return [window]
         cuts = np.linspace(0, C, parts + 1).round().astype(np.int64).tolist()
-        futures = [render_pool.pool().submit(self._first_part, slice(a, b), stop)
+        futures = [render_pool.pool().submit(self._first_part, slice(a, b), stop, True)
                    for a, b in zip(cuts[:-1], cuts[1:], strict=True)]
         wait(futures)  # every part done before an error is raised: none left running
         done = [f.result() for f in futures]

@@ -74,8 +74,9 @@ def test_first_window_in_parts_equals_the_whole_batch(bank: Bank, monkeypatch: p
     reaches: list[int | None] = []
     first_part, plan = streaming.BatchStream._first_part, streaming.plan
 
-    def spy(self: BatchStream, rows: slice, stop: int) -> object:
-        window, plan = first_part(self, rows, stop)
+    def spy(self: BatchStream, rows: slice, stop: int, shared: bool = False) -> object:
+        assert shared  # the parts' renders shared among the pool's threads
+        window, plan = first_part(self, rows, stop, shared)
         parts.append((rows, plan is not None))
         return window, plan
 
