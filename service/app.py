@@ -48,6 +48,7 @@ from service.metrics import Metrics, MetricsMiddleware
 from service.packing import characters_out, skeleton_id
 from service.settings import Settings
 from synth_core.motion_graph import HUBS
+from synth_core.scratch import Shelf
 from synth_core.synthesis import Result
 
 Answer = TypeVar("Answer")
@@ -90,6 +91,7 @@ class State:
         self.metrics = Metrics()
         self.admission = Admission(settings.max_in_flight, settings.max_queued, self.metrics)
         self.pool = ThreadPoolExecutor(settings.max_in_flight, thread_name_prefix="synth")
+        self.scratches = Shelf()  # live sessions' chunk buffers, kept from session to session
         self.draining = False
         self.drain = asyncio.Event()  # set on SIGTERM: WebSocket sessions close with 1001
         self.sessions: set[Any] = set()  # open WebSocket sessions (service.stream.Session)

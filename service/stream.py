@@ -27,7 +27,6 @@ from service import jobs, live
 from service.chunk import packed_chunk
 from service.errors import ApiError, error_body
 from service.packing import skeleton_id
-from synth_core.scratch import Scratch
 from synth_core.streaming import BatchStream, Window
 from synth_core.trajectory import TrajectoryError
 
@@ -301,8 +300,9 @@ class Session:
         # Windows of at most a segment's frames: a finish (or a long points message) settling
         # more comes as several chunks, each window rendered and packed over the last's pages
         # (fresh pages, zeroed by the OS as they are first written, took a fifth of the server's
-        # CPU in a live session: perf).
-        scratch = Scratch()
+        # CPU in a live session: perf) -- and over an earlier session's (see Shelf).
+        scratch = self.state.scratches.take()
+        stepping = False  # a step may be writing into scratch
 
         W = synth.window_frames
 
@@ -330,10 +330,13 @@ class Session:
                            functools.partial(synth.append, live.points(message, C, settings), W))
                 while True:
                     t0 = time.perf_counter()
+                    stepping = True
                     try:
                         made = await self.in_pool(step, advance, sent)
                     except TrajectoryError as exc:
+                        stepping = False
                         raise live.live_error(exc, "points") from None
+                    stepping = False
                     self.state.metrics.synthesis_seconds += time.perf_counter() - t0
                     if sending is not None:
                         await sending  # in order, and its failure (a slow consumer) raised here
@@ -355,6 +358,10 @@ class Session:
             if sending is not None:  # leaving on an error: let its send finish first (this error wins)
                 with contextlib.suppress(Exception):
                     await sending
+            # Back for the next session unless a step or a send may still be using it (this
+            # coroutine cancelled while one ran; the pool thread goes on): then left to the GC.
+            if not stepping and (sending is None or sending.done()):
+                self.state.scratches.give(scratch)
         cancelled = self.cancel.is_set()
         self.cancel.clear()
         self.live_open = False

@@ -1,5 +1,6 @@
 """A stream's chunk message packed in place (service.chunk) is byte for byte msgpack's packing of
-the message as a dict -- from one window, or from a live session's shards' windows."""
+the message as a dict -- from one window, or from a live session's shards' windows; a Shelf lends
+a session's scratch to the next."""
 
 from __future__ import annotations
 
@@ -8,7 +9,7 @@ import numpy as np
 import pytest
 
 from service.chunk import chunk_message, packed_chunk
-from synth_core.scratch import Scratch
+from synth_core.scratch import Scratch, Shelf
 from synth_core.streaming import Window, joined
 
 
@@ -53,3 +54,21 @@ def test_chunks_packed_on_a_scratch_reuse_its_buffer() -> None:
     assert bytes(again) == msgpack.packb(chunk_message(0, 2, small, "s48"), use_bin_type=True)
     assert np.shares_memory(np.frombuffer(first, np.uint8), np.frombuffer(again, np.uint8))
     assert not np.shares_memory(np.frombuffer(other, np.uint8), np.frombuffer(again, np.uint8))
+
+
+def test_a_shelf_lends_what_was_given_back_and_keeps_few() -> None:
+    shelf = Shelf(keep=2)
+    first = shelf.take()
+    pages = packed_chunk(0, 0, [window(6, 9, 5, 0, 1)], "s48", first, "chunk0")[1]
+    shelf.give(first)
+    again = shelf.take()
+    assert again is first  # the next session packs over the pages the last one touched
+    small = window(2, 3, 5, 0, 2)
+    reused = packed_chunk(0, 0, [small], "s48", again, "chunk0")[1]
+    assert np.shares_memory(np.frombuffer(pages, np.uint8), np.frombuffer(reused, np.uint8))
+    assert bytes(reused) == msgpack.packb(chunk_message(0, 0, small, "s48"), use_bin_type=True)
+    assert shelf.take() is not first  # lent: never to two at once
+    for s in [again, again, Scratch(), Scratch()]:  # the same twice counts once; at most two kept
+        shelf.give(s)
+    kept = [shelf.take() for _ in range(3)]
+    assert kept[0] is not kept[1] and again in kept[:2] and all(k not in kept[:2] for k in kept[2:])

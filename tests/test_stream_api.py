@@ -316,6 +316,32 @@ def test_live_cancel_ends_the_session_and_the_next_can_start(server: str) -> Non
         assert receive(ws)["type"] == "start"
 
 
+def test_a_live_session_after_a_bigger_one_sends_the_same_bytes(server: str) -> None:
+    """Live sessions pack their chunks over the buffers an earlier session of the worker used
+    (service.stream, synth_core.scratch.Shelf): after a bigger session, a session sends the
+    bytes it sent before it."""
+    def session(characters: int) -> list[bytes]:
+        path = crowd.simulate(characters, 200, seed=2, fps=30.0).astype(np.float32)
+        raw: list[bytes] = []
+        with live_open(server, characters) as ws:
+            for i in range(0, 200, 40):
+                send(ws, {"type": "points", "points": blob(path[:, i:i + 40])})
+            send(ws, {"type": "finish"})
+            while True:
+                data = ws.recv(timeout=30)
+                assert isinstance(data, bytes)
+                message = msgpack.unpackb(data)
+                if message["type"] == "end":
+                    return raw
+                assert message["type"] == "chunk"
+                raw.append(data)
+                send(ws, {"type": "ack", "chunk": message["chunk"]})
+
+    first = session(3)
+    session(12)  # larger chunks: the buffers grow
+    assert session(3) == first and len(first) >= 3
+
+
 def test_the_benchmarks_lean_client_reads_what_the_service_sends(server: str) -> None:
     """quadsynth.bench_ws (bench-service's client: RFC 6455 framing on a plain socket, chunks
     read into one buffer, only their heads decoded) against the service: a stream's chunks as
