@@ -223,11 +223,12 @@ def _frames(offset: Any, frames_of: Any, clips: Any, cyclic: Any, source: Any, t
             creep: float, start: Any, kind_e: Any, first_e: Any, rows: Any, weights: Any, gait: Any,
             contacts: Any, stitches: Any) -> None:
     """The rest of synthesis.plan for one character: which piece plays each frame, its rows, the
-    piece fading out, gait, contacts and stitches."""
+    piece fading out, gait, contacts and stitches -- of the first ``rows.shape[0]`` frames (a
+    first window's plan needs the schedule further, its rows not)."""
     T = v.shape[0]
     E = start.shape[0]
     e = 0
-    for t in range(T):
+    for t in range(rows.shape[0]):
         moved = False
         while e + 1 < E and min(start[e + 1], T + 1) <= t:
             e += 1
@@ -294,15 +295,17 @@ def _plan_all(offset: Any, frames_of: Any, clips: Any, cyclic: Any, source: Any,
 
 def plan_frames(tb: Tables, contacts_of: NDArray[np.bool_], slowest: int, fastest: int, max_rate: float,
                 margin: int, step: int, ahead: int, creep: float, v: NDArray[np.float64],
-                path: NDArray[np.float64], h: NDArray[np.float64], draws: NDArray[np.float64]
+                path: NDArray[np.float64], h: NDArray[np.float64], draws: NDArray[np.float64],
+                frames: int | None = None
                 ) -> tuple[NDArray[np.int32], NDArray[np.float32], NDArray[np.int8], NDArray[np.bool_],
                            NDArray[np.bool_]]:
     """A plan's ``rows, weights, gait, contacts, stitches`` (see ``synthesis.Plan``) for speeds
     ``v (C, T)`` (the library's unit), smoothed ``path (C, T, 3)``, scales ``h (C,)`` and each
-    decision's draws ``(C, decisions, hubs)``."""
+    decision's draws ``(C, decisions, hubs)``; of the first ``frames`` frames (default: all T),
+    the schedule made from all T."""
     if not AVAILABLE:
         raise RuntimeError("synth_core.plan_kernels needs numba; use the numpy backend")
-    C, T = v.shape
+    C, T = v.shape[0], v.shape[1] if frames is None else min(frames, v.shape[1])
     rows = np.empty((C, T, 4), np.int32)
     weights = np.empty((C, T, 3), np.float32)
     gait = np.empty((C, T), np.int8)

@@ -447,16 +447,16 @@ def plan(bank: Bank, prep: Prepared, h: Floats, keys: NDArray[np.uint64], margin
         T = keep + lookahead(m) + 1
         path = path[:, :T]
     v = _frame_speeds(speeds, m, T)
-    yaw = headings(prep.positions, bank.fps, T)
+    yaw = headings(prep.positions, bank.fps, keep)  # of the frames kept only
     if compiled:
         tb = _plan_tables(bank)
         step = decision_step(m)
         draws = uniform_streams(keys, SCHEDULE_STREAM, -(-T // step), N_HUBS)
+        # Rows of the frames kept only (the schedule reads T: a first window's took twice as long).
         rows, weights, gait, contacts, stitches = plan_kernels.plan_frames(
             tb, bank.contacts, min(bank.speeds), max(bank.speeds), MAX_RATE, margin, step, lookahead(m),
-            bank.creep, v, path, h, draws)
-        full = Plan(rows, weights, yaw, path, h, contacts, stitches, gait)
-        return full if keep == T else full.window(0, keep)
+            bank.creep, v, path, h, draws, keep)
+        return Plan(rows, weights, yaw, path[:, :keep], h, contacts, stitches, gait)
     clocks = stride_clocks(bank, kinds, v)
     step = np.linalg.norm(np.diff(path[..., [0, 2]], axis=1), axis=-1)
     travelled = np.concatenate([np.zeros((C, 1)), np.cumsum(step, axis=1)], axis=1) / h[:, None]
