@@ -474,6 +474,33 @@ def live_block(tb: Tables, contacts_of: NDArray[np.bool_], max_rate: float, marg
 
 
 @_jit()
+def _points_fine(last: Any, pts: Any, limit: float) -> bool:
+    ok = True
+    for c in range(pts.shape[0]):
+        px, py, pz = last[c, 0], last[c, 1], last[c, 2]
+        for i in range(pts.shape[1]):
+            x, y, z = pts[c, i, 0], pts[c, i, 1], pts[c, i, 2]
+            dx, dy, dz = x - px, y - py, z - pz
+            ok = ok and math.isfinite(x) and math.isfinite(y) and math.isfinite(z)
+            # A NaN last point: none before (a session's first points); then the comparison is
+            # false, so it is asked first.
+            ok = ok and (math.isnan(px) or dx * dx + dy * dy + dz * dz <= limit * limit)
+            px, py, pz = x, y, z
+    return ok
+
+
+def live_points_fine(last: NDArray[np.float64], pts: NDArray[np.float64], limit: float) -> bool:
+    """Whether every point of ``pts (C, n, 3)`` is finite and within ``limit`` of the one before
+    (``last (C, 3)``: each character's point before them; NaN: none). False sends a caller to its
+    own checks for what is wrong and where (:meth:`synth_core.live.LiveSynth.check`, whose numpy
+    took a millisecond of a 2,000-horse tick's serial part)."""
+    if not AVAILABLE:
+        raise RuntimeError("synth_core.plan_kernels needs numba; use the numpy backend")
+    return bool(_points_fine(np.ascontiguousarray(last, np.float64), np.ascontiguousarray(pts, np.float64),
+                             float(limit)))
+
+
+@_jit()
 def _live_headings(pts: Any, off: int, fps: float, min_speed: float, last_dir: Any, moved: Any,
                    yaw: Any, never: Any) -> None:
     n = yaw.shape[1]

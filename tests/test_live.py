@@ -15,7 +15,7 @@ from synth_core.skeleton import forward_kinematics
 from synth_core.streaming import Window
 from synth_core.streaming import joined as shards_joined
 from synth_core.synthesis import Options, synthesize
-from synth_core.trajectory import TrajectoryError
+from synth_core.trajectory import TELEPORT_M, TrajectoryError
 
 
 def feed(live: LiveSynth, positions: np.ndarray, seed: int = 0) -> tuple[list[Window], list[int]]:
@@ -140,6 +140,40 @@ def test_bad_points_are_refused_naming_the_character(bank: Bank) -> None:
         LiveSynth(bank, 1, 60.0).finish()
     with pytest.raises(TrajectoryError, match=r"fps: must be within \(0, 60\]"):
         LiveSynth(bank, 1, 120.0)
+
+
+def test_the_compiled_points_check_passes_what_the_numpy_check_passes(bank: Bank) -> None:
+    """LiveSynth.check's compiled fast path (plan_kernels.live_points_fine) passes exactly the
+    points the numpy checks pass: NaN and Inf anywhere, jumps just over and under the limit,
+    from the last point given or (a session's first points) between the points only."""
+    pytest.importorskip("numba")
+    rng = np.random.default_rng(3)
+    limit = TELEPORT_M
+    cases = 0
+    for first in (True, False):
+        for trial in range(60):
+            pts = np.cumsum(rng.uniform(-0.3, 0.3, (4, 6, 3)), axis=1)
+            c, i = int(rng.integers(4)), int(rng.integers(6))
+            kind = trial % 6
+            if kind == 1:
+                pts[c, i, int(rng.integers(3))] = [np.nan, np.inf, -np.inf][trial % 3]
+            elif kind in (2, 3):  # a jump a hair over or under the limit
+                before = pts[c, i - 1] if i > 0 else np.zeros(3)
+                pts[c, i:] += before + [limit * (1.0001 if kind == 2 else 0.9999), 0.0, 0.0] - pts[c, i]
+            results = []
+            for compiled in (True, False):
+                live = LiveSynth(bank, 4, 60.0)
+                live.plan_compiled = compiled
+                if not first:
+                    live.append(np.zeros((4, 1, 3)))
+                try:
+                    live.check(pts)
+                    results.append("fine")
+                except TrajectoryError as exc:
+                    results.append(str(exc))
+            assert results[0] == results[1], (first, trial)
+            cases += results[0] != "fine"
+    assert cases >= 40  # the refusals were exercised, not only the passes
 
 
 def test_shards_make_the_sessions_frames_bit_for_bit(bank: Bank, herd: np.ndarray) -> None:
