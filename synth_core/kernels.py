@@ -761,8 +761,8 @@ def render_window(bank: Bank, plan: Plan, start: int, stop: int, begin: NDArray[
 
     ``share``: the characters are cut into SHARED_PARTS parts, each a one-thread render, which
     ``share`` runs (:func:`synth_core.render_pool.shared`: threads with nothing else to do take
-    some): a live session's shards, each rendered by its own thread, finish together though one
-    has more to pose than the other."""
+    some): renders side by side on the pool's threads -- a live session's shards, a stream's
+    first-window parts -- finish together though one has more to pose than the other."""
     if not AVAILABLE:
         raise RuntimeError("synth_core.kernels needs numba; use the numpy backend")
     C = plan.yaw.shape[0]

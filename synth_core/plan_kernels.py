@@ -482,8 +482,8 @@ def _points_fine(last: Any, pts: Any, limit: float) -> bool:
             x, y, z = pts[c, i, 0], pts[c, i, 1], pts[c, i, 2]
             dx, dy, dz = x - px, y - py, z - pz
             ok = ok and math.isfinite(x) and math.isfinite(y) and math.isfinite(z)
-            # A NaN last point: none before (a session's first points); then the comparison is
-            # false, so it is asked first.
+            # A NaN last point means none before (a session's first points): no jump to check,
+            # and any comparison with NaN is false, so isnan is asked first.
             ok = ok and (math.isnan(px) or dx * dx + dy * dy + dz * dz <= limit * limit)
             px, py, pz = x, y, z
     return ok
