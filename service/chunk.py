@@ -12,8 +12,8 @@ characters, the same frames), which fill each array's rows in turn: no joined wi
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Sequence
-from concurrent.futures import wait
 from typing import Any
 
 import numpy as np
@@ -92,9 +92,7 @@ def packed_chunk(batch: int, index: int, windows: Sequence[Window], encoding: En
         # 1.92-1.94 s in-process, this way 1.59-1.64 (medians), though either packing alone
         # takes the same 11-12 ms a chunk; why, not pinned down (not the thread team spinning:
         # OMP_WAIT_POLICY=passive changed nothing).
-        futures = [render_pool.pool().submit(fill, w, row) for w, row in zip(windows, rows[:-1], strict=True)]
-        wait(futures)  # all written before an error is raised
-        for f in futures:
-            f.result()
+        render_pool.side_by_side([functools.partial(fill, w, row)
+                                  for w, row in zip(windows, rows[:-1], strict=True)])
     return n, memoryview(buf)  # type: ignore[arg-type]
 

@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import functools
 from collections.abc import Callable
-from concurrent.futures import wait
 from typing import Any, TypeVar
 
 import numpy as np
@@ -91,9 +90,7 @@ class LiveShards:
                 for i, (p, a) in enumerate(zip(self.parts, self.cuts[:-1].tolist(), strict=True))]
         if len(jobs) == 1:
             return [jobs[0]()]
-        futures = [render_pool.pool().submit(job) for job in jobs]
-        wait(futures)  # every shard done before an error is raised: none left running
-        return [f.result() for f in futures]
+        return render_pool.side_by_side(jobs)
 
     def append(self, points: ArrayLike, frames: int | None = None) -> list[Window] | None:
         """:meth:`LiveSynth.append` for every shard: points ``(C, n, 3)``; nothing is taken

@@ -43,6 +43,14 @@ def pool() -> ThreadPoolExecutor:
     return ThreadPoolExecutor(size(), thread_name_prefix="render", initializer=_one_render_thread)
 
 
+def side_by_side(jobs: Sequence[Callable[[], _R]]) -> list[_R]:
+    """Every job on the pool at once, their results in order; all ended before an error is
+    raised (none left running)."""
+    futures = [pool().submit(job) for job in jobs]
+    wait(futures)
+    return [f.result() for f in futures]
+
+
 def shared(jobs: Sequence[Callable[[], object]]) -> None:
     """Run every job: the first in the caller's thread, the others offered to the pool -- a pool
     thread with nothing else to do takes one -- and those no thread has begun when the caller

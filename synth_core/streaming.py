@@ -25,8 +25,8 @@ one-thread kernel (characters are independent: the same numbers, tested).
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Iterator
-from concurrent.futures import wait
 from dataclasses import dataclass, field, fields, replace
 
 import numpy as np
@@ -192,10 +192,8 @@ class BatchStream:
             self._plan = whole if whole is not None else self._plan
             return [window]
         cuts = np.linspace(0, C, parts + 1).round().astype(np.int64).tolist()
-        futures = [render_pool.pool().submit(self._first_part, slice(a, b), stop, True)
-                   for a, b in zip(cuts[:-1], cuts[1:], strict=True)]
-        wait(futures)  # every part done before an error is raised: none left running
-        done = [f.result() for f in futures]
+        done = render_pool.side_by_side([functools.partial(self._first_part, slice(a, b), stop, True)
+                                         for a, b in zip(cuts[:-1], cuts[1:], strict=True)])
         plans = [whole for _, whole in done]
         if all(p is not None for p in plans):  # every part planned whole: that is the whole plan
             self._plan = Plan(*(np.concatenate([getattr(p, f.name) for p in plans]) for f in fields(Plan)))
