@@ -100,6 +100,12 @@ class SynthesizeRequest(BaseModel):
                                      description="resample the paths at least this much: send the "
                                                  "highest resample_rate of a herd's requests so all "
                                                  "keep the same frames (the formation)")
+    resample: bool = Field(default=False,
+                           description="the paper's global resampling: where a character is faster than "
+                                       "the library, every path is resampled (more frames, the herd's "
+                                       "clock slowed). Default: the clock is kept (output frames = input "
+                                       "frames at the library's fps) and a character too fast even at its "
+                                       "fastest stride rate is listed in 'warnings'")
     characters: list[CharacterIn] = Field(min_length=1)
 
 
@@ -148,15 +154,24 @@ class Skipped(BaseModel):
     reason: str
 
 
+class CharacterWarning(BaseModel):
+    id: str
+    index: int = Field(description="position in the request's characters")
+    reason: str = Field(description="what its motion could not keep, where, and why")
+
+
 class SynthesizeResponse(BaseModel):
     animal: str
     skeleton_id: str = Field(description="identifies the joint layout; GET /v1/libraries/{animal}")
     fps: float = Field(description="frame rate of the output (the library's)")
     encoding: Encoding
     resample_rate: float = Field(description="r >= 1: every path was resampled to r times its frames "
-                                             "because some character was faster than the library")
+                                             "('resample', or min_resample_rate, asked for it)")
     characters: list[CharacterOut]
     skipped: list[Skipped] = Field(default_factory=list)
+    warnings: list[CharacterWarning] = Field(default_factory=list,
+                                             description="characters made, but whose motion could not "
+                                                         "keep up (e.g. too fast: feet slide)")
 
 
 class LibrarySummary(BaseModel):

@@ -171,9 +171,8 @@ def produce(job: jobs.Job, bank: Bank, meta: dict[str, Any], emit: Callable[[Any
     packer = msgpack.Packer(use_bin_type=True)
     characters = [character(packer, job.ids[c], float(h[i]), n, J, encoding)
                   for i, (c, n) in enumerate(zip(prep.kept, frames, strict=True))]
-    skipped = [{"id": job.ids[c], "index": c, "reason": why} for c, why in sorted(prep.rejected.items())]
     parts = template({**meta, "resample_rate": prep.resample_rate, "characters": characters,
-                      "skipped": skipped})
+                      "skipped": jobs.skipped(job, prep), "warnings": jobs.warned(job, prep)})
     emit(sum(p.nbytes if isinstance(p, Hole) else len(p) for p in parts))
     holes = [i for i, p in enumerate(parts) if isinstance(p, Hole)]  # four per character, in order
     emit(b"".join(parts[:holes[0]] if holes else parts))  # type: ignore[arg-type]

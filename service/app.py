@@ -418,7 +418,7 @@ def create_app(directory: Path | None = None, settings: Settings | None = None) 
             ids = [job.ids[c] for c in result.kept]
             reply = {**meta, "resample_rate": result.resample_rate,
                      "characters": characters_out(result, ids, frames, req.encoding),
-                     "skipped": jobs.skipped(job, result)}
+                     "skipped": jobs.skipped(job, result), "warnings": jobs.warned(job, result)}
             return body.encode(reply, False), sum(frames), seconds
 
         response, character_frames, seconds = await state.synthesize(job, whole)

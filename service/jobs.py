@@ -21,7 +21,7 @@ from service.settings import Settings
 from synth_core.bank import Bank
 from synth_core.streaming import BatchStream
 from synth_core.synthesis import Options, Result, synthesize
-from synth_core.trajectory import TrajectoryError
+from synth_core.trajectory import Prepared, TrajectoryError
 
 
 class Cancelled(Exception):
@@ -125,7 +125,7 @@ def character_scales_and_seeds(req: SynthesizeRequest) -> tuple[NDArray[np.float
 def options(req: SynthesizeRequest) -> Options:
     return Options(sigma=req.sigma, seed=req.seed, scale_range=(req.scale_min, req.scale_max),
                    skip_invalid=req.skip_invalid, foot_lock=req.foot_lock, first_index=req.first_index,
-                   min_resample_rate=req.min_resample_rate)
+                   min_resample_rate=req.min_resample_rate, resample=req.resample)
 
 
 def run(job: Job, bank: Bank) -> tuple[Result, float]:
@@ -172,5 +172,15 @@ def output_frames(job: Job, frames: int, kept: Iterable[int]) -> list[int]:
     return [int(round((job.lengths[c] - 1) / (longest - 1) * (frames - 1))) + 1 for c in kept]
 
 
-def skipped(job: Job, result: Result | BatchStream) -> list[dict[str, Any]]:
-    return [{"id": job.ids[c], "index": c, "reason": why} for c, why in sorted(result.rejected.items())]
+def skipped(job: Job, result: Result | BatchStream | Prepared) -> list[dict[str, Any]]:
+    """The characters dropped (``skip_invalid``), as the answer lists them."""
+    return notes(job, result.rejected)
+
+
+def warned(job: Job, result: Result | BatchStream | Prepared) -> list[dict[str, Any]]:
+    """The characters made whose motion could not keep their path, as the answer lists them."""
+    return notes(job, result.warnings)
+
+
+def notes(job: Job, found: dict[int, str]) -> list[dict[str, Any]]:
+    return [{"id": job.ids[c], "index": c, "reason": why} for c, why in sorted(found.items())]

@@ -124,6 +124,10 @@ class BatchStream:
         return self.prep.rejected
 
     @property
+    def warnings(self) -> dict[int, str]:
+        return self.prep.warnings
+
+    @property
     def resample_rate(self) -> float:
         return self.prep.resample_rate
 

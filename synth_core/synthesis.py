@@ -67,6 +67,8 @@ class Options:
     first_index: int = 0  # the batch's first character's index in the herd (its draws' counter)
     min_resample_rate: float = 1.0  # resample at least this much (a herd split into batches: the
     # rate of the batch with the fastest character, so every batch keeps the same frames)
+    resample: bool = False  # the paper's global resampling where a character is too fast (default:
+    # the caller's clock is kept, and a character too fast even at MAX_RATE gets a warning)
 
 
 @dataclass(frozen=True, eq=False)
@@ -82,6 +84,7 @@ class Result:
     resample_rate: float
     kept: NDArray[np.int64]  # input characters synthesized
     rejected: dict[int, str] = field(default_factory=dict)
+    warnings: dict[int, str] = field(default_factory=dict)  # input index -> what its motion could not keep
 
 
 @dataclass(frozen=True)
@@ -559,7 +562,8 @@ def prepare_batch(bank: Bank, positions: ArrayLike, fps: float | None, scales: A
     if options.backend not in BACKENDS:
         raise TrajectoryError(f"backend: must be one of {BACKENDS}, got {options.backend!r}")
     prep = prepare(positions, fps, bank.fps, bank.top_speed, bank.mean_cycle, all_scales,
-                   options.sigma, options.skip_invalid, ids, options.min_resample_rate)
+                   options.sigma, options.skip_invalid, ids, options.min_resample_rate, options.resample,
+                   MAX_RATE)
     return prep, all_scales[prep.kept], keys[prep.kept]
 
 
@@ -638,7 +642,8 @@ def synthesize(bank: Bank, positions: ArrayLike, fps: float | None = None,
 
     ``seeds (C,)``: a character's own seed (``-1``: none, it draws from ``options.seed`` and its
     index); a character's motion depends on its seed, not on the rest of the batch (save for the
-    batch's resampling rate, when some character is too fast for the library).
+    batch's resampling rate, when ``options.resample`` and some character is too fast for the
+    library).
 
     The batch is checked and resampled as a whole, then planned and rendered ``CHUNK`` characters
     at a time (:func:`render_chunks`); ``progress(done, total)`` is called after each chunk.
@@ -670,4 +675,4 @@ def synthesize(bank: Bank, positions: ArrayLike, fps: float | None = None,
         if progress:
             progress(sl.stop, C)
     return Result(out[0], out[1], gait, contacts, stitches, h, prep.positions,
-                  prep.resample_rate, prep.kept, prep.rejected)
+                  prep.resample_rate, prep.kept, prep.rejected, prep.warnings)

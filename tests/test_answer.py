@@ -37,7 +37,8 @@ def whole(job: jobs.Job, bank: Bank, meta: dict[str, Any]) -> bytes:
     ids = [job.ids[c] for c in result.kept]
     return msgpack.packb({**meta, "resample_rate": result.resample_rate,
                           "characters": characters_out(result, ids, frames, req.encoding),
-                          "skipped": jobs.skipped(job, result)}, use_bin_type=True)
+                          "skipped": jobs.skipped(job, result), "warnings": jobs.warned(job, result)},
+                         use_bin_type=True)
 
 
 @pytest.mark.parametrize("encoding", ["s48", "i16", "f32"])
