@@ -14,6 +14,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from synth_core import SIZE_MATCHING, TEMPO_SPREAD
+
 if TYPE_CHECKING:
     from synth_core.skeleton import Skeleton
     from synth_core.synthesis import Result
@@ -153,7 +155,8 @@ def _synth(args: argparse.Namespace, extra: list[str]) -> int:
     library = _load_library(args.animal, args.library)
     bank = build_bank(library)
     options = Options(sigma=args.sigma, seed=args.seed, scale_range=(args.scale_min, args.scale_max),
-                      skip_invalid=args.skip_invalid, resample=args.resample)
+                      skip_invalid=args.skip_invalid, resample=args.resample,
+                      size_matching=args.size_matching, tempo_spread=args.tempo_spread)
     result = synthesize(bank, traj.positions, traj.fps, options=options, ids=traj.ids,
                         progress=_progress("synthesizing"))
     ids = [traj.ids[c] for c in result.kept]
@@ -173,7 +176,8 @@ def _client_synth(args: argparse.Namespace, extra: list[str]) -> int:
                                  progress=_progress("requests"), seed=args.seed, sigma=args.sigma,
                                  scale_min=args.scale_min, scale_max=args.scale_max,
                                  skip_invalid=args.skip_invalid, encoding=args.encoding,
-                                 resample=args.resample)
+                                 resample=args.resample, size_matching=args.size_matching,
+                                 tempo_spread=args.tempo_spread)
     except ServiceError as exc:
         raise ValueError(f"the service refused: {exc}") from None
     except httpx.HTTPError as exc:
@@ -262,6 +266,12 @@ def _herd_arguments(parser: argparse.ArgumentParser) -> None:
                         help="the paper's global resampling: a character too fast for the library slows "
                              "the whole herd's clock (default: the clock is kept; a character too fast "
                              "even at its fastest stride rate is reported on stderr)")
+    parser.add_argument("--size-matching", choices=SIZE_MATCHING, default="froude",
+                        help="froude (default): a character of scale h takes the gait of the same Froude "
+                             "number and steps at 1/sqrt(h) the frequency; geometric: the paper's s/h")
+    parser.add_argument("--tempo-spread", type=float, default=TEMPO_SPREAD,
+                        help=f"each character's stride frequency varies by up to this share (default "
+                             f"{TEMPO_SPREAD}; 0: none)")
     parser.add_argument("--out", required=True, help="output directory: motion.npz, summary.json, BVH files")
     parser.add_argument("--bvh", action="store_true", help="write DIR/<id>.bvh per character (centimetres)")
     parser.add_argument("--glb", help="write the herd as one glTF 2.0 binary FILE.glb")

@@ -125,7 +125,8 @@ def character_scales_and_seeds(req: SynthesizeRequest) -> tuple[NDArray[np.float
 def options(req: SynthesizeRequest) -> Options:
     return Options(sigma=req.sigma, seed=req.seed, scale_range=(req.scale_min, req.scale_max),
                    skip_invalid=req.skip_invalid, foot_lock=req.foot_lock, first_index=req.first_index,
-                   min_resample_rate=req.min_resample_rate, resample=req.resample)
+                   min_resample_rate=req.min_resample_rate, resample=req.resample,
+                   size_matching=req.size_matching, tempo_spread=req.tempo_spread)
 
 
 def run(job: Job, bank: Bank) -> tuple[Result, float]:

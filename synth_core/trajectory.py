@@ -28,7 +28,7 @@ import functools
 import os
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import TypeVar
 
 import numpy as np
@@ -82,6 +82,12 @@ class Prepared:
     kept: NDArray[np.int64]  # indices of the input characters kept
     rejected: dict[int, str] = field(default_factory=dict)  # input index -> why it was skipped
     warnings: dict[int, str] = field(default_factory=dict)  # input index -> what could not be kept
+    tempo: Floats | None = None  # (C,) each character's stride-frequency factor (None: all 1)
+
+    def rows(self, rows: slice) -> Prepared:
+        """The characters ``rows`` alone (a chunk or part of the batch)."""
+        return replace(self, positions=self.positions[rows], segment_speeds=self.segment_speeds[rows],
+                       tempo=None if self.tempo is None else self.tempo[rows])
 
 
 def check(positions: ArrayLike, fps: float, ids: list[str] | None = None) -> NDArray[np.floating]:
@@ -202,11 +208,13 @@ def resample_and_measure(smoothed: Floats, frames: int, segment: int, fps: float
 def prepare(positions: ArrayLike, fps: float, library_fps: float, top_speed: float, segment: int,
             scales: NDArray[np.floating], sigma: float = DEFAULT_SIGMA,
             skip_invalid: bool = False, ids: list[str] | None = None,
-            min_rate: float = 1.0, resample: bool = False, stride_rate: float = 1.0) -> Prepared:
+            min_rate: float = 1.0, resample: bool = False, stride_rate: float = 1.0,
+            tempo: NDArray[np.floating] | None = None) -> Prepared:
     """Validate, bring to the library's frame rate, smooth, resample if asked (``resample``: where
     a character is too fast; and at least by ``min_rate``), segment. ``stride_rate``: how much
     faster than its fastest clip a gait's stride may play (a character faster than that at its
-    scale gets a warning when the clock is kept)."""
+    scale gets a warning when the clock is kept). ``tempo (C,)``: each character's stride
+    frequency factor k (it asks the library for ``s / (h k)``; default 1)."""
     arr = check(positions, fps, ids)
     if not (np.isfinite(sigma) and 0 <= sigma <= 100):
         raise TrajectoryError(f"sigma: must be within [0, 100] frames, got {sigma}")
@@ -225,7 +233,8 @@ def prepare(positions: ArrayLike, fps: float, library_fps: float, top_speed: flo
         raise TrajectoryError(ALL_INVALID + ": " +
                               "; ".join(f"{names[c]}: {why}" for c, why in sorted(bad.items())))
     smoothed, speeds = smooth_and_measure(arr, kept, fps, library_fps, sigma, segment)
-    own = speeds / scales[kept, None]  # (C, K) the library's speed each character asks for
+    pace = scales if tempo is None else scales * np.asarray(tempo, np.float64)
+    own = speeds / pace[kept, None]  # (C, K) the library's speed each character asks for
     unfit = _too_fast(own, MAX_RESAMPLE * top_speed, segment)
     if unfit:
         why = {int(kept[i]): (f"positions: moves at {s:.1f} m/s for its scale at frame {f}, more than "
@@ -258,7 +267,8 @@ def prepare(positions: ArrayLike, fps: float, library_fps: float, top_speed: flo
         # The paper's order: the smoothed paths are resampled (not the raw ones smoothed again:
         # that smoothed every resampled batch twice, a seventh of its synthesis time).
         smoothed, speeds = resample_and_measure(smoothed, n, segment, library_fps)
-    return Prepared(smoothed, segment, speeds, float(rate), kept, bad, warnings)
+    return Prepared(smoothed, segment, speeds, float(rate), kept, bad, warnings,
+                    None if tempo is None else np.asarray(tempo, np.float64)[kept])
 
 
 def _too_fast(speeds: Floats, limit: float, segment: int) -> dict[int, tuple[int, float]]:
