@@ -172,7 +172,7 @@ def test_skip_invalid_keeps_the_others_work(server: str, herd: np.ndarray) -> No
 def test_a_character_too_fast_keeps_the_clock_and_is_warned_of_unless_resampling_is_asked(
         server: str, herd: np.ndarray) -> None:
     fast = herd[:3].copy()
-    fast[2] = fast[2, :1] + (fast[2] - fast[2, :1]) * 4.0  # far beyond the horse's gallop
+    fast[2] = fast[2, :1] + (fast[2] - fast[2, :1]) * 6.0  # far beyond the horse's gallop
     for encoding in ("s48", "f32"):
         body = msgpack.unpackb(post(server, batch(fast, encoding=encoding)).content)
         assert body["resample_rate"] == 1.0 and [c["frames"] for c in body["characters"]] == [240] * 3
