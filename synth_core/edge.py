@@ -179,15 +179,12 @@ def bend(gait: str, angle: float, name: str) -> Callable[[GaitSpeeds, float, np.
     def make(gaits: GaitSpeeds, fps: float, rng: np.random.Generator) -> Scenario:
         v = cruise(gaits, gait)
         run_up = 0.5 + v / SPEED_UP + 1.0
-        paths = []
-        for k, r in enumerate(RADII):
-            s0 = float(distance(speed_profile(frames_for(run_up, fps), fps, start_at(v)), fps)[-1])
-            arc = abs(angle) * r
-            F = frames_for(run_up + arc / v + 2.0, fps)
-            sign = 1 if k % 2 == 0 else -1
-            paths.append(run(F, fps, start_at(v), [(s0, sign * angle, r)]))
-        F = min(len(p) for p in paths)
-        return herd([p[:F] for p in paths], name=name,
+        s0 = float(distance(speed_profile(frames_for(run_up, fps), fps, start_at(v)), fps)[-1])
+        # Long enough for the widest turn and 2 s after it.
+        F = frames_for(run_up + abs(angle) * max(RADII) / v + 2.0, fps)
+        paths = [run(F, fps, start_at(v), [(s0, (1 if k % 2 == 0 else -1) * angle, r)])
+                 for k, r in enumerate(RADII)]
+        return herd(paths, name=name,
                     about=f"{round(np.degrees(angle))} deg at {gait} speed {v:.2f} m/s, "
                           f"radii {list(RADII)} m")
     return make
