@@ -149,7 +149,8 @@ CREEP_RANGE = (0.05, 0.4)
 def creep(gaits: GaitSpeeds, fps: float, rng: np.random.Generator) -> Scenario:
     low, high = CREEP_RANGE
     speeds = [low, *np.sort(rng.uniform(low, high, 2)), high]
-    F = frames_for(6.0, fps)
+    # 12 s: long enough for a slow root to glide past feet pinned where it stood (0.6-4.8 m).
+    F = frames_for(12.0, fps)
     return herd([run(F, fps, start_at(v)) for v in speeds], name="creep",
                 about=f"creep at {[round(float(v), 2) for v in speeds]} m/s")
 
