@@ -21,7 +21,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from synth_core import FOOT_NAMES, UP_AXIS, quat
-from synth_core.contacts import touchdowns
+from synth_core.contacts import drop_short_runs, touchdowns
 from synth_core.skeleton import Skeleton
 
 SKATE_THRESHOLD_MM = 2.0
@@ -231,27 +231,12 @@ def near_ground_glide(foot_pos: Floats, heights: Floats, body_pos: Floats,
     return Glide(foot_mm / body_mm, foot_mm, body_mm, int(low.sum()))
 
 
-def long_runs(mask: NDArray[np.bool_], min_frames: int) -> NDArray[np.bool_]:
-    """Frames of ``mask (..., F, K)`` in runs along F of at least ``min_frames`` True frames."""
-    mask = np.asarray(mask, bool)
-    F = mask.shape[-2]
-    if min_frames <= 1 or F == 0:
-        return mask.copy()
-    if F < min_frames:
-        return np.zeros_like(mask)
-    windows = np.lib.stride_tricks.sliding_window_view(mask, min_frames, axis=-2).all(axis=-1)
-    # A frame is in a long run when one of the windows of min_frames frames holding it is all True.
-    pad = [(0, 0)] * mask.ndim
-    pad[-2] = (min_frames - 1, min_frames - 1)
-    padded = np.pad(windows, pad)
-    covered = np.lib.stride_tricks.sliding_window_view(padded, min_frames, axis=-2).any(axis=-1)
-    return np.asarray(covered)
-
-
 def strict_plants(heights: Floats, height: float = STRICT_PLANT_M,
                   min_frames: int = STRICT_PLANT_FRAMES) -> NDArray[np.bool_]:
     """Feet within ``height`` of the ground for ``min_frames`` frames or more, ``(..., F, 4)``."""
-    return long_runs(np.asarray(heights) < height, min_frames)
+    low = np.moveaxis(np.asarray(heights) < height, -2, 0)  # frames first, every foot a column
+    kept = drop_short_runs(low.reshape(len(low), -1), min_frames).reshape(low.shape)
+    return np.asarray(np.moveaxis(kept, 0, -2))
 
 
 def touchdown_steps_mm(foot_pos: Floats, plants: NDArray[np.bool_]) -> Floats:

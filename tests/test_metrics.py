@@ -139,7 +139,9 @@ def test_strict_plants_need_three_frames_within_1cm() -> None:
     plants = M.strict_plants(h)
     assert np.flatnonzero(plants[:, 0]).tolist() == [5, 6, 7]
     assert not plants[:, 1:].any()
-    assert M.long_runs(np.ones((2, 4), bool), 3).sum() == 0  # shorter than a run
+    assert M.strict_plants(np.zeros((2, 4))).sum() == 0  # shorter than a plant
+    crowd = np.stack([h, np.roll(h, 2, axis=0)])  # characters are apart: no run spans them
+    assert np.array_equal(M.strict_plants(crowd)[1], np.roll(plants, 2, axis=0))
 
 
 def test_glide_weights_speed_by_height_and_divides_by_body_speed() -> None:
