@@ -348,7 +348,9 @@ def edge_suite(bank: Bank, seed: int = 0, names: list[str] | None = None, backen
             continue
         figures = edge_figures(bank, result, sc.reference, sc.positions.shape[1], ref)
         failed = [f for f in EDGE_TARGETS if passes(f, figures.get(f)) is False]
-        scenarios[sc.name] = entry | {"figures": figures, "failed": failed}
+        # By how much, in the figure's unit (a share: how much of it is missing).
+        beyond = {f: round(abs(float(figures[f]) - EDGE_TARGETS[f][1]), 4) for f in failed}
+        scenarios[sc.name] = entry | {"figures": figures, "failed": failed, "beyond_target": beyond}
         if keep is not None:
             keep[sc.name] = (sc, result)
     return {

@@ -143,6 +143,7 @@ def test_eval_suite_edge_writes_json_a_table_and_the_worst_moment(
     assert set(printed["scenarios"]) == {"creep", "too_fast"}
     assert printed["scenarios"]["too_fast"]["figures"]["clock_kept"] == 0  # the herd's clock stretched
     assert "clock_kept" in printed["scenarios"]["too_fast"]["failed"]
+    assert printed["scenarios"]["too_fast"]["beyond_target"]["clock_kept"] == 1
     assert json.loads((tmp_path / "edge.json").read_text()) == printed
     assert "| too_fast |" in (tmp_path / "edge.md").read_text()
     assert (tmp_path / "edge_worst_dog.png").stat().st_size > 10_000
