@@ -253,7 +253,7 @@ def edge_figures(bank: Bank, result: Result, reference_path: NDArray[np.floating
     touch = M.touchdown_steps_mm(feet, down)
     jumps = M.one_frame_jumps_mm(feet)
     steps = np.linalg.norm(np.diff(feet, axis=-3), axis=-1) * 1000.0
-    flips = M.limb_flips(pos, sk)
+    flips = M.limb_flips(pos, sk, result.rotations[:, :, 0])
     hinges = M.hinge_joints(sk)
     walk = result.gait == HUBS.index("walk")
     feet_down = down.sum(axis=-1)

@@ -268,13 +268,15 @@ def hinge_joints(skeleton: Skeleton) -> NDArray[np.int64]:
     return np.array(triples, np.int64).reshape(-1, 3)
 
 
-def limb_flips(positions: Floats, skeleton: Skeleton,
+def limb_flips(positions: Floats, skeleton: Skeleton, root_rotations: Floats | None = None,
                min_bend_deg: float = FLIP_MIN_BEND_DEG) -> NDArray[np.int64]:
     """Per hinge of :func:`hinge_joints`, the frames where its bend direction reverses in one
     frame: the axis of the bend (parent bone x child bone) turns by more than 90 degrees between
     two frames where the joint is bent at least ``min_bend_deg`` (a straight joint has no
     direction; passing through straight takes frames). ``positions (..., F, J, 3)``; returns the
-    count per hinge ``(H,)``, summed over leading axes."""
+    count per hinge ``(H,)``, summed over leading axes. ``root_rotations (..., F, 4)``: the root's
+    world rotations, to take the axes in the body's frame -- a body snapping round in one frame
+    is no limb flip (it shows in the yaw rate)."""
     triples = hinge_joints(skeleton)
     p = np.asarray(positions, np.float64)
     upper = p[..., triples[:, 1], :] - p[..., triples[:, 0], :]
@@ -283,6 +285,9 @@ def limb_flips(positions: Floats, skeleton: Skeleton,
     norm = np.linalg.norm(axis, axis=-1)
     bent = np.degrees(np.arctan2(norm, np.sum(upper * lower, axis=-1))) >= min_bend_deg
     unit = axis / np.maximum(norm, 1e-12)[..., None]
+    if root_rotations is not None:
+        body = quat.inv(np.asarray(root_rotations, np.float64))[..., None, :]
+        unit = quat.rotate(body, unit)
     turned = np.sum(unit[..., 1:, :, :] * unit[..., :-1, :, :], axis=-1) < 0
     flips = turned & bent[..., 1:, :] & bent[..., :-1, :]
     return np.asarray(flips.reshape(-1, len(triples)).sum(axis=0), np.int64)

@@ -194,6 +194,12 @@ def test_a_knee_reversing_in_one_frame_is_a_flip_and_a_slow_pass_is_not() -> Non
     assert flips.sum() == 4 and all(flips[k] == 1 for k in knees)  # one per leg, at its knee
     slow, _ = _bent_legs(np.linspace(30.0, -30.0, 30))  # 2 deg a frame through straight
     assert M.limb_flips(slow, toy).sum() == 0
+    # The whole body turning half round in one frame, legs bent as ever: no flip in its frame.
+    bent, _ = _bent_legs(np.full(4, 30.0))
+    turn = quat.from_axis_angle(np.array([0.0, 1.0, 0.0]), np.radians([0.0, 0.0, 170.0, 170.0]))
+    spun = quat.rotate(turn[:, None], bent)
+    assert M.limb_flips(spun, toy).sum() > 0  # in the world, every bent joint's axis turned
+    assert M.limb_flips(spun, toy, turn).sum() == 0
 
 
 def test_reach_single_support_floating_and_yaw_rate() -> None:
