@@ -118,6 +118,16 @@ def frames_for(seconds: float, fps: float) -> int:
 
 # --- the scenarios -----------------------------------------------------------------------------
 
+def cruise_straight(gaits: GaitSpeeds, fps: float, rng: np.random.Generator) -> Scenario:
+    """The baseline: each gait's middle speed on a straight line (after a run-up), so a figure
+    missed in a turn can be told from one the gait misses anyway."""
+    order = [g for g in ("walk", "trot", "canter", "gallop") if g in gaits]
+    F = frames_for(0.5 + max(cruise(gaits, g) for g in order) / SPEED_UP + 5.0, fps)
+    speeds = [cruise(gaits, g) for g in order]
+    return herd([run(F, fps, start_at(v)) for v in speeds], name="cruise_straight",
+                about=f"straight at each gait's middle speed {[round(v, 2) for v in speeds]} m/s")
+
+
 def stop_and_stand(gaits: GaitSpeeds, fps: float, rng: np.random.Generator) -> Scenario:
     speeds = [cruise(gaits, g) for g in ("walk", "trot", "canter") if g in gaits]
     F = frames_for(8.0, fps)
@@ -269,6 +279,7 @@ def mixed_sizes(gaits: GaitSpeeds, fps: float, rng: np.random.Generator) -> Scen
 
 
 MAKERS: dict[str, Callable[[GaitSpeeds, float, np.random.Generator], Scenario]] = {
+    "cruise_straight": cruise_straight,
     "stop_and_stand": stop_and_stand,
     "stop_go": stop_go,
     "creep": creep,
