@@ -65,6 +65,12 @@ def test_a_stop_really_stops_and_stands() -> None:
     assert np.diff(speed, axis=1).min() * FPS > -edge.BRAKE - 0.1  # braking at 3 m/s^2
 
 
+def test_the_baseline_cruises_straight_at_each_gaits_speed() -> None:
+    s = scenario("cruise_straight")
+    assert ground_speed(s.positions)[:, -1] == pytest.approx([edge.cruise(HORSE, g) for g in HORSE], rel=1e-3)
+    assert np.ptp(s.positions[..., 0], axis=1) == pytest.approx(0.0, abs=1e-6)  # straight along +Z
+
+
 def test_stop_go_pauses_last_what_it_says() -> None:
     s = scenario("stop_go")
     still = ground_speed(s.positions) == 0
