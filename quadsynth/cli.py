@@ -254,7 +254,8 @@ def _eval_edge(args: argparse.Namespace, banks: dict[str, Any]) -> int:
             worst = evaluate.worst_scenario(suite)
             if worst in kept[name]:
                 scenario, res = kept[name][worst]
-                sheet = render_worst(banks[name], scenario, res, out / f"edge_worst_{name}.png")
+                sheet = render_worst(banks[name], scenario, res, suite["scenarios"][worst],
+                                     out / f"edge_worst_{name}.png")
                 print(f"{name}: worst scenario {worst}: {sheet}", file=sys.stderr)
     print(json.dumps(result) if args.json else json.dumps(result, indent=2))
     return 0

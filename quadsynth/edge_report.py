@@ -52,26 +52,36 @@ def markdown(suites: dict[str, dict[str, Any]]) -> str:
     return "\n".join(lines)
 
 
-def worst_moment(bank: Bank, result: Result) -> tuple[int, int]:
-    """(character, frame) of the largest one-frame foot jump of a result."""
-    pos = evaluate.world_positions(bank, result)
-    jumps = M.one_frame_jumps_mm(pos[..., bank.skeleton.foot_joints, :]).max(axis=-1)  # (C, T-3)
-    c, f = np.unravel_index(int(jumps.argmax()), jumps.shape)
-    return int(c), int(f) + 2
+def worst_moment(bank: Bank, scenario: Scenario, result: Result, figure: str) -> tuple[int, int]:
+    """(character, frame) where ``figure`` is at its worst: the largest off-path distance
+    (``path_cm_max``), the largest strict-plant slide (``strict_skate_mm_p95``), else the
+    largest one-frame foot jump."""
+    fk = evaluate.feet_after_fk(bank, result, evaluate.library_reference(bank))
+    if figure == "path_cm_max":
+        at = M.path_distance_cm(result.root_pos, scenario.reference[result.kept])
+    elif figure == "strict_skate_mm_p95":
+        step = np.linalg.norm(np.diff(fk.feet[..., [0, 2]], axis=1), axis=-1)
+        at = np.where(fk.down[:, 1:] & fk.down[:, :-1], step, 0.0).max(axis=-1)
+    else:
+        at = np.pad(M.one_frame_jumps_mm(fk.feet).max(axis=-1), ((0, 0), (2, 1)))  # frame of the step's end
+    c, f = np.unravel_index(int(at.argmax()), at.shape)
+    return int(c), int(f)
 
 
-def render_worst(bank: Bank, scenario: Scenario, result: Result, out: Path, window: int = 45,
-                 panels: int = 10) -> Path:
-    """A contact sheet of ``window`` frames either side of the worst moment (:func:`worst_moment`)."""
+def render_worst(bank: Bank, scenario: Scenario, result: Result, entry: dict[str, Any], out: Path,
+                 window: int = 45, panels: int = 10) -> Path:
+    """A contact sheet of ``window`` frames either side of the worst moment of the figure the
+    scenario ``entry`` (its figures) misses by the most (:func:`worst_moment`); its feet are
+    marked planted where they are down (strict plants)."""
     from quadsynth.preview import render
 
-    c, f = worst_moment(bank, result)
-    ref = evaluate.library_reference(bank)
+    misses = entry.get("beyond_target", {})
+    figure = max(misses, key=lambda f: misses[f] / (abs(evaluate.EDGE_TARGETS[f][1]) or 1.0),
+                 default="jump_cm_max")
+    c, f = worst_moment(bank, scenario, result, figure)
+    fk = evaluate.feet_after_fk(bank, result, evaluate.library_reference(bank))
     skeleton = scaled_skeleton(bank.skeleton, float(result.scales[c]))
-    pos = evaluate.world_positions(bank, result)[c]
-    heights = M.foot_heights(pos[:, bank.skeleton.foot_joints], result.path[c, :, 1])
-    heights -= ref.soles[result.gait[c]] * result.scales[c]
-    motion = Motion(skeleton, result.root_pos[c], result.rotations[c], bank.fps, M.strict_plants(heights),
-                    f"{scenario.name} #{c}")
+    motion = Motion(skeleton, result.root_pos[c], result.rotations[c], bank.fps, fk.down[c],
+                    f"{scenario.name} #{c}, worst {figure}")
     T = result.root_pos.shape[1]
     return render(motion, out, start=max(0, f - window), stop=min(T, f + window), panels=panels)

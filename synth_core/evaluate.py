@@ -235,6 +235,25 @@ def _round(x: float, digits: int = 4) -> float | None:
     return None if not np.isfinite(x) else round(float(x), digits)
 
 
+@dataclass(frozen=True, eq=False)
+class Feet:
+    """A result's joints and feet after FK, as the edge figures read them."""
+
+    positions: Floats  # (C, T, J, 3) world
+    feet: Floats  # (C, T, 4, 3) world
+    above_ground: Floats  # (C, T, 4) height over the ground (the path's height)
+    heights: Floats  # (C, T, 4) height over the foot's standing height (LibraryReference.soles)
+    down: NDArray[np.bool_]  # (C, T, 4) strict plants of ``heights``
+
+
+def feet_after_fk(bank: Bank, result: Result, ref: LibraryReference) -> Feet:
+    pos = np.asarray(world_positions(bank, result), np.float64)
+    feet = pos[..., bank.skeleton.foot_joints, :]
+    above_ground = np.asarray(M.foot_heights(feet, result.path[..., UP_AXIS]), np.float64)
+    heights = above_ground - ref.soles[result.gait] * result.scales[:, None, None]
+    return Feet(pos, feet, above_ground, heights, M.strict_plants(heights))
+
+
 def edge_figures(bank: Bank, result: Result, reference_path: NDArray[np.floating], frames_in: int,
                  ref: LibraryReference) -> dict[str, Any]:
     """Every edge figure of one synthesized scenario, from world positions after FK.
@@ -242,12 +261,8 @@ def edge_figures(bank: Bank, result: Result, reference_path: NDArray[np.floating
     ``reference_path (C, F, 3)``: the path the characters were meant to follow, ``frames_in``
     its frame count (the output's time is mapped onto it)."""
     sk, fps = bank.skeleton, bank.fps
-    pos = np.asarray(world_positions(bank, result), np.float64)
-    feet = pos[..., sk.foot_joints, :]
-    h = result.scales[:, None, None]
-    above_ground = M.foot_heights(feet, result.path[..., UP_AXIS])
-    heights = above_ground - ref.soles[result.gait] * h
-    down = M.strict_plants(heights)
+    fk = feet_after_fk(bank, result, ref)
+    pos, feet, above_ground, heights, down = fk.positions, fk.feet, fk.above_ground, fk.heights, fk.down
     glide = M.near_ground_glide(feet, above_ground, result.root_pos)
     skate = M.foot_skate(feet, down)
     touch = M.touchdown_steps_mm(feet, down)
@@ -258,7 +273,7 @@ def edge_figures(bank: Bank, result: Result, reference_path: NDArray[np.floating
     walk = result.gait == HUBS.index("walk")
     feet_down = down.sum(axis=-1)
     alone = M.single_support_frames(down)
-    stretch = (M.limb_reach(pos, sk) / (ref.reach * h)).max()
+    stretch = (M.limb_reach(pos, sk) / (ref.reach * result.scales[:, None, None])).max()
     root = result.root_pos.astype(np.float64)
     speed = np.linalg.norm(np.gradient(root[..., [0, 2]], axis=1), axis=-1) * fps
     speed = ndimage.uniform_filter1d(speed, size=max(3, int(BODY_SPEED_WINDOW_S * fps)), axis=1)
