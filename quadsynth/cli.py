@@ -212,6 +212,9 @@ def _eval(args: argparse.Namespace, extra: list[str]) -> int:
     from synth_core import evaluate
     from synth_core.bank import build_bank
 
+    if args.suite == "standard" and (args.scenario or args.out):  # before any library is built
+        raise ValueError("--scenario and --out: only with --suite edge")
+
     libraries: dict[str, Any] = {}
     for name in args.animal:
         if name == "mann_dog":

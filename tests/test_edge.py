@@ -153,3 +153,11 @@ def test_eval_suite_edge_writes_json_a_table_and_the_worst_moment(
     assert json.loads((tmp_path / "edge.json").read_text()) == printed
     assert "| too_fast |" in (tmp_path / "edge.md").read_text()
     assert (tmp_path / "edge_worst_dog.png").stat().st_size > 10_000
+
+
+def test_eval_refuses_edge_options_without_the_edge_suite_and_unknown_scenarios(
+        capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["eval", "--scenario", "creep"]) == 2
+    assert "--scenario and --out: only with --suite edge" in capsys.readouterr().err
+    assert main(["eval", "--suite", "edge", "--animal", "dog", "--scenario", "moonwalk"]) == 2
+    assert "scenario: unknown ['moonwalk']" in capsys.readouterr().err
