@@ -365,7 +365,9 @@ def edge_suite(bank: Bank, seed: int = 0, names: list[str] | None = None, backen
         failed = [f for f in EDGE_TARGETS if passes(f, figures.get(f)) is False]
         # By how much, in the figure's unit (a share: how much of it is missing).
         beyond = {f: round(abs(float(figures[f]) - EDGE_TARGETS[f][1]), 4) for f in failed}
-        scenarios[sc.name] = entry | {"figures": figures, "failed": failed, "beyond_target": beyond}
+        verdicts = {f: passes(f, figures.get(f)) for f in EDGE_TARGETS}  # None: no such frames
+        scenarios[sc.name] = entry | {"figures": figures, "pass": verdicts, "failed": failed,
+                                      "beyond_target": beyond}
         if keep is not None:
             keep[sc.name] = (sc, result)
     return {

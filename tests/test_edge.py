@@ -136,6 +136,7 @@ def test_a_suite_run_on_the_horse_has_every_figure_finite(bank: Bank) -> None:
         assert figures["nan_count"] == 0 and figures["clock_kept"] == 1
         assert entry["failed"] == [f for f in evaluate.EDGE_TARGETS
                                    if not evaluate.passes(f, figures[f])]
+        assert entry["pass"] == {f: f not in entry["failed"] for f in evaluate.EDGE_TARGETS}
     for name, target in out["targets"].items():
         assert out["worst"][name]["target"] == target
     assert out["worst"]["yaw_deg_s_max"]["scenario"] == "corner_trot"  # the standing stop never turns
