@@ -78,10 +78,14 @@ def fill_gaps(mask: NDArray[np.bool_], max_gap: int) -> NDArray[np.bool_]:
     return np.asarray(mask | _short_runs(~mask, max_gap + 1, interior=True))
 
 
+def drop_short_runs(mask: NDArray[np.bool_], min_len: int) -> NDArray[np.bool_]:
+    """Per column of a (F, K) mask: runs of fewer than ``min_len`` True frames dropped."""
+    return np.asarray(mask & ~_short_runs(mask, min_len, interior=False))
+
+
 def _fill_gaps_and_drop_short(mask: NDArray[np.bool_], max_gap: int, min_len: int) -> NDArray[np.bool_]:
     """Per column of a (F, K) mask: fill interior gaps of <= max_gap frames, then drop runs < min_len."""
-    out = fill_gaps(mask, max_gap)
-    return out & ~_short_runs(out, min_len, interior=False)
+    return drop_short_runs(fill_gaps(mask, max_gap), min_len)
 
 
 def ground_height(foot_heights: NDArray[np.floating]) -> float:

@@ -138,3 +138,124 @@ def test_a_stride_is_judged_in_phase_whatever_its_tempo() -> None:
     late[:, FOOT_NAMES.index("RF")] = np.roll(fast[:, FOOT_NAMES.index("RF")], 6)  # RF 6 frames late
     down = M.touchdowns(late)
     assert not any(M.stride_in_order(down, int(a), int(b), phases, 3.0) for a, b in strides[1:-1])
+
+
+# --- foot-height figures of the edge suite (issue 27) -------------------------------------------
+
+def _sliding_foot(frames: int, step_m: float, height: float = 0.0) -> np.ndarray:
+    """(F, 4, 3) feet: LF slides ``step_m`` a frame along X at ``height``; the others stay 1 m up."""
+    feet = np.zeros((frames, 4, 3))
+    feet[:, 1:, 1] = 1.0
+    feet[:, 0, 0] = np.arange(frames) * step_m
+    feet[:, 0, 1] = height
+    return feet
+
+
+def test_a_foot_sliding_5mm_per_frame_on_the_ground_skates_5mm_strictly() -> None:
+    feet = _sliding_foot(40, 0.005)
+    plants = M.strict_plants(M.foot_heights(feet))
+    assert plants[:, 0].all() and not plants[:, 1:].any()
+    skate = M.foot_skate(feet, plants)
+    assert skate.mean_mm == pytest.approx(5.0) and skate.p95_mm == pytest.approx(5.0)
+
+
+def test_strict_plants_need_three_frames_within_1cm() -> None:
+    h = np.full((12, 4), 0.5)
+    h[1:3, 0] = 0.0  # two frames: too short
+    h[5:8, 0] = 0.009  # three frames within 1 cm: a plant
+    h[9:12, 1] = 0.011  # three frames, 1.1 cm up: not within 1 cm
+    plants = M.strict_plants(h)
+    assert np.flatnonzero(plants[:, 0]).tolist() == [5, 6, 7]
+    assert not plants[:, 1:].any()
+    assert M.strict_plants(np.zeros((2, 4))).sum() == 0  # shorter than a plant
+    crowd = np.stack([h, np.roll(h, 2, axis=0)])  # characters are apart: no run spans them
+    assert np.array_equal(M.strict_plants(crowd)[1], np.roll(plants, 2, axis=0))
+
+
+def test_glide_weights_speed_by_height_and_divides_by_body_speed() -> None:
+    body = np.zeros((40, 3))
+    body[:, 2] = np.arange(40) * 0.010  # 10 mm/frame
+    on_ground = _sliding_foot(40, 0.005)
+    glide = M.near_ground_glide(on_ground, M.foot_heights(on_ground), body)
+    assert glide.foot_mm == pytest.approx(5.0) and glide.ratio == pytest.approx(0.5)
+    half = _sliding_foot(40, 0.005, height=M.GLIDE_HEIGHT_M / 2)  # weight 2 - 2^0.5
+    assert M.near_ground_glide(half, M.foot_heights(half), body).foot_mm == pytest.approx(5 * (2 - 2**0.5))
+    above = _sliding_foot(40, 0.005, height=M.GLIDE_HEIGHT_M * 1.01)
+    assert M.near_ground_glide(above, M.foot_heights(above), body).frames == 0
+    # Standing on the spot: the body's speed is floored, not zero.
+    assert np.isfinite(M.near_ground_glide(on_ground, M.foot_heights(on_ground), body * 0).ratio)
+
+
+def test_a_foot_jumping_10cm_in_one_frame_jumps_10cm_and_a_steady_one_0() -> None:
+    feet = _sliding_foot(30, 0.0)
+    feet[15:, 0, 2] += 0.10
+    assert M.one_frame_jumps_mm(feet).max() == pytest.approx(100.0)
+    fast = _sliding_foot(30, 0.20)  # 20 cm a frame, steadily
+    assert M.one_frame_jumps_mm(fast).max() == pytest.approx(0.0, abs=1e-9)
+
+
+def test_touchdown_is_the_step_before_a_strict_plant() -> None:
+    feet = _sliding_foot(20, 0.0, height=0.3)
+    feet[:10, 0, 1] = np.linspace(0.3, 0.04, 10)  # comes down 2.9 cm a frame...
+    feet[10:, 0, 1] = 0.0  # ...then 4 cm in the last frame, and stands
+    plants = M.strict_plants(M.foot_heights(feet))
+    assert M.touchdown_steps_mm(feet, plants) == pytest.approx([40.0])
+
+
+def _bent_legs(angles_deg: np.ndarray) -> tuple[np.ndarray, object]:
+    """World positions of the toy skeleton with every knee (the joint below the limb root) bent
+    by ``angles_deg`` per frame about Z."""
+    from tests.conftest import toy_skeleton
+
+    toy = toy_skeleton()
+    rot = quat.identity((len(angles_deg), toy.n_joints)).astype(np.float64)
+    knees = [f.chain[1] for f in toy.feet]
+    rot[:, knees] = quat.from_axis_angle(np.array([0.0, 0.0, 1.0]), np.radians(angles_deg))[:, None]
+    pos, _ = forward_kinematics(toy, np.zeros((len(angles_deg), 3)), rot)
+    return pos, toy
+
+
+def test_a_knee_reversing_in_one_frame_is_a_flip_and_a_slow_pass_is_not() -> None:
+    flipped, toy = _bent_legs(np.where(np.arange(10) < 5, 30.0, -30.0))
+    flips = M.limb_flips(flipped, toy)
+    knees = [i for i, (_, j, _) in enumerate(M.hinge_joints(toy)) if j in [f.chain[1] for f in toy.feet]]
+    assert flips.sum() == 4 and all(flips[k] == 1 for k in knees)  # one per leg, at its knee
+    slow, _ = _bent_legs(np.linspace(30.0, -30.0, 30))  # 2 deg a frame through straight
+    assert M.limb_flips(slow, toy).sum() == 0
+    # The whole body turning half round in one frame, legs bent as ever: no flip in its frame.
+    bent, _ = _bent_legs(np.full(4, 30.0))
+    turn = quat.from_axis_angle(np.array([0.0, 1.0, 0.0]), np.radians([0.0, 0.0, 170.0, 170.0]))
+    spun = quat.rotate(turn[:, None], bent)
+    assert M.limb_flips(spun, toy).sum() > 0  # in the world, every bent joint's axis turned
+    assert M.limb_flips(spun, toy, turn).sum() == 0
+
+
+def test_reach_single_support_floating_and_yaw_rate() -> None:
+    pos, toy = _bent_legs(np.zeros(3))
+    assert M.limb_reach(pos, toy)[0, 0] == pytest.approx(np.linalg.norm([0.03, -0.45, 0.0]))
+    down = np.zeros((10, 4), bool)
+    down[:, 1] = True
+    down[2:7, 0] = True  # LF joins: RF is no longer alone
+    assert M.single_support_frames(down).tolist() == [1, 2, 0, 0, 0, 0, 0, 1, 2, 3]
+    heights = np.full((4, 4), 0.2)
+    heights[:, 2] = [0.0, 0.03, 0.05, 0.0]
+    assert M.floating_m(heights, np.array([0.0, 0.05, 2.0, 0.0])) == pytest.approx(0.03)
+    turning = quat.from_axis_angle(np.array([0.0, 1.0, 0.0]), np.radians(np.arange(20) * 1.5))
+    assert M.yaw_rates_deg(turning, 60.0) == pytest.approx(np.full(19, 90.0))
+
+
+def test_path_distance_maps_time_and_ignores_running_ahead_along_the_path() -> None:
+    F = 61
+    target = np.zeros((F, 3))
+    target[:, 2] = np.linspace(0.0, 6.0, F)  # 10 cm a frame along Z
+    T = 2 * F - 1  # a clock resampled 2x
+    root = np.zeros((T, 3))
+    # A stride's surge: up to 5 cm ahead of or behind its time (never past the path's ends)...
+    root[:, 2] = np.clip(np.linspace(0.0, 6.0, T) + 0.05 * np.sin(np.arange(T) / 3), 0.0, 6.0)
+    root[:, 0] = 0.02  # ...and 2 cm to the side
+    root[:, 1] = 1.5  # height does not count
+    assert M.path_distance_cm(root, target) == pytest.approx(np.full(T, 2.0), abs=1e-6)
+    cut = root.copy()
+    cut[60, 0] = 0.07  # 7 cm off the path once
+    assert M.path_distance_cm(cut, target).max() == pytest.approx(7.0)
+    assert M.mapped_frames(T, F)[[0, 2, -1]] == pytest.approx([0.0, 1.0, F - 1.0])
