@@ -19,7 +19,7 @@ frequency is mid-range for it:
   1994) rising to 1.64 Hz at 5 m/s (Wickler et al. 2002, Equine Vet. J. Suppl. 34:126); duty 0.47
   at Froude 0.5, 0.41 at 0.75, 0.39 at 1.0 (Bullimore & Burn 2006, J. Exp. Biol. 209:455, at 500
   kg). We use 3.3 m/s (the preferred trot, Wickler et al. 2000, J. Exp. Biol. 203:2195), 42 frames
-  (1.43 Hz, 2.31 m) and duty 0.46: within 0.08 of the 0.40 at this speed, and the speed map's
+  (1.43 Hz, 2.31 m) and duty 0.43: within 0.08 of the 0.40 at this speed, and the speed map's
   slowest trots (where the literature's duty nears 0.5) keep only a short suspension.
 - Canter (left lead): trailing hind (RH), then the diagonal pair (LH+RF), then the leading fore
   (LF), then one suspension (Muybridge 1887; Back & Clayton, *Equine Locomotion*, 2013, ch. 7);
@@ -115,7 +115,7 @@ HORSE_GAITS: dict[str, GaitSpec] = {g.name: g for g in (
           spine_flex=0.5, spine_arched=0.0, carpus_flex=55.0, hock_flex=35.0, hock_load=4.0,
           fetlock_sink=8.0, digit_flex=40.0, breakover=25.0, tail_lift=0.0, tail_swing=4.0, sway=3.0),
     _spec(name="trot", speed=3.3, frames=42, phases={"LH": 0.0, "RF": 0.03, "RH": 0.5, "LF": 0.53},
-          duty=0.46, step_height=0.14, crouch=0.03, bob=0.035, bob_per_stride=2, bob_low=0.2,
+          duty=0.43, step_height=0.14, crouch=0.03, bob=0.035, bob_per_stride=2, bob_low=0.2,
           pitch=1.0, pitch_down=0.2, nod=3.0, nod_per_stride=2, nod_down=0.25, steady_head=0.6,
           spine_flex=1.0, spine_arched=0.2, carpus_flex=85.0, hock_flex=50.0, hock_load=8.0,
           fetlock_sink=14.0, digit_flex=55.0, breakover=30.0, tail_lift=10.0, tail_swing=6.0, sway=1.5),

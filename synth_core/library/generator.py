@@ -214,7 +214,8 @@ def _eased_over_ground(z_body: Floats, swinging: NDArray[np.bool_], planted: NDA
     span_k = np.where(landing, td_k - lo_k + 1, span).astype(np.float64)
     plan = np.where(swinging, z_body, plant_z[prev_c])  # stance frames: on their plant
     advance = np.diff(plan, prepend=plan[0])
-    up = LIFT_OFF_SPEED + (1 - LIFT_OFF_SPEED) * smoothstep((t - lo_k + 1) / np.maximum(SPEED_RAMP_UP * span_k, 1.0))
+    up = smoothstep((t - lo_k + 1) / np.maximum(SPEED_RAMP_UP * span_k, 1.0))
+    up = LIFT_OFF_SPEED + (1 - LIFT_OFF_SPEED) * up
     down = smoothstep((td_k - t + 1) / np.maximum(SPEED_RAMP_DOWN * span_k, 1.0))
     weighted = np.cumsum(np.where(member, advance * up * down, 0.0))
     before = weighted[np.clip(lo_k - 1, 0, T - 1)]
@@ -320,7 +321,8 @@ def synthesize(skeleton: Skeleton, track: Track, name: str, gait: str | None) ->
         neutral = rest_pos[end, 2] - rest_pos[0, 2]
         foot_planted = planted[:, k]
         for _ in range(MAX_EARLY_LIFT_FRAMES + 1):
-            plan = plan_foot(foot_planted, root_z, neutral, v["step_height"] * leg_length * FOOT_LIFT[limb.foot])
+            lift = v["step_height"] * leg_length * FOOT_LIFT[limb.foot]
+            plan = plan_foot(foot_planted, root_z, neutral, lift)
             solution = _solve_limb(skeleton, limb, plan, trunk_pos, global_pitch, v,
                                    _rest_protraction(limb, rest_pos))
             # A foot left behind at (or beyond) the leg's full reach on its last stance frame lifts
