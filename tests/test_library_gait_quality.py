@@ -42,6 +42,9 @@ GLIDE_HEIGHT = 0.025  # m, H of the near-ground glide ratio (ENGINEERING.md)
 GLIDE_LIMIT = 0.10  # issue 27: the real MANN dog's 0.066-0.106
 
 
+Clips = dict[str, dict[str, Motion]]
+
+
 @pytest.fixture(scope="module")
 def clips() -> dict[str, dict[str, Motion]]:
     return {animal: build_clips(animal) for animal in ("horse", "dog")}
@@ -61,7 +64,7 @@ def exported(motion: Motion, tmp_path: Path) -> Motion:
 
 
 @pytest.mark.parametrize("gait", GAITS)
-def test_horse_tempo_follows_the_literature(clips: dict, gait: str, tmp_path: Path) -> None:
+def test_horse_tempo_follows_the_literature(clips: Clips, gait: str, tmp_path: Path) -> None:
     speed, frequencies, duty = HORSE_TEMPO[gait]
     motion = exported(looped(clips["horse"][gait], 4), tmp_path)
     assert abs(motion.speed_mps() / speed - 1.0) <= 0.1  # the figures below hold at this speed
@@ -109,7 +112,7 @@ def hoof_stance_motion(motion: Motion) -> float:
 
 @pytest.mark.parametrize("animal", ["horse", "dog"])
 @pytest.mark.parametrize("clip", [*GAITS, *TRANSITIONS])
-def test_hooves_and_paws_stand_flat_until_breakover(clips: dict, animal: str, clip: str) -> None:
+def test_hooves_and_paws_stand_flat_until_breakover(clips: Clips, animal: str, clip: str) -> None:
     motion = clips[animal][clip]
     if clip in GAITS:
         motion = looped(motion, 3)
@@ -130,7 +133,7 @@ def glide_ratio(feet: np.ndarray, root: np.ndarray) -> float:
 
 @pytest.mark.parametrize("animal", ["horse", "dog"])
 @pytest.mark.parametrize("gait", GAITS)
-def test_feet_lift_quickly_and_slow_before_touchdown(clips: dict, animal: str, gait: str,
+def test_feet_lift_quickly_and_slow_before_touchdown(clips: Clips, animal: str, gait: str,
                                                      tmp_path: Path) -> None:
     motion = exported(looped(clips[animal][gait], 3), tmp_path)
     feet = motion.foot_positions().astype(np.float64)
