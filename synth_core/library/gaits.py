@@ -96,6 +96,10 @@ class GaitSpec:
     tail_lift: float  # tail raised (deg)
     tail_swing: float  # tail follow-through amplitude (deg)
     sway: float = 0.0  # neck and tail side to side, once per stride (deg)
+    # Share of the swing over which the foot slows to rest before touchdown; it reaches past its
+    # landing place relative to the body meanwhile (swing-leg retraction), so a gait whose legs are
+    # at full stretch at touchdown (the horse's long gallop stance) takes less.
+    touchdown_ease: float = 0.25
     notes: str = field(default="", compare=False)
 
     @property
@@ -130,7 +134,8 @@ HORSE_GAITS: dict[str, GaitSpec] = {g.name: g for g in (
           duty=0.27, step_height=0.18, crouch=0.07, bob=0.06, bob_per_stride=1, bob_low=0.2,
           pitch=5.0, pitch_down=0.38, nod=10.0, nod_per_stride=1, nod_down=0.4, steady_head=0.0,
           spine_flex=5.0, spine_arched=0.1, carpus_flex=110.0, hock_flex=60.0, hock_load=12.0,
-          fetlock_sink=22.0, digit_flex=70.0, breakover=35.0, tail_lift=25.0, tail_swing=12.0, sway=1.0),
+          fetlock_sink=22.0, digit_flex=70.0, breakover=35.0, tail_lift=25.0, tail_swing=12.0, sway=1.0,
+          touchdown_ease=0.12),
 )}
 
 DOG_GAITS: dict[str, GaitSpec] = {g.name: g for g in (

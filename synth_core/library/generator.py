@@ -132,7 +132,8 @@ class FootPlan:
     swing_frames: Floats  # (T,) length of the current swing in frames, NaN in stance
 
 
-def plan_foot(planted: NDArray[np.bool_], root_z: Floats, neutral_z: float, lift: Floats) -> FootPlan:
+def plan_foot(planted: NDArray[np.bool_], root_z: Floats, neutral_z: float, lift: Floats,
+              ease_down: Floats | float = 0.25) -> FootPlan:
     """Plants at the root's mid-stance place (square when open-ended) and swings between them."""
     T = len(planted)
     stance = runs(planted)
@@ -160,7 +161,8 @@ def plan_foot(planted: NDArray[np.bool_], root_z: Floats, neutral_z: float, lift
     ahead = plant_z[nxt] - root_z[np.clip(td, 0, T - 1)]
     z_body = root_z + behind + (ahead - behind) * min_jerk(s)
     swinging = ~planted & ~before_first & ~after_last
-    z_swing = _eased_over_ground(z_body, swinging, planted, start, stop, plant_z, prev_c, lo, td, span)
+    z_swing = _eased_over_ground(z_body, swinging, planted, start, stop, plant_z, prev_c, lo, td, span,
+                                 np.broadcast_to(ease_down, (T,)))
     z_swing = np.where(before_first, plant_z[0], np.where(after_last, plant_z[-1], z_swing))
     # Lifts steeply and comes down a little less steeply, peaking just before mid-swing (a hoof's
     # flight peaks around mid-swing, gait-reference table 4): the toe is soon clear of the ground
@@ -183,9 +185,10 @@ LIFT_RISE, LIFT_FALL = 1.0, 1.2  # rises steeply: the toe is clear of the ground
 def lift_profile(s: Floats) -> Floats:
     peak = LIFT_RISE / (LIFT_RISE + LIFT_FALL)
     return np.asarray(s**LIFT_RISE * (1 - s) ** LIFT_FALL / (peak**LIFT_RISE * (1 - peak) ** LIFT_FALL))
-# The foot's world speed ramps up from rest over this share of its swing after lift-off, and down
-# to rest over this share before touchdown (lift quickly, slow before touchdown, as the MANN dog).
-SPEED_RAMP_UP, SPEED_RAMP_DOWN = 0.25, 0.25
+# The foot's world speed ramps up over this share of its swing after lift-off (and down to rest
+# over the gait's ``touchdown_ease`` before touchdown): lift quickly, slow before touchdown, as
+# the MANN dog's feet do.
+SPEED_RAMP_UP = 0.25
 # Share of the plan's speed a foot leaves the ground with: the leg is at full stretch behind at
 # lift-off, so a foot lagging further would be out of its reach (a kink of the elbow or stifle).
 LIFT_OFF_SPEED = 0.5
@@ -194,7 +197,7 @@ LIFT_OFF_SPEED = 0.5
 def _eased_over_ground(z_body: Floats, swinging: NDArray[np.bool_], planted: NDArray[np.bool_],
                        start: NDArray[np.int64], stop: NDArray[np.int64], plant_z: Floats,
                        prev_c: NDArray[np.int64], lo: NDArray[np.int64], td: NDArray[np.int64],
-                       span: NDArray[np.int64]) -> Floats:
+                       span: NDArray[np.int64], ease_down: Floats) -> Floats:
     """Swing positions (T,) with the body-relative plan's per-frame advance eased in and out.
 
     The body-relative plan leaves and meets the ground at the body's speed: a foot sliding along
@@ -202,6 +205,8 @@ def _eased_over_ground(z_body: Floats, swinging: NDArray[np.bool_], planted: NDA
     weighted by ramps from zero after lift-off and to zero before touchdown, and the swing's
     advances rescaled so it still spans its two plants. The foot lags the plan a little early in
     the swing and reaches a little beyond it late, as swing legs retract before touchdown.
+    ``ease_down (T,)``: the share of the swing the foot slows down over (the gait's
+    ``touchdown_ease``).
     """
     T = len(z_body)
     t = np.arange(T)
@@ -216,7 +221,7 @@ def _eased_over_ground(z_body: Floats, swinging: NDArray[np.bool_], planted: NDA
     advance = np.diff(plan, prepend=plan[0])
     up = smoothstep((t - lo_k + 1) / np.maximum(SPEED_RAMP_UP * span_k, 1.0))
     up = LIFT_OFF_SPEED + (1 - LIFT_OFF_SPEED) * up
-    down = smoothstep((td_k - t + 1) / np.maximum(SPEED_RAMP_DOWN * span_k, 1.0))
+    down = smoothstep((td_k - t + 1) / np.maximum(ease_down[np.clip(td_k, 0, T - 1)] * span_k, 1.0))
     weighted = np.cumsum(np.where(member, advance * up * down, 0.0))
     before = weighted[np.clip(lo_k - 1, 0, T - 1)]
     total = weighted[np.clip(td_k, 0, T - 1)] - before
@@ -322,7 +327,7 @@ def synthesize(skeleton: Skeleton, track: Track, name: str, gait: str | None) ->
         foot_planted = planted[:, k]
         for _ in range(MAX_EARLY_LIFT_FRAMES + 1):
             lift = v["step_height"] * leg_length * FOOT_LIFT[limb.foot]
-            plan = plan_foot(foot_planted, root_z, neutral, lift)
+            plan = plan_foot(foot_planted, root_z, neutral, lift, v["touchdown_ease"])
             solution = _solve_limb(skeleton, limb, plan, trunk_pos, global_pitch, v,
                                    _rest_protraction(limb, rest_pos))
             # A foot left behind at (or beyond) the leg's full reach on its last stance frame lifts
