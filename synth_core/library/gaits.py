@@ -28,7 +28,9 @@ frequency is mid-range for it:
 - Gallop (left lead, transverse): RH, LH, RF, LF, one gathered suspension (Bertram & Gutmann 2009,
   J. R. Soc. Interface 6:549). At 9 m/s stance 131-143 ms and protraction 355-364 ms: a 0.495 s
   stride (2.0 Hz), duty 0.27 fore, 0.29 hind (Witte, Hirst & Wilson 2006, J. Exp. Biol.
-  209:4389-4397): 9.0 m/s, 30 frames (2.0 Hz, 4.5 m), duty 0.27. Phases RH 0.86, RF 0.24,
+  209:4389-4397; 2.4 Hz at 17 m/s, so about 2.03 Hz at 9.5): 9.5 m/s, 29 frames (2.07 Hz,
+  4.59 m), duty 0.27; the speed map's fastest clips (10.3 m/s) keep up with herds whose
+  fastest members outrun 9.7 m/s for their size. Phases RH 0.86, RF 0.24,
   LF 0.40 (within table 1a's ranges), far enough apart that blends into and out of the canter
   keep four separate footfalls.
 - The paper's Table 1 cycles (walk 82, trot 56, canter 51, gallop 51 frames at 60 fps) are its
@@ -130,8 +132,8 @@ HORSE_GAITS: dict[str, GaitSpec] = {g.name: g for g in (
           pitch=4.0, pitch_down=0.33, nod=8.0, nod_per_stride=1, nod_down=0.35, steady_head=0.0,
           spine_flex=3.5, spine_arched=0.0, carpus_flex=95.0, hock_flex=55.0, hock_load=10.0,
           fetlock_sink=18.0, digit_flex=60.0, breakover=30.0, tail_lift=15.0, tail_swing=10.0, sway=1.0),
-    _spec(name="gallop", speed=9.0, frames=30, phases={"RH": 0.86, "LH": 0.0, "RF": 0.24, "LF": 0.40},
-          duty=0.27, step_height=0.18, crouch=0.07, bob=0.06, bob_per_stride=1, bob_low=0.2,
+    _spec(name="gallop", speed=9.8, frames=29, phases={"RH": 0.86, "LH": 0.0, "RF": 0.24, "LF": 0.40},
+          duty=0.26, step_height=0.18, crouch=0.07, bob=0.06, bob_per_stride=1, bob_low=0.2,
           pitch=5.0, pitch_down=0.38, nod=10.0, nod_per_stride=1, nod_down=0.4, steady_head=0.0,
           spine_flex=5.0, spine_arched=0.1, carpus_flex=110.0, hock_flex=60.0, hock_load=12.0,
           fetlock_sink=22.0, digit_flex=70.0, breakover=35.0, tail_lift=25.0, tail_swing=12.0, sway=1.0,
