@@ -18,8 +18,10 @@ TRANSITIONS = ("static2walk", "walk2static", "walk2trot", "trot2walk", "trot2can
 CLIP_NAMES = ("idle", *GAITS, *TRANSITIONS)
 # Strides each transition's blend takes: short, as animals change gait within a stride or so,
 # but long enough for the generator to keep the feet planted and clear (tests/test_library_clips):
-# starting and stopping take longer, and a canter's lead is slow to unwind into a trot.
-TRANSITION_STRIDES = {"static2walk": 2.0, "walk2static": 2.0, "canter2trot": 1.5}
+# starting and stopping take longer, and a canter's lead is slow to unwind into a trot. A gallop
+# gathers into a canter within a stride: its footfalls blended over longer gave canter strides
+# whose diagonal pair had not yet come together (synthesis labels the blend's second half canter).
+TRANSITION_STRIDES = {"static2walk": 2.0, "walk2static": 2.0, "canter2trot": 1.5, "gallop2canter": 1.0}
 
 
 def build_clips(animal: str) -> dict[str, Motion]:
