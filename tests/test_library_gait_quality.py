@@ -156,3 +156,31 @@ def test_speed_map_clips_keep_the_swing_and_flat_hooves(animal: str) -> None:
             three = looped(speed_map.clip(i), 3)
             moved = hoof_stance_motion(three, np.concatenate([positions[i] + k * advance for k in range(3)]))
             assert moved <= HOOF_STANCE_MM, (gait, float(speed_map.speeds[i]), moved)
+
+
+def head_pitch_swing(motion: Motion) -> float:
+    """Peak-to-peak pitch (deg) of the head bone in the world over the clip."""
+    pos = motion.positions().astype(np.float64)
+    head = pos[:, motion.skeleton.index("Head_end")] - pos[:, motion.skeleton.index("Head")]
+    return float(np.ptp(np.degrees(np.arctan2(head[:, 1], np.hypot(head[:, 0], head[:, 2])))))
+
+
+@pytest.mark.parametrize("gait", GAITS)
+def test_horse_head_nods_within_the_literature(clips: Clips, gait: str) -> None:
+    """Head, neck and trunk pitch are held within 20 deg in walk, trot and canter (Dunbar et al.
+    2008, gait-reference table 4); the head still moves with every gait (issue 28: it was frozen
+    in the world at the trot)."""
+    swing = head_pitch_swing(clips["horse"][gait])
+    assert swing >= 1.0
+    if gait != "gallop":
+        assert swing <= 20.0
+
+
+@pytest.mark.parametrize("animal", ["horse", "dog"])
+@pytest.mark.parametrize("gait", GAITS)
+def test_each_foot_swings_to_its_own_height(clips: Clips, animal: str, gait: str) -> None:
+    """Issue 28: all four feet followed the same swing-height curve."""
+    motion = looped(clips[animal][gait], 2)
+    heights = motion.foot_positions()[..., 1].astype(np.float64)
+    peaks = np.array([heights[~motion.contacts[:, k], k].max() for k in range(4)])
+    assert (peaks.max() - peaks.min()) / peaks.max() >= 0.03, peaks

@@ -42,7 +42,9 @@ frequency is mid-range for it:
   once per stride at the canter and gallop; at the trot they move twice per stride, in phase with
   the diagonal stance, the head kept fairly level (Buchner et al. 1996; Dunbar et al. 2008, J.
   Exp. Biol. 211:3889: head, neck and trunk pitch within 20 deg). The trunk pitches once per
-  stride in canter and gallop (gait-reference table 4). Amplitudes are our estimates.
+  stride in canter and gallop (gait-reference table 4). Amplitudes are our estimates, kept so
+  the head's pitch in the world swings within Dunbar et al.'s 20 deg at the walk, trot and canter
+  (measured: 9.6, 3.5 and 17 deg peak to peak).
 - Swing: each foot lifts a little differently (fore higher than hind, the two sides a few per
   cent apart; ``FOOT_LIFT``), as no two legs of an animal move alike.
 
@@ -129,12 +131,12 @@ HORSE_GAITS: dict[str, GaitSpec] = {g.name: g for g in (
           fetlock_sink=14.0, digit_flex=55.0, breakover=30.0, tail_lift=10.0, tail_swing=6.0, sway=1.5),
     _spec(name="canter", speed=5.0, frames=32, phases={"RH": 0.73, "LH": 0.0, "RF": 0.0, "LF": 0.20},
           duty=0.42, step_height=0.16, crouch=0.05, bob=0.05, bob_per_stride=1, bob_low=0.1,
-          pitch=4.0, pitch_down=0.33, nod=8.0, nod_per_stride=1, nod_down=0.35, steady_head=0.0,
+          pitch=4.0, pitch_down=0.33, nod=6.0, nod_per_stride=1, nod_down=0.35, steady_head=0.0,
           spine_flex=3.5, spine_arched=0.0, carpus_flex=95.0, hock_flex=55.0, hock_load=10.0,
           fetlock_sink=18.0, digit_flex=60.0, breakover=30.0, tail_lift=15.0, tail_swing=10.0, sway=1.0),
     _spec(name="gallop", speed=9.8, frames=29, phases={"RH": 0.86, "LH": 0.0, "RF": 0.24, "LF": 0.40},
           duty=0.26, step_height=0.18, crouch=0.07, bob=0.06, bob_per_stride=1, bob_low=0.2,
-          pitch=5.0, pitch_down=0.38, nod=10.0, nod_per_stride=1, nod_down=0.4, steady_head=0.0,
+          pitch=5.0, pitch_down=0.38, nod=7.0, nod_per_stride=1, nod_down=0.4, steady_head=0.0,
           spine_flex=5.0, spine_arched=0.1, carpus_flex=110.0, hock_flex=60.0, hock_load=12.0,
           fetlock_sink=22.0, digit_flex=70.0, breakover=35.0, tail_lift=25.0, tail_swing=12.0, sway=1.0,
           touchdown_ease=0.12),
