@@ -28,9 +28,9 @@ frequency is mid-range for it:
 - Gallop (left lead, transverse): RH, LH, RF, LF, one gathered suspension (Bertram & Gutmann 2009,
   J. R. Soc. Interface 6:549). At 9 m/s stance 131-143 ms and protraction 355-364 ms: a 0.495 s
   stride (2.0 Hz), duty 0.27 fore, 0.29 hind (Witte, Hirst & Wilson 2006, J. Exp. Biol.
-  209:4389-4397; 2.4 Hz at 17 m/s, so about 2.03 Hz at 9.5): 9.5 m/s, 29 frames (2.07 Hz,
-  4.59 m), duty 0.27; the speed map's fastest clips (10.3 m/s) keep up with herds whose
-  fastest members outrun 9.7 m/s for their size. Phases RH 0.86, RF 0.24,
+  209:4389-4397; 2.4 Hz at 17 m/s, so about 2.04 Hz at 9.8): 9.8 m/s, 29 frames (2.07 Hz,
+  4.74 m), duty 0.26 (0.28 on whole frames); the speed map's fastest clips (10.6 m/s) keep up
+  with the standard herd's fastest members for their size. Phases RH 0.86, RF 0.24,
   LF 0.40 (within table 1a's ranges), far enough apart that blends into and out of the canter
   keep four separate footfalls.
 - The paper's Table 1 cycles (walk 82, trot 56, canter 51, gallop 51 frames at 60 fps) are its
