@@ -8,11 +8,15 @@ is a per-frame array (a transition blends two gaits' parameters over time), and:
    fraction is below the duty factor. Each plant sits at the foot's neutral place under the body
    at the root's mid-stance position (or, for a plant open at the clip's start or end, at the
    root's position there, so standing is square);
-3. a swinging foot travels from one plant to the next on a minimum-jerk path, lifted by the
-   step height;
-4. the trunk bobs, pitches and flexes, the neck nods (or holds the head steady), the tail follows;
+3. a swinging foot travels from one plant to the next on a minimum-jerk path relative to the
+   body, eased in the world so it peels off slowly and slows to rest before touchdown (issue 27),
+   lifted steeply by its own step height (``FOOT_LIFT``: no two feet alike);
+4. the trunk bobs, pitches and flexes, the neck nods (the head partly or wholly held level), the
+   neck and tail sway, the tail follows;
 5. the legs are solved in the sagittal plane (:mod:`synth_core.library.limbs`) with the carpus
-   and hock flexing in swing, the fetlock sinking under load and the hoof breaking over the toe.
+   and hock flexing in swing, the fetlock sinking under load and the hoof standing flat until it
+   breaks over the toe in the last fifth of the stance (issue 28); mid-swing, where the folded
+   leg's solution turns fastest, the angles are smoothed in time.
 
 Cyclic clips are generated with two strides of padding on each side and cut, so they loop
 exactly; transitions are cut from a timeline padded with the gaits they join.
