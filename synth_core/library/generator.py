@@ -379,14 +379,19 @@ def _solve_limb(skeleton: Skeleton, limb: Limb, plan: FootPlan, trunk_pos: Float
     # Digits: the fetlock sinks under load; the hoof breaks over the toe; the digits fold in swing.
     # The hoof (paw) stands flat through the stance and breaks over its toe in the last
     # BREAKOVER_SHARE of it (issue 28: a hoof rolling on its toe all stance long reads wrong).
-    # Half of it by lift-off (easing in), the rest early in the swing as the heel rises further,
-    # then it unwinds: a quick stance (a gallop's 8 frames) breaks over without a snap.
+    # Part of it by lift-off (easing in), the rest early in the swing as the heel rises further,
+    # then it unwinds: a quick stance (a gallop's 8 frames) breaks over without a snap. The bones
+    # above the hoof (the pastern) turn from mid-stance on, as the fetlock rises off its sink:
+    # that moves the fetlock, not the hoof, and leaves the leg the reach it has at lift-off.
     over = np.clip((w - 1.0 + BREAKOVER_SHARE) / BREAKOVER_SHARE, 0.0, 1.0)
     after = np.where(s < 0.25, BROKEN_AT_LIFT + (1 - BROKEN_AT_LIFT) * np.sin(0.5 * np.pi * s / 0.25),
                      1.0 - smoothstep((s - 0.25) / 0.4))
-    breakover = np.radians(v["breakover"]) * np.where(in_stance, BROKEN_AT_LIFT * over**2, after)
+    hoof = np.where(in_stance, BROKEN_AT_LIFT * over**2, after)
+    pastern = np.where(in_stance, smoothstep((w - 0.5) / 0.5), 1.0 - smoothstep(s / 0.5))
     digits = list(limb.digits)
-    digit_angles = limb.rest_angles[digits][None] - breakover[:, None] \
+    breakover = np.radians(v["breakover"])[:, None] * np.concatenate(
+        [np.repeat(pastern[:, None], len(digits) - 1, axis=1), hoof[:, None]], axis=1)
+    digit_angles = limb.rest_angles[digits][None] - breakover \
         - np.radians(v["digit_flex"])[:, None] * swing_bump[:, None]
     if len(digits) > 1:  # the pastern sinks; a lone digit bone is the paw itself, kept flat
         digit_angles[:, 0] += np.radians(v["fetlock_sink"]) * load
