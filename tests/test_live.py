@@ -60,8 +60,9 @@ def test_live_frames_are_the_batch_plans_frames(bank: Bank, herd: np.ndarray, ba
     windows, lags = feed(live, herd)
     root, rot, gait, contacts = joined(windows)
     assert root.shape == batch.root_pos.shape and np.array_equal(live.scales, batch.scales)
-    # All but the last two segments: there the batch's speeds read its last, shorter segment.
-    t = slice(0, root.shape[1] - 2 * bank.mean_cycle)
+    # Up to the last three segments: gaits are chosen on the speed LOOKAHEAD (2) segments ahead,
+    # so the batch's last, shorter segment is read from the two segments before it on.
+    t = slice(0, root.shape[1] - 3 * bank.mean_cycle)
     np.testing.assert_array_equal(gait[:, t], batch.gait[:, t])
     np.testing.assert_array_equal(contacts[:, t], batch.contacts[:, t])
     np.testing.assert_allclose(root[:, t], batch.root_pos[:, t], atol=1e-6)

@@ -20,6 +20,10 @@ CLIP_NAMES = ("idle", *GAITS, *TRANSITIONS)
 # but long enough for the generator to keep the feet planted and clear (tests/test_library_clips):
 # starting and stopping take longer, and a canter's lead is slow to unwind into a trot.
 TRANSITION_STRIDES = {"static2walk": 2.0, "walk2static": 2.0, "canter2trot": 1.5}
+# The horse gathers from its transverse gallop into a canter within a stride: blended over longer,
+# canter strides after it (synthesis labels the blend's second half canter) still had the diagonal
+# pair apart. (The dog's rotary gallop keeps its 1.25 strides: shorter, its stitches pop more.)
+ANIMAL_TRANSITION_STRIDES = {"horse": {"gallop2canter": 1.0}}
 
 
 def build_clips(animal: str) -> dict[str, Motion]:
@@ -29,12 +33,13 @@ def build_clips(animal: str) -> dict[str, Motion]:
     specs["static"] = static_spec(specs["walk"])
     clips = {"idle": idle_clip(skeleton)}
     starts = {}
+    strides = {**TRANSITION_STRIDES, **ANIMAL_TRANSITION_STRIDES.get(animal, {})}
     for gait in GAITS:
         clips[gait], starts[gait] = cyclic_clip(skeleton, specs[gait])
     for name in TRANSITIONS:
         source, target = name.split("2")
         clips[name] = transition_clip(skeleton, specs[source], specs[target], name,
-                                      strides=TRANSITION_STRIDES.get(name, 1.25),
+                                      strides=strides.get(name, 1.25),
                                       start=starts.get(source, 0))
     return clips
 

@@ -8,11 +8,15 @@ is a per-frame array (a transition blends two gaits' parameters over time), and:
    fraction is below the duty factor. Each plant sits at the foot's neutral place under the body
    at the root's mid-stance position (or, for a plant open at the clip's start or end, at the
    root's position there, so standing is square);
-3. a swinging foot travels from one plant to the next on a minimum-jerk path, lifted by the
-   step height;
-4. the trunk bobs, pitches and flexes, the neck nods (or holds the head steady), the tail follows;
+3. a swinging foot travels from one plant to the next on a minimum-jerk path relative to the
+   body, eased in the world so it peels off slowly and slows to rest before touchdown (issue 27),
+   lifted steeply by its own step height (``FOOT_LIFT``: no two feet alike);
+4. the trunk bobs, pitches and flexes, the neck nods (the head partly or wholly held level), the
+   neck and tail sway, the tail follows;
 5. the legs are solved in the sagittal plane (:mod:`synth_core.library.limbs`) with the carpus
-   and hock flexing in swing, the fetlock sinking under load and the hoof breaking over the toe.
+   and hock flexing in swing, the fetlock sinking under load and the hoof standing flat until it
+   breaks over the toe in the last fifth of the stance (issue 28); mid-swing, where the folded
+   leg's solution turns fastest, the angles are smoothed in time.
 
 Cyclic clips are generated with two strides of padding on each side and cut, so they loop
 exactly; transitions are cut from a timeline padded with the gaits they join.
@@ -28,7 +32,7 @@ from scipy.ndimage import gaussian_filter1d, maximum_filter1d
 
 from synth_core import FOOT_NAMES, quat
 from synth_core.contacts import fill_gaps, runs
-from synth_core.library.gaits import GaitSpec
+from synth_core.library.gaits import FOOT_LIFT, GaitSpec
 from synth_core.library.limbs import MIN_DISTAL_FLEX, LegSolution, Limb, angle_of, limbs_of, solve_leg
 from synth_core.motion import Motion
 from synth_core.skeleton import Skeleton, forward_kinematics
@@ -40,6 +44,8 @@ MAX_EARLY_LIFT_FRAMES = 3  # a foot out of reach at the end of its stance lifts 
 REACH_TOLERANCE = 0.001  # m
 MAX_EXTENSION = 0.985  # of the two main links' reach, on a stance's last frame
 FULL_FLEX_SWING_S = 0.25  # swings at least this long flex the joints fully (every steady gait's do)
+BREAKOVER_SHARE = 0.2  # of the stance: the hoof or paw rolls over its toe only in this last part
+BROKEN_AT_LIFT = 0.4  # of the breakover angle reached at lift-off; the rest early in the swing
 _X = np.array([1.0, 0.0, 0.0])
 _Y = np.array([0.0, 1.0, 0.0])
 
@@ -47,13 +53,13 @@ _Y = np.array([0.0, 1.0, 0.0])
 # Standing zeroes what moves the body and loads the legs; how a foot swings (lift, flexion,
 # breakover) stays ``like``'s, so the first and last steps of a start or stop are real steps.
 _STILL = ("speed", "crouch", "bob", "pitch", "nod", "spine_flex", "fetlock_sink", "hock_load",
-          "tail_lift", "tail_swing")
+          "tail_lift", "tail_swing", "sway", "steady_head")
 
 
 def static_spec(like: GaitSpec) -> GaitSpec:
     """Standing still: every foot planted, nothing oscillating; the stride clock keeps ``like``'s."""
     still: dict[str, object] = {name: 0.0 for name in _STILL}
-    still.update(duty=1.0, name="static", steady_head=False)
+    still.update(duty=1.0, name="static")
     return replace(like, **still)  # type: ignore[arg-type]
 
 
@@ -130,7 +136,8 @@ class FootPlan:
     swing_frames: Floats  # (T,) length of the current swing in frames, NaN in stance
 
 
-def plan_foot(planted: NDArray[np.bool_], root_z: Floats, neutral_z: float, lift: Floats) -> FootPlan:
+def plan_foot(planted: NDArray[np.bool_], root_z: Floats, neutral_z: float, lift: Floats,
+              ease_down: Floats | float = 0.25) -> FootPlan:
     """Plants at the root's mid-stance place (square when open-ended) and swings between them."""
     T = len(planted)
     stance = runs(planted)
@@ -156,19 +163,77 @@ def plan_foot(planted: NDArray[np.bool_], root_z: Floats, neutral_z: float, lift
     # overtake the body mid-swing at a gallop, out of the leg's reach).
     behind = plant_z[prev_c] - root_z[np.clip(lo - 1, 0, T - 1)]
     ahead = plant_z[nxt] - root_z[np.clip(td, 0, T - 1)]
-    z_swing = root_z + behind + (ahead - behind) * min_jerk(s)
+    z_body = root_z + behind + (ahead - behind) * min_jerk(s)
+    swinging = ~planted & ~before_first & ~after_last
+    z_swing = _eased_over_ground(z_body, swinging, planted, start, stop, plant_z, prev_c, lo, td, span,
+                                 np.broadcast_to(ease_down, (T,)))
     z_swing = np.where(before_first, plant_z[0], np.where(after_last, plant_z[-1], z_swing))
-    # Lifts early and lands gently, leaving and meeting the ground with zero vertical speed; a short
-    # swing (the first steps of a start) lifts the foot less.
-    early = np.clip(s, 0, 1) ** 0.8
-    bump = 16 * early**2 * (1 - early) ** 2
-    short = np.clip((span - 1.0) / (FULL_FLEX_SWING_S * FPS), 0.0, 1.0)
+    # Lifts steeply and comes down a little less steeply, peaking just before mid-swing (a hoof's
+    # flight peaks around mid-swing, gait-reference table 4): the toe is soon clear of the ground
+    # it would otherwise skim (the real dog's feet spend a frame or two below 2.5 cm at each end).
+    # A short swing (the first steps of a start) lifts the foot less.
+    bump = lift_profile(s)
+    short = np.clip((span - 1.0) / (FULL_FLEX_SWING_S * FPS), 0.0, 1.0) ** 0.4
     y_swing = np.where(before_first | after_last, 0.0, lift * short * bump)
     z = np.where(planted, plant_z[prev_c], z_swing)
     y = np.where(planted, 0.0, y_swing)
     w = (t - start[prev_c] + 0.5) / (stop[prev_c] - start[prev_c])
     return FootPlan(planted, z, y, np.where(planted, w, np.nan), np.where(planted, np.nan, s),
                     np.where(planted, np.nan, span - 1.0))
+
+
+# Swing height profile s^LIFT_RISE (1 - s)^LIFT_FALL, scaled to peak at 1.
+LIFT_RISE, LIFT_FALL = 1.0, 1.2  # rises steeply: the toe is clear of the ground within a frame or two
+
+
+def lift_profile(s: Floats) -> Floats:
+    peak = LIFT_RISE / (LIFT_RISE + LIFT_FALL)
+    return np.asarray(s**LIFT_RISE * (1 - s) ** LIFT_FALL / (peak**LIFT_RISE * (1 - peak) ** LIFT_FALL))
+# The foot's world speed ramps up over this share of its swing after lift-off (and down to rest
+# over the gait's ``touchdown_ease`` before touchdown): lift quickly, slow before touchdown, as
+# the MANN dog's feet do.
+SPEED_RAMP_UP = 0.25
+# Share of the plan's speed a foot leaves the ground with: the leg is at full stretch behind at
+# lift-off, so a foot lagging further would be out of its reach (a kink of the elbow or stifle).
+LIFT_OFF_SPEED = 0.5
+
+
+def _eased_over_ground(z_body: Floats, swinging: NDArray[np.bool_], planted: NDArray[np.bool_],
+                       start: NDArray[np.int64], stop: NDArray[np.int64], plant_z: Floats,
+                       prev_c: NDArray[np.int64], lo: NDArray[np.int64], td: NDArray[np.int64],
+                       span: NDArray[np.int64], ease_down: Floats) -> Floats:
+    """Swing positions (T,) with the body-relative plan's per-frame advance eased in and out.
+
+    The body-relative plan leaves and meets the ground at the body's speed: a foot sliding along
+    as it peels off and sets down. Each frame's advance (into the touchdown frame included) is
+    weighted by ramps from zero after lift-off and to zero before touchdown, and the swing's
+    advances rescaled so it still spans its two plants. The foot lags the plan a little early in
+    the swing and reaches a little beyond it late, as swing legs retract before touchdown.
+    ``ease_down (T,)``: the share of the swing the foot slows down over (the gait's
+    ``touchdown_ease``).
+    """
+    T = len(z_body)
+    t = np.arange(T)
+    landing = planted & np.isin(t, start) & (t > start[0])  # touchdown frames ending a swing
+    member = swinging | landing
+    # Each member frame's swing, by its lift-off frame lo_k and touchdown frame td_k.
+    prev_run = np.searchsorted(start, t, side="right") - 1
+    lo_k = np.where(landing, stop[np.clip(prev_run - 1, 0, len(stop) - 1)], lo)
+    td_k = np.where(landing, t, td)
+    span_k = np.where(landing, td_k - lo_k + 1, span).astype(np.float64)
+    plan = np.where(swinging, z_body, plant_z[prev_c])  # stance frames: on their plant
+    advance = np.diff(plan, prepend=plan[0])
+    up = smoothstep((t - lo_k + 1) / np.maximum(SPEED_RAMP_UP * span_k, 1.0))
+    up = LIFT_OFF_SPEED + (1 - LIFT_OFF_SPEED) * up
+    down = smoothstep((td_k - t + 1) / np.maximum(ease_down[np.clip(td_k, 0, T - 1)] * span_k, 1.0))
+    weighted = np.cumsum(np.where(member, advance * up * down, 0.0))
+    before = weighted[np.clip(lo_k - 1, 0, T - 1)]
+    total = weighted[np.clip(td_k, 0, T - 1)] - before
+    p0 = plan[np.clip(lo_k - 1, 0, T - 1)]
+    p1 = plan[np.clip(td_k, 0, T - 1)]
+    ok = np.abs(total) > 1e-9
+    frac = np.where(ok, (weighted - before) / np.where(ok, total, 1.0), 0.0)
+    return np.where(swinging & ok, p0 + (p1 - p0) * frac, z_body)
 
 
 # --- the whole body --------------------------------------------------------------------------
@@ -244,6 +309,12 @@ def synthesize(skeleton: Skeleton, track: Track, name: str, gait: str | None) ->
 
     rot = _rot_x(angles)
     rot[:, 0] = _rot_x(pitch)
+    # Neck and tail sway side to side once a stride, the tail lagging (the legs hang from the
+    # trunk, which stays in its sagittal plane, so the feet are untouched).
+    for chain, lag in ((neck, 0.0), (tail, 0.25)):
+        for k, j in enumerate(chain):
+            sway = np.radians(v["sway"]) / len(chain) * np.sin(2 * np.pi * (clock - lag - 0.08 * k))
+            rot[:, j] = quat.mul(rot[:, j], quat.from_axis_angle(_Y, sway))
     root_pos = np.stack([np.zeros(T), root_y, root_z], axis=1)
     trunk_pos = forward_kinematics(skeleton, root_pos, rot)[0].astype(np.float64)
 
@@ -259,7 +330,8 @@ def synthesize(skeleton: Skeleton, track: Track, name: str, gait: str | None) ->
         neutral = rest_pos[end, 2] - rest_pos[0, 2]
         foot_planted = planted[:, k]
         for _ in range(MAX_EARLY_LIFT_FRAMES + 1):
-            plan = plan_foot(foot_planted, root_z, neutral, v["step_height"] * leg_length)
+            lift = v["step_height"] * leg_length * FOOT_LIFT[limb.foot]
+            plan = plan_foot(foot_planted, root_z, neutral, lift, v["touchdown_ease"])
             solution = _solve_limb(skeleton, limb, plan, trunk_pos, global_pitch, v,
                                    _rest_protraction(limb, rest_pos))
             # A foot left behind at (or beyond) the leg's full reach on its last stance frame lifts
@@ -305,12 +377,24 @@ def _solve_limb(skeleton: Skeleton, limb: Limb, plan: FootPlan, trunk_pos: Float
     if not fore:
         distal = distal + np.radians(v["hock_load"]) * load
     # Digits: the fetlock sinks under load; the hoof breaks over the toe; the digits fold in swing.
-    breakover = np.radians(v["breakover"]) * np.where(in_stance, smoothstep((w - 0.5) / 0.5),
-                                                      1.0 - smoothstep(s / 0.5))
+    # The hoof (paw) stands flat through the stance and breaks over its toe in the last
+    # BREAKOVER_SHARE of it (issue 28: a hoof rolling on its toe all stance long reads wrong).
+    # Part of it by lift-off (easing in), the rest early in the swing as the heel rises further,
+    # then it unwinds: a quick stance (a gallop's 8 frames) breaks over without a snap. The bones
+    # above the hoof (the pastern) turn from mid-stance on, as the fetlock rises off its sink:
+    # that moves the fetlock, not the hoof, and leaves the leg the reach it has at lift-off.
+    over = np.clip((w - 1.0 + BREAKOVER_SHARE) / BREAKOVER_SHARE, 0.0, 1.0)
+    after = np.where(s < 0.25, BROKEN_AT_LIFT + (1 - BROKEN_AT_LIFT) * np.sin(0.5 * np.pi * s / 0.25),
+                     1.0 - smoothstep((s - 0.25) / 0.4))
+    hoof = np.where(in_stance, BROKEN_AT_LIFT * over**2, after)
+    pastern = np.where(in_stance, smoothstep((w - 0.5) / 0.5), 1.0 - smoothstep(s / 0.5))
     digits = list(limb.digits)
-    digit_angles = limb.rest_angles[digits][None] - breakover[:, None] \
+    breakover = np.radians(v["breakover"])[:, None] * np.concatenate(
+        [np.repeat(pastern[:, None], len(digits) - 1, axis=1), hoof[:, None]], axis=1)
+    digit_angles = limb.rest_angles[digits][None] - breakover \
         - np.radians(v["digit_flex"])[:, None] * swing_bump[:, None]
-    digit_angles[:, 0] += np.radians(v["fetlock_sink"]) * load
+    if len(digits) > 1:  # the pastern sinks; a lone digit bone is the paw itself, kept flat
+        digit_angles[:, 0] += np.radians(v["fetlock_sink"]) * load
     root = trunk_pos[:, limb.chain[0]][:, [2, 1]]
     foot = np.stack([plan.z, plan.y], axis=1)
     girdle = None
@@ -327,7 +411,23 @@ def _solve_limb(skeleton: Skeleton, limb: Limb, plan: FootPlan, trunk_pos: Float
     # (Eased, the opening may reach frames whose own flexion is smaller: keep the joint's limit.)
     distal = np.maximum(distal + _ease(first.distal_flex - distal),
                         np.minimum(MIN_DISTAL_FLEX[limb.flex_sign], distal))
-    return solve_leg(limb, root, foot, girdle, distal, digit_angles, adapt=adapt)
+    solution = solve_leg(limb, root, foot, girdle, distal, digit_angles, adapt=adapt)
+    return replace(solution, angles=_smooth_swing(solution.angles, in_stance, s))
+
+
+SWING_SMOOTHING = 1.5  # frames (Gaussian sigma) over the middle of a swing
+
+
+def _smooth_swing(angles: Floats, in_stance: NDArray[np.bool_], s: Floats) -> Floats:
+    """Bone angles (F, B) smoothed in time in mid-swing, untouched near and in stance.
+
+    Mid-swing the leg is folded high, where the two-link solution turns fastest as the fetlock
+    nears the shoulder or hip (a one-frame kink of the elbow or stifle); there the toe path is
+    only a guide, so its curve may give a little. Near lift-off and touchdown nothing changes.
+    """
+    smoothed = gaussian_filter1d(angles, SWING_SMOOTHING, axis=0, mode="nearest")
+    weight = np.where(in_stance, 0.0, smoothstep((np.minimum(s, 1.0 - s) - 0.15) / 0.2))
+    return np.asarray(angles + weight[:, None] * (smoothed - angles))
 
 
 def _ease(correction: Floats, frames: int = 9) -> Floats:
