@@ -128,6 +128,31 @@ def detect_contacts_at(foot_pos: NDArray[np.floating], root_pos: NDArray[np.floa
                                      min_len=max(1, int(round(params.min_plant_s * fps))))
 
 
+SETTLE = 0.04  # x L: a plant holds while its foot is this close to the plant's lowest point
+
+
+def settle_plants(contacts: NDArray[np.bool_], foot_heights: NDArray[np.floating],
+                  tolerance: float) -> NDArray[np.bool_]:
+    """Each plant of ``contacts (F, K)`` trimmed to the frames from the first to the last where
+    its foot is within ``tolerance`` (m) of the plant's lowest height ``foot_heights (F, K)``.
+
+    Detection's loose thresholds start a plant while a mocap paw is still coming down (the real
+    dog's paws are 4-6 cm up on the first "planted" frame) and end it once the heel has risen.
+    A library pins a plant at one height, so those frames would drop the foot several cm in a
+    frame at touchdown (and lift it at lift-off); trimmed, the foot comes down as it did.
+    """
+    labels, count = ndimage.label(contacts, structure=_VERTICAL)
+    if count == 0:
+        return np.asarray(contacts, bool).copy()
+    index = np.arange(1, count + 1)
+    lowest = np.asarray(ndimage.minimum(foot_heights, labels, index))
+    low = (labels > 0) & (foot_heights <= np.append(np.inf, lowest)[labels] + tolerance)
+    t = np.broadcast_to(np.arange(contacts.shape[0])[:, None], contacts.shape)
+    first = np.append(0, ndimage.minimum(t, labels * low, index))
+    last = np.append(-1, ndimage.maximum(t, labels * low, index))
+    return np.asarray((labels > 0) & (t >= first[labels]) & (t <= last[labels]))
+
+
 def ranges_to_contacts(ranges: FrameRanges, n_frames: int) -> NDArray[np.bool_]:
     """(F, 4) planted flags from per-foot ``[start, stop)`` ranges; unknown feet or bad ranges raise."""
     contacts = np.zeros((n_frames, len(FOOT_NAMES)), bool)

@@ -107,7 +107,9 @@ class _Files:
             except bvh.BVHError as exc:
                 raise ManifestError(f"{where}file: {exc}") from None
             motion = Motion(skeleton, motion.root_pos, motion.rotations, motion.fps, name=name)
-            self.cache[name] = motion.with_contacts(C.detect_contacts(motion))
+            heights = motion.foot_positions()[..., UP_AXIS]
+            planted = C.settle_plants(C.detect_contacts(motion), heights, C.SETTLE * skeleton.leg_length())
+            self.cache[name] = motion.with_contacts(planted)
         return self.cache[name]
 
 
@@ -126,6 +128,9 @@ def _pair(value: Any, where: str, n_frames: int) -> tuple[int, int]:
     if not (isinstance(value, list) and len(value) == 2 and all(isinstance(v, int) for v in value)):
         raise ManifestError(f"{where}: expected [first, stop] (integers), got {value!r}")
     first, stop = value
+    if 0 <= stop < first <= n_frames:
+        raise ManifestError(f"{where}: [{first}, {stop}] is reversed: the first frame must come "
+                            "before the stop frame")
     if not 0 <= first < stop <= n_frames:
         raise ManifestError(f"{where}: [{first}, {stop}] is out of bounds: the file has {n_frames} frames "
                             f"(0 <= first < stop <= {n_frames})")
@@ -182,20 +187,19 @@ def build_from_manifest(path: Path) -> Library:
     folder = (path.parent / doc.get("mocap_dir", ".")).resolve()
     files = _Files(folder, unit, {f: str(feet[f]) for f in FOOT_NAMES}, doc.get("root_offset", "ignore"))
     gaits_doc = _field(doc, "gaits", "", dict)
+    for g in gaits_doc:  # an unknown name first: "missing" would hide the misspelt one
+        _known_gait(g, "gaits")
     missing = [g for g in GAITS if g not in gaits_doc]
     if missing:
         raise ManifestError(f"gaits: missing {missing}; "
                             f"the motion graph needs a cycle of each of {list(GAITS)}")
-    unknown = [g for g in gaits_doc if g not in GAITS]
-    if unknown:
-        raise ManifestError(f"gaits: unknown {unknown}; gaits are {list(GAITS)}")
     manual = doc.get("contacts", {})
     cycles = {g: _clip(files, gaits_doc[g], f"gaits.{g}.", g, manual.get(g)) for g in GAITS}
+    doubts = check_cycles(cycles, {g: _where(gaits_doc[g], cycles[g]) for g in GAITS})
     sources = {g: c.speed_mps() for g, c in cycles.items()}
     ranges = default_ranges(sources)
     for g, spec in doc.get("speeds", {}).items():
-        if g not in GAITS:
-            raise ManifestError(f"speeds.{g}: unknown gait")
+        _known_gait(g, "speeds")
         try:
             ranges[g] = SpeedRange(float(spec.get("low", ranges[g].low)),
                                    float(spec.get("high", ranges[g].high)),
@@ -229,7 +233,56 @@ def build_from_manifest(path: Path) -> Library:
     return Library(animal, cycles["walk"].skeleton, cycles["walk"].fps, maps, idle, transitions,
                    frozenset(generated), source=str(path),
                    extra={"ranges": {g: [r.low, r.high, r.count] for g, r in ranges.items()},
-                          "build_seconds": round(time.perf_counter() - started, 3)})
+                          "build_seconds": round(time.perf_counter() - started, 3),
+                          **({"warnings": doubts} if doubts else {})})
+
+
+def _known_gait(name: str, where: str) -> None:
+    if name not in GAITS:
+        raise ManifestError(f"{where}.{name}: unknown gait {name!r}; known: {', '.join(GAITS)}")
+
+
+def _where(entry: Mapping[str, Any], clip: Motion) -> str:
+    """How a message names a gait's clip: its file and frames."""
+    return f"{entry.get('file')} frames {entry.get('frames')}"
+
+
+MIN_CYCLE_SPEED = 0.25  # leg lengths per second: slower than this, a "gait cycle" is someone standing
+# The footfall families a gait tier takes (contacts.classify_gait's names, before any "-"): the
+# slow tiers are symmetric gaits (the real dog's usual walk is a pace), the fast ones asymmetric.
+TIER_FOOTFALLS = {"walk": ("walk", "walk-diagonal", "pace"), "trot": ("trot", "pace"),
+                  "canter": ("canter", "gallop"), "gallop": ("gallop", "canter")}
+
+
+def check_cycles(cycles: Mapping[str, Motion], where: Mapping[str, str]) -> list[str]:
+    """Refuse gait cycles that cannot make a library; return warnings about doubtful ones.
+
+    Refused (:class:`ManifestError`, naming the gait, its file and frames and what was found):
+    a cycle that does not move (a standing segment declared as a gait would build a map whose
+    every clip stands) and gaits out of speed order (a walk declared as the gallop would make a
+    gallop slower than the canter, and the graph would pick it for the wrong speeds). Warned:
+    a cycle whose footfall is not its tier's, e.g. a trot declared as the canter.
+    """
+    speeds = {g: c.speed_mps() for g, c in cycles.items()}
+    for g, clip in cycles.items():
+        least = MIN_CYCLE_SPEED * clip.skeleton.leg_length()
+        if speeds[g] < least:
+            raise ManifestError(f"gaits.{g}: {where[g]} moves at {speeds[g]:.2f} m/s: a gait cycle "
+                                f"must move (at least {least:.2f} m/s, {MIN_CYCLE_SPEED} leg lengths "
+                                "per second); is it a standing segment?")
+    order = [g for g in GAITS if g in cycles]
+    for slow, fast in zip(order[:-1], order[1:], strict=False):
+        if speeds[fast] <= speeds[slow]:
+            raise ManifestError(f"gaits.{fast}: {where[fast]} moves at {speeds[fast]:.2f} m/s, no "
+                                f"faster than the {slow} ({where[slow]}, {speeds[slow]:.2f} m/s); "
+                                f"gaits go {', '.join(GAITS)} from slow to fast")
+    warnings = []
+    for g, clip in cycles.items():
+        found = C.classify_gait(C.footfall_pattern(clip.contacts, cyclic=True))
+        if found.split("-")[0] not in TIER_FOOTFALLS[g] and found not in TIER_FOOTFALLS[g]:
+            warnings.append(f"gaits.{g}: {where[g]} has the footfall of a {found}, not of a {g} "
+                            f"(expected one of {', '.join(TIER_FOOTFALLS[g])})")
+    return warnings
 
 
 def still_clip(like: Motion, seconds: float = 2.0) -> Motion:
@@ -356,7 +409,10 @@ def _hold_plants(motion: Motion) -> Motion:
     feet = motion.foot_positions()
     root = np.asarray(motion.root_pos, np.float64)
     targets = foot_targets(feet, root, root[None], motion.contacts, cyclic=False)[0]
-    solved = ik.solve(motion.skeleton, motion.root_pos, motion.rotations, targets,
-                      ground=float(feet[..., UP_AXIS].min()))
-    return Motion(motion.skeleton, motion.root_pos, solved.rotations, motion.fps, motion.contacts,
+    rigs = ik.limb_rigs(motion.skeleton)
+    axes = ik.hinge_axes_over_time(motion.skeleton, motion.rotations, rigs)
+    solved = ik.solve(motion.skeleton, motion.root_pos, motion.rotations, targets, rigs,
+                      ground=float(feet[..., UP_AXIS].min()), axes=axes)
+    rotations = ik.mend_flips(solved.rotations, solved.wrong_side, rigs)
+    return Motion(motion.skeleton, motion.root_pos, rotations, motion.fps, motion.contacts,
                   motion.name, motion.gait)

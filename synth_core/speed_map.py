@@ -248,7 +248,11 @@ def build_speed_map(source: Motion, speeds: Sequence[float] | Floats,
     ground = float(source.foot_positions()[..., UP_AXIS].min())
     rotations = np.broadcast_to(source.rotations, (len(speeds), *source.rotations.shape))
     new_root = _sink_for_reach(source, new_root, rotations, targets, rigs)
-    result = ik.solve(source.skeleton, new_root, rotations, targets, rigs, ground=ground)
+    # Each frame's hinge side from the source's own pose, kept continuous around the loop.
+    rigs = ik.limb_rigs(source.skeleton) if rigs is None else rigs
+    axes = ik.hinge_axes_over_time(source.skeleton, source.rotations, rigs, cyclic=True)
+    result = ik.solve(source.skeleton, new_root, rotations, targets, rigs, ground=ground, axes=axes)
+    solved = ik.mend_flips(result.rotations, result.wrong_side, rigs, cyclic=True)
     return SpeedMap(source.gait or source.name, source.skeleton, source.fps, speeds,
-                    new_root.astype(np.float32), result.rotations, source.contacts.copy(),
+                    new_root.astype(np.float32), solved, source.contacts.copy(),
                     result.stretch.astype(np.float32), source.speed_mps())

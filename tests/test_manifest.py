@@ -64,7 +64,9 @@ def write(tmp_path: Path, text: str) -> Path:
     return path
 
 
-GOOD = FIXTURE.read_text().replace('mocap_dir = "../../../shared/mocap/mann_dog"\n', "")
+GOOD = FIXTURE.read_text().replace('mocap_dir = "../../../shared/mocap/mann_dog"\n', "") + \
+    "\n[speeds.walk]\nlow = 0.5\n"  # so a test can misname a [speeds] table
+GALLOP = 'file = "D1_010_KAN01_004.bvh"\nframes = "auto"\nsearch = [7, 54]'
 
 
 @needs_mann
@@ -73,7 +75,13 @@ GOOD = FIXTURE.read_text().replace('mocap_dir = "../../../shared/mocap/mann_dog"
     (("frames = [296, 326]", "frames = [296, 99999]"),
      r"gaits\.trot\.frames: \[296, 99999\] is out of bounds"),
     (('LF = "LeftHand_end"', 'LF = "LeftPaw"'), r"feet\.LF: no joint 'LeftPaw'"),
-    (("[gaits.canter]", "[gaits.lope]"), r"gaits: missing \['canter'\]"),
+    (("[gaits.canter]", "[gaits.lope]"),
+     r"gaits\.lope: unknown gait 'lope'; known: walk, trot, canter, gallop"),
+    (("[gaits.gallop]", "[not_a_gait]"), r"gaits: missing \['gallop'\]"),
+    (("frames = [296, 326]", "frames = [326, 296]"),
+     r"gaits\.trot\.frames: \[326, 296\] is reversed: the first frame must come before the stop frame"),
+    (("search = [7, 54]", "search = [54, 7]"), r"gaits\.gallop\.search: \[54, 7\] is reversed"),
+    (("[speeds.walk]", "[speeds.pace]"), r"speeds\.pace: unknown gait 'pace'"),
     (('frames = "auto"', 'frames = "sometimes"'),
      r'gaits\.gallop\.frames: expected \[first, stop\] or "auto"'),
     (('unit = "cm"', 'unit = "furlong"'), r"unit: expected one of"),
@@ -97,3 +105,39 @@ def test_unreadable_and_missing_manifests(tmp_path: Path) -> None:
     empty.write_text('animal = "x"\n')
     with pytest.raises(ManifestError, match="feet: missing"):
         build_from_manifest(empty)
+
+
+def with_gallop(tmp_path: Path, file: str, frames: str) -> Path:
+    assert GALLOP in GOOD
+    return write(tmp_path, GOOD.replace(GALLOP, f'file = "{file}"\nframes = {frames}'))
+
+
+@needs_mann
+def test_a_standing_segment_declared_as_a_gait_is_refused_naming_it(tmp_path: Path) -> None:
+    """SOURCE.md: D1_ex01 stands over frames 0-147. As the gallop it would build a map of standing
+    clips (footfall_preserved 0.0 before this check)."""
+    with pytest.raises(ManifestError, match=r"gaits\.gallop: D1_ex01_KAN01_001\.bvh frames \[0, 60\] "
+                                           r"moves at 0\.0\d m/s: a gait cycle must move"):
+        build_from_manifest(with_gallop(tmp_path, "D1_ex01_KAN01_001.bvh", "[0, 60]"))
+
+
+@needs_mann
+def test_gaits_out_of_speed_order_are_refused_naming_both(tmp_path: Path) -> None:
+    """The pace cycle of D1_007 (1.12 m/s) declared as the gallop would be slower than the canter."""
+    with pytest.raises(ManifestError, match=r"gaits\.gallop: D1_007_KAN01_001\.bvh frames \[208, 245\] "
+                                           r"moves at 1\.12 m/s, no faster than the canter "
+                                           r"\(D1_010_KAN01_001\.bvh frames \[487, 515\], 3\.69 m/s\)"):
+        build_from_manifest(with_gallop(tmp_path, "D1_007_KAN01_001.bvh", "[208, 245]"))
+
+
+@needs_mann
+def test_a_cycle_with_another_gaits_footfall_builds_with_a_warning(tmp_path: Path, mann: Library) -> None:
+    """A trot (D1_031, 2.09 m/s: in speed order) declared as the canter: the library builds, and
+    says what it found; the fixture's own cycles draw no warning."""
+    text = GOOD.replace('file = "D1_010_KAN01_001.bvh"\nframes = [487, 515]',
+                        'file = "D1_031_KAN01_001.bvh"\nframes = [596, 624]')
+    library = build_from_manifest(write(tmp_path, text))
+    assert library.extra["warnings"] == [
+        "gaits.canter: D1_031_KAN01_001.bvh frames [596, 624] has the footfall of a trot, not of a "
+        "canter (expected one of canter, gallop)"]
+    assert "warnings" not in mann.extra
