@@ -64,6 +64,7 @@ from synth_core.speed_map import (
     cycle_displacement,
     default_ranges,
     foot_targets,
+    sink_for_reach,
 )
 
 GAITS = HUBS[1:]
@@ -164,18 +165,33 @@ def _clip(files: _Files, entry: Any, where: str, name: str, contacts: Mapping[st
             clip = clip.with_contacts(C.apply_annotation(clip.contacts, contacts))
         except ValueError as exc:
             raise ManifestError(f"contacts.{name}: {exc}") from None
-    return clip
+    return on_the_ground(clip)
 
 
-def build_from_manifest(path: Path) -> Library:
-    started = time.perf_counter()
+def on_the_ground(clip: Motion) -> Motion:
+    """The clip raised or lowered so its planted feet stand at height 0 (:func:`C.plant_level`).
+
+    Each take's floor and paw markers sit a little differently (the real dog's planted paws at
+    -0.8 to +2.7 cm); a library puts every clip on one ground, so one clip's paws would float
+    (2 cm while the dog stands) where another's sink into the floor.
+    """
+    level = C.plant_level(clip.contacts, clip.foot_positions()[..., UP_AXIS])
+    if level is None:
+        return clip
+    root = clip.root_pos.copy()
+    root[:, UP_AXIS] -= level
+    return Motion(clip.skeleton, root, clip.rotations, clip.fps, clip.contacts, clip.name, clip.gait)
+
+
+def _open(path: Path) -> tuple[dict[str, Any], _Files]:
+    """The manifest's document and its BVH files (read when first asked for)."""
     try:
         doc = tomllib.loads(path.read_text(encoding="utf-8"))
     except FileNotFoundError:
         raise ManifestError(f"{path}: no such manifest") from None
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
         raise ManifestError(f"{path}: not valid TOML: {exc}") from None
-    animal = _field(doc, "animal", "", str)
+    _field(doc, "animal", "", str)
     unit = doc.get("unit", "cm")
     if unit not in UNITS:
         raise ManifestError(f"unit: expected one of {list(UNITS)}, got {unit!r}")
@@ -185,7 +201,11 @@ def build_from_manifest(path: Path) -> Library:
         raise ManifestError(f"feet: missing {missing}; "
                             f"name the end-effector joint of all of {list(FOOT_NAMES)}")
     folder = (path.parent / doc.get("mocap_dir", ".")).resolve()
-    files = _Files(folder, unit, {f: str(feet[f]) for f in FOOT_NAMES}, doc.get("root_offset", "ignore"))
+    return doc, _Files(folder, unit, {f: str(feet[f]) for f in FOOT_NAMES}, doc.get("root_offset", "ignore"))
+
+
+def _cycles(doc: Mapping[str, Any], files: _Files) -> tuple[dict[str, Motion], list[str]]:
+    """Each gait's cycle, checked (:func:`check_cycles`), and the warnings about them."""
     gaits_doc = _field(doc, "gaits", "", dict)
     for g in gaits_doc:  # an unknown name first: "missing" would hide the misspelt one
         _known_gait(g, "gaits")
@@ -195,7 +215,22 @@ def build_from_manifest(path: Path) -> Library:
                             f"the motion graph needs a cycle of each of {list(GAITS)}")
     manual = doc.get("contacts", {})
     cycles = {g: _clip(files, gaits_doc[g], f"gaits.{g}.", g, manual.get(g)) for g in GAITS}
-    doubts = check_cycles(cycles, {g: _where(gaits_doc[g], cycles[g]) for g in GAITS})
+    return cycles, check_cycles(cycles, {g: _where(gaits_doc[g], cycles[g]) for g in GAITS})
+
+
+def gait_cycles(path: Path) -> dict[str, Motion]:
+    """A manifest's gait cycles as a library build takes them (plants settled, on the ground),
+    before any speed map: the source a library's clips are measured against."""
+    doc, files = _open(path)
+    return _cycles(doc, files)[0]
+
+
+def build_from_manifest(path: Path) -> Library:
+    started = time.perf_counter()
+    doc, files = _open(path)
+    animal = doc["animal"]
+    manual = doc.get("contacts", {})
+    cycles, doubts = _cycles(doc, files)
     sources = {g: c.speed_mps() for g, c in cycles.items()}
     ranges = default_ranges(sources)
     for g, spec in doc.get("speeds", {}).items():
@@ -364,6 +399,10 @@ def _best_shift(first: NDArray[np.bool_], second: NDArray[np.bool_], W: int, str
     return best[2]
 
 
+REACH_EASE_FRAMES = 9  # a transition's sink eases in and out over this many frames (as the foot lock's)
+SWITCH_GAP = 2  # frames: a gap this short where a blend switches contacts joins the plants
+
+
 def _crossfade(first: Motion, second: Motion, name: str, strides: int = 2) -> Motion:
     """first, then second, blended over the frames where they overlap; feet pinned by IK.
 
@@ -401,6 +440,10 @@ def _crossfade(first: Motion, second: Motion, name: str, strides: int = 2) -> Mo
     contacts = np.where((w < 0.5)[:, None],
                         np.concatenate([first.contacts, np.repeat(first.contacts[-1:], Fb - W, axis=0)]),
                         np.concatenate([np.repeat(con_b[:1], Fa - W, axis=0), con_b]))
+    # A foot planted in both clips around the switch but lifted for a frame or two there (one
+    # plant ends just before the other starts) stands in one plant: two would be pinned apart,
+    # and the foot would jump between them (11 cm in the real dog's canter2gallop).
+    contacts = C.fill_gaps(contacts, SWITCH_GAP)
     return _hold_plants(Motion(first.skeleton, root, rotations, first.fps, contacts, name, None))
 
 
@@ -410,9 +453,11 @@ def _hold_plants(motion: Motion) -> Motion:
     root = np.asarray(motion.root_pos, np.float64)
     targets = foot_targets(feet, root, root[None], motion.contacts, cyclic=False)[0]
     rigs = ik.limb_rigs(motion.skeleton)
+    # As in the speed maps, the root sinks where a plant would lock a leg straight (a straight
+    # leg has no bend side; the synthesis's foot lock would then pick one frame by frame).
+    root = sink_for_reach(motion, root, motion.rotations, targets, rigs, ease=REACH_EASE_FRAMES)
     axes = ik.hinge_axes_over_time(motion.skeleton, motion.rotations, rigs)
-    solved = ik.solve(motion.skeleton, motion.root_pos, motion.rotations, targets, rigs,
+    solved = ik.solve(motion.skeleton, root, motion.rotations, targets, rigs,
                       ground=float(feet[..., UP_AXIS].min()), axes=axes)
     rotations = ik.mend_flips(solved.rotations, solved.wrong_side, rigs)
-    return Motion(motion.skeleton, motion.root_pos, rotations, motion.fps, motion.contacts,
-                  motion.name, motion.gait)
+    return Motion(motion.skeleton, root, rotations, motion.fps, motion.contacts, motion.name, motion.gait)
