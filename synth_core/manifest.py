@@ -342,7 +342,8 @@ def _turned(motion: Motion, yaw: float, start: np.ndarray) -> Motion:
     root = quat.rotate(q, motion.root_pos - motion.root_pos[0]) + start
     rotations = motion.rotations.copy()
     rotations[:, 0] = quat.mul(q, rotations[:, 0])
-    return Motion(motion.skeleton, root, rotations, motion.fps, motion.contacts, motion.name, motion.gait)
+    return Motion(motion.skeleton, root.astype(np.float32), rotations, motion.fps, motion.contacts,
+                  motion.name, motion.gait)
 
 
 def _loops(clip: Motion, times: int) -> Motion:
@@ -460,4 +461,5 @@ def _hold_plants(motion: Motion) -> Motion:
     solved = ik.solve(motion.skeleton, root, motion.rotations, targets, rigs,
                       ground=float(feet[..., UP_AXIS].min()), axes=axes)
     rotations = ik.mend_flips(solved.rotations, solved.wrong_side, rigs)
-    return Motion(motion.skeleton, root, rotations, motion.fps, motion.contacts, motion.name, motion.gait)
+    return Motion(motion.skeleton, root.astype(np.float32), rotations, motion.fps, motion.contacts,
+                  motion.name, motion.gait)
