@@ -10,8 +10,9 @@ import pytest
 from synth_core import contacts as C
 from synth_core import metrics as M
 from synth_core.artifact import Library
-from synth_core.build import report
+from synth_core.build import map_positions, report
 from synth_core.manifest import ManifestError, build_from_manifest
+from synth_core.speed_map import cycle_displacement
 from tests.conftest import MANN_DIR
 
 FIXTURE = Path(__file__).parent / "fixtures" / "mann_dog.toml"
@@ -131,13 +132,32 @@ def test_gaits_out_of_speed_order_are_refused_naming_both(tmp_path: Path) -> Non
 
 
 @needs_mann
-def test_a_cycle_with_another_gaits_footfall_builds_with_a_warning(tmp_path: Path, mann: Library) -> None:
+def test_a_cycle_with_another_gaits_footfall_builds_with_a_warning(tmp_path: Path) -> None:
     """A trot (D1_031, 2.09 m/s: in speed order) declared as the canter: the library builds, and
-    says what it found; the fixture's own cycles draw no warning."""
+    says what it found."""
     text = GOOD.replace('file = "D1_010_KAN01_001.bvh"\nframes = [487, 515]',
                         'file = "D1_031_KAN01_001.bvh"\nframes = [596, 624]')
     library = build_from_manifest(write(tmp_path, text))
-    assert library.extra["warnings"] == [
+    assert library.extra["warnings"][0] == (
         "gaits.canter: D1_031_KAN01_001.bvh frames [596, 624] has the footfall of a trot, not of a "
-        "canter (expected one of canter, gallop)"]
-    assert "warnings" not in mann.extra
+        "canter (expected one of canter, gallop)")
+
+
+@needs_mann
+def test_cycles_are_closed_into_loops_or_said_not_to_loop(mann: Library) -> None:
+    """The fixture's walk, trot and canter strides repeat (leg joints within 5-21 deg of the next
+    stride's first frame): they are closed, and no speed-map clip's paw jumps at the loop's seam
+    more than inside it. Its gallop, the last stride before the dog brakes, does not repeat (the
+    left elbow 78 deg off): left as it is, and said."""
+    assert mann.extra["warnings"] == [
+        "gaits.gallop: D1_010_KAN01_004.bvh frames [29, 54] does not loop: LeftForeArm turns 78 deg "
+        "from its first frame to the next stride's (more than 30); its speed maps jump where they "
+        "loop. A stride that repeats closes better"]
+    for gait in ("walk", "trot", "canter"):
+        speed_map = mann.maps[gait]
+        feet = map_positions(speed_map)[:, :, mann.skeleton.foot_joints]
+        advance = np.stack([cycle_displacement(r) for r in speed_map.root_pos])[:, None, None]
+        looped = np.concatenate([feet[:, -2:] - advance, feet[:, :2]], axis=1)  # across the seam
+        seam = np.linalg.norm(np.diff(looped, n=2, axis=1), axis=-1).max()
+        inside = np.linalg.norm(np.diff(feet, n=2, axis=1), axis=-1).max()
+        assert seam <= inside, gait
