@@ -177,6 +177,9 @@ def ranges_to_contacts(ranges: FrameRanges, n_frames: int) -> NDArray[np.bool_]:
         if foot not in FOOT_NAMES:
             raise ValueError(f"contacts: unknown foot {foot!r}; feet are {list(FOOT_NAMES)}")
         for start, stop in foot_ranges:
+            if stop < start:
+                raise ValueError(f"contacts.{foot}: range [{start}, {stop}) is reversed: the first frame "
+                                 "must come before the stop frame")
             if not 0 <= start < stop <= n_frames:
                 raise ValueError(f"contacts.{foot}: range [{start}, {stop}) is outside "
                                  f"[0, {n_frames}) or empty")

@@ -87,6 +87,8 @@ def test_manual_annotation_overrides_detected_feet_only() -> None:
     assert manual[:, 1].all()  # RF untouched
     with pytest.raises(ValueError, match=r"contacts.LH: range \[40, 60\) is outside \[0, 50\)"):
         C.apply_annotation(detected, {"LH": [(40, 60)]})
+    with pytest.raises(ValueError, match=r"contacts.LH: range \[30, 20\) is reversed"):
+        C.apply_annotation(detected, {"LH": [(30, 20)]})
     with pytest.raises(ValueError, match="unknown foot 'XX'"):
         C.apply_annotation(detected, {"XX": [(0, 1)]})
 
