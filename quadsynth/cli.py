@@ -81,6 +81,8 @@ def _build(args: argparse.Namespace, extra: list[str]) -> int:
         from synth_core.manifest import build_from_manifest
 
         library = build_from_manifest(Path(args.manifest))
+        for doubt in library.extra.get("warnings", []):
+            print(f"warning: {doubt}", file=sys.stderr)
     print(save_library(library, Path(args.out)))
     return 0
 

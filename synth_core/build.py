@@ -7,8 +7,8 @@ from typing import Any
 
 import numpy as np
 
+from synth_core import UP_AXIS, ik
 from synth_core import contacts as C
-from synth_core import ik
 from synth_core import metrics as M
 from synth_core.artifact import Library
 from synth_core.contacts import detect_contacts_at
@@ -69,6 +69,7 @@ def footfall_gaps(speed_map: SpeedMap, positions: np.ndarray) -> np.ndarray:
         looped_feet = np.concatenate([feet[c] + k * advance for k in range(3)])
         looped_root = np.concatenate([speed_map.root_pos[c] + k * advance for k in range(3)])
         detected = detect_contacts_at(looped_feet, looped_root, speed_map.fps, leg, ground=ground)
+        detected = C.settle_plants(detected, looped_feet[..., UP_AXIS], C.SETTLE * leg)
         got = C.footfall_pattern(detected[F:2 * F], cyclic=True).mean_phases
         change = np.abs(_cyclic(_cyclic(got[:, None] - got[None, :]) - gap)) * F
         worst[c] = round(float(change.max()), 6) if np.all(np.isfinite(got)) else np.inf

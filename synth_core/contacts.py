@@ -132,6 +132,48 @@ def detect_contacts_at(foot_pos: NDArray[np.floating], root_pos: NDArray[np.floa
                                      min_len=max(1, int(round(params.min_plant_s * fps))))
 
 
+SETTLE = 0.04  # x L: a plant holds while its foot is this close to the plant's lowest point
+
+
+def settle_plants(contacts: NDArray[np.bool_], foot_heights: NDArray[np.floating],
+                  tolerance: float) -> NDArray[np.bool_]:
+    """Each plant of ``contacts (F, K)`` trimmed to the frames from the first to the last where
+    its foot is within ``tolerance`` (m) of the plant's lowest height ``foot_heights (F, K)``.
+
+    Detection's loose thresholds start a plant while a mocap paw is still coming down (the real
+    dog's paws are 4-6 cm up on the first "planted" frame) and end it once the heel has risen.
+    A library pins a plant at one height, so those frames would drop the foot several cm in a
+    frame at touchdown (and lift it at lift-off); trimmed, the foot comes down as it did.
+    """
+    labels, count = ndimage.label(contacts, structure=_VERTICAL)
+    if count == 0:
+        return np.asarray(contacts, bool).copy()
+    index = np.arange(1, count + 1)
+    lowest = np.asarray(ndimage.minimum(foot_heights, labels, index))
+    low = (labels > 0) & (foot_heights <= np.append(np.inf, lowest)[labels] + tolerance)
+    t = np.broadcast_to(np.arange(contacts.shape[0])[:, None], contacts.shape)
+    first = np.append(0, ndimage.minimum(t, labels * low, index))
+    last = np.append(-1, ndimage.maximum(t, labels * low, index))
+    return np.asarray((labels > 0) & (t >= first[labels]) & (t <= last[labels]))
+
+
+def plant_level(contacts: NDArray[np.bool_], foot_heights: NDArray[np.floating]) -> float | None:
+    """The height a clip's planted feet stand at: per foot, the median of its plants' lowest
+    points; of the feet, the lowest (None: nothing planted). ``contacts``, ``foot_heights (F, K)``.
+
+    A median, as a mocap take's floor is not quite flat and a paw now and then sinks below it (the
+    real dog's gallop by 0.8 cm); the lowest foot, as markers sit higher on some paws than others.
+    """
+    labels, count = ndimage.label(contacts, structure=_VERTICAL)
+    if count == 0:
+        return None
+    index = np.arange(1, count + 1)
+    lowest = np.asarray(ndimage.minimum(foot_heights, labels, index))
+    foot = np.asarray(ndimage.minimum(np.broadcast_to(np.arange(contacts.shape[1]), contacts.shape),
+                                      labels, index)).astype(np.int64)
+    return float(min(np.median(lowest[foot == k]) for k in np.unique(foot)))
+
+
 def ranges_to_contacts(ranges: FrameRanges, n_frames: int) -> NDArray[np.bool_]:
     """(F, 4) planted flags from per-foot ``[start, stop)`` ranges; unknown feet or bad ranges raise."""
     contacts = np.zeros((n_frames, len(FOOT_NAMES)), bool)
@@ -139,6 +181,9 @@ def ranges_to_contacts(ranges: FrameRanges, n_frames: int) -> NDArray[np.bool_]:
         if foot not in FOOT_NAMES:
             raise ValueError(f"contacts: unknown foot {foot!r}; feet are {list(FOOT_NAMES)}")
         for start, stop in foot_ranges:
+            if stop < start:
+                raise ValueError(f"contacts.{foot}: range [{start}, {stop}) is reversed: the first frame "
+                                 "must come before the stop frame")
             if not 0 <= start < stop <= n_frames:
                 raise ValueError(f"contacts.{foot}: range [{start}, {stop}) is outside "
                                  f"[0, {n_frames}) or empty")

@@ -87,6 +87,7 @@ class IKResult:
     rotations: NDArray[np.float32]  # (..., J, 4) local
     stretch: Floats  # (..., 4) limb length factor per foot, 1 where the target was reachable
     miss: Floats  # (..., 4) metres the foot misses its target by without the stretch
+    wrong_side: NDArray[np.bool_]  # (..., 4) hinge bent against its axis (a flip; see mend_flips)
 
 
 def _unit(v: Floats) -> Floats:
@@ -136,6 +137,78 @@ def _hinge_axes(thigh: Floats, shin: Floats, toe: Floats, root_rot: Floats,
     return _unit(axis)
 
 
+LINK_MIN_COS = 0.5  # consecutive frames' hinge axes closer than this (60 deg) to perpendicular:
+# no telling whether the bend kept its side or reversed, so the sequence is cut there
+
+
+def _segment_ids(link: NDArray[np.bool_]) -> NDArray[np.int64]:
+    """Per frame, the index of the run it is in; a new run starts at every True of ``link``."""
+    return np.asarray(np.cumsum(link), np.int64)
+
+
+def hinge_axes_over_time(skeleton: Skeleton, rotations: NDArray[np.floating],
+                         rigs: tuple[LimbRig, ...] | None = None, cyclic: bool = False) -> Floats:
+    """Each leg's hinge axis ``(F, 4, 3)`` in the root's frame for a pose sequence ``(F, J, 4)``,
+    on the side the source bends that frame and kept continuous from frame to frame.
+
+    Step 1's axis of each frame (thigh x shin; the paper's toe fallback where the leg is nearly
+    straight; the dominant bend where that fails too) is taken with the source's own sign, then
+    re-signed along time: where two consecutive frames' axes point opposite ways (the source's
+    bend reversing in one frame -- a mocap glitch, or a leg lifted with its bend plane turned
+    past the body's side), the later one is turned back, so the hinge keeps its side. Where two
+    consecutive axes are nearly perpendicular, no side can be read from the pair: the sequence is
+    cut there, and each run between cuts takes the side of the limb's dominant bend (weighted by
+    how bent its frames are) -- today's per-frame rule, for the run as a whole. Signing every
+    frame by the dominant bend alone flips a hinge wherever its plane turns more than 90 deg from
+    the dominant (the real dog's fore leg raised to the side while turning): the IK then bends
+    the elbow the other way for those frames, a paw jump in and out of them.
+
+    ``cyclic``: the sequence loops (a gait cycle): the last frame links to the first.
+    """
+    rigs = limb_rigs(skeleton) if rigs is None else rigs
+    rotations = np.asarray(rotations, np.float64)
+    F = rotations.shape[0]
+    pos, rot = forward_kinematics(skeleton, np.zeros((F, 3)), rotations)
+    pos, root_rot = np.asarray(pos, np.float64), np.asarray(rot, np.float64)[:, 0]
+    axes = np.empty((F, len(rigs), 3))
+    for k, rig in enumerate(rigs):  # legs: four
+        thigh, shin = pos[:, rig.hinge] - pos[:, rig.upper], pos[:, rig.ankle] - pos[:, rig.hinge]
+        toe = pos[:, rig.effector] - pos[:, rig.hinge]
+        bend = bend_axis(thigh, shin, root_rot)
+        primary = np.cross(_unit(thigh), _unit(shin))
+        by_toe = np.cross(_unit(thigh), _unit(toe))
+        weight = np.linalg.norm(primary, axis=-1)
+        ok = weight >= HINGE_AXIS_MIN_SIN
+        toe_ok = np.linalg.norm(by_toe, axis=-1) >= HINGE_AXIS_MIN_SIN
+        world = np.where(ok[:, None], primary, np.where(toe_ok[:, None], by_toe, quat.rotate(root_rot, bend)))
+        local = _unit(quat.rotate(quat.inv(root_rot), world))
+        axes[:, k] = _continuous(local, weight, bend, cyclic)
+    return axes
+
+
+def _continuous(axis: Floats, weight: Floats, bend: Floats, cyclic: bool) -> Floats:
+    """Axes ``(F, 3)`` re-signed along time (see :func:`hinge_axes_over_time`)."""
+    F = len(axis)
+    link = _dot(axis[1:], axis[:-1])  # frame f's axis against frame f - 1's
+    cut = np.abs(link) < LINK_MIN_COS
+    start = 0
+    if cyclic and F > 1:
+        seam = float(_dot(axis[0], axis[-1]))
+        cuts = np.flatnonzero(np.append(cut, abs(seam) < LINK_MIN_COS))
+        # Start the chain just after a cut (the seam's if that is one) so no run crosses one.
+        start = (int(cuts[-1]) + 1) % F if len(cuts) else 0
+        order = np.roll(np.arange(F), -start)
+        axis, weight = axis[order], weight[order]
+        link = _dot(axis[1:], axis[:-1])
+        cut = np.abs(link) < LINK_MIN_COS
+    flips = np.concatenate([[1.0], np.where(cut | (link >= 0), 1.0, -1.0)])
+    chained = axis * np.cumprod(flips)[:, None]
+    run = _segment_ids(np.concatenate([[False], cut]))
+    side = np.bincount(run, weights=weight * _dot(chained, bend[None]))
+    signed = chained * np.where(side < 0, -1.0, 1.0)[run][:, None]
+    return np.roll(signed, start, axis=0) if start else signed
+
+
 def _turn_to_distance(thigh: Floats, shin: Floats, axis: Floats, distance: Floats) -> Floats:
     """Angle (...,) to turn ``shin`` about ``axis`` so that |thigh + shin'| = distance (or nearest).
 
@@ -180,14 +253,16 @@ def _keep_above_ground(toe_target: Floats, ankle_to_toe: Floats, ground: float) 
 def solve(skeleton: Skeleton, root_pos: NDArray[np.floating], rotations: NDArray[np.floating],
           targets: NDArray[np.floating], rigs: tuple[LimbRig, ...] | None = None,
           ground: float | None = 0.0, offsets: NDArray[np.floating] | None = None,
-          bends: NDArray[np.floating] | None = None) -> IKResult:
+          bends: NDArray[np.floating] | None = None, axes: NDArray[np.floating] | None = None) -> IKResult:
     """Put each foot's toe on its target: ``targets (..., 4, 3)`` world, FOOT_NAMES order.
 
     ``root_pos (..., 3)`` and local ``rotations (..., J, 4)`` are the pose to adjust (leading
     axes: frames, clips, ...). ``ground``: height no toe or ankle goes below (None: no ground).
     Rotations of the upper joint, the hinge and the ankle change; nothing else does.
     ``bends (4, 3)``: each leg's dominant bend axis in the root's frame (:func:`bend_axes`;
-    default: over the poses given).
+    default: over the poses given). ``axes (..., 4, 3)``: each leg's hinge axis per pose in the
+    root's frame, broadcast against the leading axes (:func:`hinge_axes_over_time`: a sequence's
+    hinge side kept continuous); given, it replaces step 1's per-pose choice.
     """
     rigs = limb_rigs(skeleton) if rigs is None else rigs
     root_pos = np.asarray(root_pos, dtype=np.float64)
@@ -203,6 +278,7 @@ def solve(skeleton: Skeleton, root_pos: NDArray[np.floating], rotations: NDArray
     lead = local.shape[:-2]
     stretch = np.ones((*lead, len(rigs)))
     miss = np.zeros((*lead, len(rigs)))
+    wrong = np.zeros((*lead, len(rigs)), bool)
     for k, rig in enumerate(rigs):
         target = targets[..., k, :]
         p_root, p_hinge, p_ankle, p_toe = (pos[..., j, :] for j in (rig.upper, rig.hinge, rig.ankle,
@@ -218,10 +294,17 @@ def solve(skeleton: Skeleton, root_pos: NDArray[np.floating], rotations: NDArray
         ankle_target = target - ankle_to_toe
         # Step 1: the hinge.
         thigh, shin = p_hinge - p_root, p_ankle - p_hinge
-        axis = _hinge_axes(thigh, shin, p_toe - p_hinge, rot[..., 0, :], None if bends is None else bends[k])
+        if axes is None:
+            axis = _hinge_axes(thigh, shin, p_toe - p_hinge, rot[..., 0, :],
+                               None if bends is None else bends[k])
+        else:
+            axis = _unit(quat.rotate(rot[..., 0, :], np.asarray(axes, np.float64)[..., k, :]))
         distance = np.linalg.norm(ankle_target - p_root, axis=-1)
         bend = quat.from_axis_angle(axis, _turn_to_distance(thigh, shin, axis, distance))
         shin = quat.rotate(bend, shin)
+        # No turn about the axis bends the leg its way (both solutions lie on the other side):
+        # the pose found is the hinge's mirror image, a flip (:func:`mend_flips` blends it out).
+        wrong[..., k] = _dot(np.cross(_unit(thigh), _unit(shin)), axis) < -HINGE_AXIS_MIN_SIN
         reach = np.linalg.norm(thigh + shin, axis=-1)
         # Step 2: swing the limb onto the target.
         swing = quat.between(thigh + shin, ankle_target - p_root)
@@ -238,7 +321,42 @@ def solve(skeleton: Skeleton, root_pos: NDArray[np.floating], rotations: NDArray
         local[..., rig.hinge, :] = quat.mul(quat.inv(upper_world), hinge_world)
         ankle_parent = quat.mul(swing, quat.mul(bend, rot[..., skeleton.parents[rig.ankle], :]))
         local[..., rig.ankle, :] = quat.mul(quat.inv(ankle_parent), ankle_rot)
-    return IKResult(quat.normalize(local).astype(np.float32), stretch, miss)
+    return IKResult(quat.normalize(local).astype(np.float32), stretch, miss, wrong)
+
+
+def mend_flips(rotations: NDArray[np.floating], wrong: NDArray[np.bool_],
+               rigs: tuple[LimbRig, ...], cyclic: bool = False) -> NDArray[np.float32]:
+    """Solved rotations ``(..., F, J, 4)`` with each leg's flipped frames (``wrong (..., F, 4)``,
+    :attr:`IKResult.wrong_side`) replaced: the leg's solved joints blended (nlerp) between the
+    nearest frames before and after that bend the right way. Frames are the last leading axis.
+    A flipped frame misses its target a little; a flip would show as a paw jump in and out."""
+    out = np.array(rotations, np.float32)
+    F = out.shape[-3]
+    t = np.arange(F)
+    for k, rig in enumerate(rigs):  # legs: four
+        bad = np.asarray(wrong[..., k], bool)
+        if not bad.any():
+            continue
+        good = ~bad
+        span = 3 * F if cyclic else F  # looped: the good frames of the loops either side count
+        tiled = np.concatenate([good] * 3, axis=-1) if cyclic else good
+        idx = np.arange(span) - (F if cyclic else 0)
+        before = np.maximum.accumulate(np.where(tiled, idx, -10 * F), axis=-1)
+        after = np.flip(np.minimum.accumulate(np.flip(np.where(tiled, idx, 10 * F), -1), axis=-1), -1)
+        sl = slice(F, 2 * F) if cyclic else slice(0, F)
+        before, after = before[..., sl], after[..., sl]
+        before = np.where(before < -F, after, before)  # none before: hold the next good frame
+        after = np.where(after > 2 * F, before, after)
+        ok = (before >= -F) & (after <= 2 * F)
+        w = np.where(after > before, (t - before) / np.maximum(after - before, 1), 0.0)
+        joints = [rig.upper, rig.hinge, rig.ankle]
+        for j in joints:
+            q = out[..., j, :]
+            a = np.take_along_axis(q, (before % F)[..., None], axis=-2)
+            b = np.take_along_axis(q, (after % F)[..., None], axis=-2)
+            blended = quat.nlerp(a, b, w)
+            out[..., j, :] = np.where((bad & ok)[..., None], blended, q)
+    return out
 
 
 def _limb_geometry(skeleton: Skeleton, root_pos: NDArray[np.floating], rotations: NDArray[np.floating],

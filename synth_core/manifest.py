@@ -64,6 +64,7 @@ from synth_core.speed_map import (
     cycle_displacement,
     default_ranges,
     foot_targets,
+    sink_for_reach,
 )
 
 GAITS = HUBS[1:]
@@ -107,7 +108,9 @@ class _Files:
             except bvh.BVHError as exc:
                 raise ManifestError(f"{where}file: {exc}") from None
             motion = Motion(skeleton, motion.root_pos, motion.rotations, motion.fps, name=name)
-            self.cache[name] = motion.with_contacts(C.detect_contacts(motion))
+            heights = motion.foot_positions()[..., UP_AXIS]
+            planted = C.settle_plants(C.detect_contacts(motion), heights, C.SETTLE * skeleton.leg_length())
+            self.cache[name] = motion.with_contacts(planted)
         return self.cache[name]
 
 
@@ -126,6 +129,9 @@ def _pair(value: Any, where: str, n_frames: int) -> tuple[int, int]:
     if not (isinstance(value, list) and len(value) == 2 and all(isinstance(v, int) for v in value)):
         raise ManifestError(f"{where}: expected [first, stop] (integers), got {value!r}")
     first, stop = value
+    if 0 <= stop < first <= n_frames:
+        raise ManifestError(f"{where}: [{first}, {stop}] is reversed: the first frame must come "
+                            "before the stop frame")
     if not 0 <= first < stop <= n_frames:
         raise ManifestError(f"{where}: [{first}, {stop}] is out of bounds: the file has {n_frames} frames "
                             f"(0 <= first < stop <= {n_frames})")
@@ -146,31 +152,93 @@ def auto_cycle(motion: Motion, first: int, stop: int, where: str) -> tuple[int, 
     return int(downs[k]), int(downs[k + 1])
 
 
-def _clip(files: _Files, entry: Any, where: str, name: str, contacts: Mapping[str, Any] | None) -> Motion:
+def _clip(files: _Files, entry: Any, where: str, name: str, contacts: Mapping[str, Any] | None,
+          notes: list[str] | None = None, spans: dict[str, str] | None = None) -> Motion:
+    """A clip of the manifest, on the ground; a gait's cycle also made to loop where it nearly
+    does (else ``notes`` gets a warning saying why not). ``spans[name]``: its file and frames."""
     if not isinstance(entry, Mapping):
         raise ManifestError(f"{where[:-1]}: expected a table with file and frames")
     motion = files.read(_field(entry, "file", where, str), where)
     first, stop = _range(entry, where, motion)
+    span = f"{entry['file']} frames [{first}, {stop}]"
+    if spans is not None:
+        spans[name] = span
     clip = motion.slice(first, stop)
     clip = Motion(clip.skeleton, clip.root_pos, clip.rotations, clip.fps, clip.contacts, name,
                   name if name in GAITS else None)
+    if name in GAITS and stop < motion.n_frames:
+        following = motion.slice(stop, stop + 1)
+        joint, turn = loop_error(clip, following)
+        if turn <= LOOP_CLOSE_MAX_DEG:
+            clip = close_loop(clip, following)
+        elif notes is not None:
+            notes.append(f"{where[:-1]}: {span} does not loop: {joint} turns {turn:.0f} deg "
+                         f"from its first frame to the next stride's (more than {LOOP_CLOSE_MAX_DEG:.0f}); "
+                         "its speed maps jump where they loop. A stride that repeats closes better")
     if contacts:
         try:
             clip = clip.with_contacts(C.apply_annotation(clip.contacts, contacts))
         except ValueError as exc:
             raise ManifestError(f"contacts.{name}: {exc}") from None
-    return clip
+    return on_the_ground(clip)
 
 
-def build_from_manifest(path: Path) -> Library:
-    started = time.perf_counter()
+LOOP_CLOSE_MAX_DEG = 30.0  # a leg joint turning more than this over the seam: not a repeating stride
+# (the real dog's clean strides: 5-28 deg; a braking gallop's last stride: 78)
+
+
+def loop_error(cycle: Motion, following: Motion) -> tuple[str, float]:
+    """The leg joint whose rotation differs most (deg) between a cycle's first frame and the
+    frame ``following`` it, and that angle."""
+    legs = sorted({j for foot in cycle.skeleton.feet for j in foot.chain[:-1]})
+    delta = quat.mul(cycle.rotations[0, legs], quat.inv(following.rotations[0, legs]))
+    turn = np.degrees(2 * np.arccos(np.clip(np.abs(delta[:, 3]), 0.0, 1.0)))
+    k = int(np.argmax(turn))
+    return cycle.skeleton.names[legs[k]], float(turn[k])
+
+
+def close_loop(cycle: Motion, following: Motion) -> Motion:
+    """A mocap stride made to loop: the pose of the frame ``following`` it in the take (the next
+    stride's first) is brought onto its own first pose, the difference spread evenly over it.
+
+    A stride cut from a take never quite closes (the real dog's: 0.6-0.9 cm per joint on
+    average, the swinging paw several cm), and a speed map plays it as a loop: the paw then
+    jumped at every stride's seam -- 5-8 cm in one frame where the take itself moves 2-4 cm.
+    """
+    F, J = cycle.n_frames, cycle.skeleton.n_joints
+    share = np.arange(F, dtype=np.float64) / F
+    delta = quat.mul(cycle.rotations[0], quat.inv(following.rotations[0]))
+    fix = quat.slerp(quat.identity((F, J), np.float64), np.broadcast_to(delta, (F, J, 4)), share[:, None])
+    root = cycle.root_pos.astype(np.float64)
+    root[:, UP_AXIS] += share * float(cycle.root_pos[0, UP_AXIS] - following.root_pos[0, UP_AXIS])
+    return Motion(cycle.skeleton, root.astype(np.float32), quat.mul(fix, cycle.rotations).astype(np.float32),
+                  cycle.fps, cycle.contacts, cycle.name, cycle.gait)
+
+
+def on_the_ground(clip: Motion) -> Motion:
+    """The clip raised or lowered so its planted feet stand at height 0 (:func:`C.plant_level`).
+
+    Each take's floor and paw markers sit a little differently (the real dog's planted paws at
+    -0.8 to +2.7 cm); a library puts every clip on one ground, so one clip's paws would float
+    (2 cm while the dog stands) where another's sink into the floor.
+    """
+    level = C.plant_level(clip.contacts, clip.foot_positions()[..., UP_AXIS])
+    if level is None:
+        return clip
+    root = clip.root_pos.copy()
+    root[:, UP_AXIS] -= level
+    return Motion(clip.skeleton, root, clip.rotations, clip.fps, clip.contacts, clip.name, clip.gait)
+
+
+def _open(path: Path) -> tuple[dict[str, Any], _Files]:
+    """The manifest's document and its BVH files (read when first asked for)."""
     try:
         doc = tomllib.loads(path.read_text(encoding="utf-8"))
     except FileNotFoundError:
         raise ManifestError(f"{path}: no such manifest") from None
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
         raise ManifestError(f"{path}: not valid TOML: {exc}") from None
-    animal = _field(doc, "animal", "", str)
+    _field(doc, "animal", "", str)
     unit = doc.get("unit", "cm")
     if unit not in UNITS:
         raise ManifestError(f"unit: expected one of {list(UNITS)}, got {unit!r}")
@@ -180,22 +248,42 @@ def build_from_manifest(path: Path) -> Library:
         raise ManifestError(f"feet: missing {missing}; "
                             f"name the end-effector joint of all of {list(FOOT_NAMES)}")
     folder = (path.parent / doc.get("mocap_dir", ".")).resolve()
-    files = _Files(folder, unit, {f: str(feet[f]) for f in FOOT_NAMES}, doc.get("root_offset", "ignore"))
+    return doc, _Files(folder, unit, {f: str(feet[f]) for f in FOOT_NAMES}, doc.get("root_offset", "ignore"))
+
+
+def _cycles(doc: Mapping[str, Any], files: _Files) -> tuple[dict[str, Motion], list[str]]:
+    """Each gait's cycle, checked (:func:`check_cycles`), and the warnings about them."""
     gaits_doc = _field(doc, "gaits", "", dict)
+    for g in gaits_doc:  # an unknown name first: "missing" would hide the misspelt one
+        _known_gait(g, "gaits")
     missing = [g for g in GAITS if g not in gaits_doc]
     if missing:
         raise ManifestError(f"gaits: missing {missing}; "
                             f"the motion graph needs a cycle of each of {list(GAITS)}")
-    unknown = [g for g in gaits_doc if g not in GAITS]
-    if unknown:
-        raise ManifestError(f"gaits: unknown {unknown}; gaits are {list(GAITS)}")
     manual = doc.get("contacts", {})
-    cycles = {g: _clip(files, gaits_doc[g], f"gaits.{g}.", g, manual.get(g)) for g in GAITS}
+    notes: list[str] = []
+    spans: dict[str, str] = {}
+    cycles = {g: _clip(files, gaits_doc[g], f"gaits.{g}.", g, manual.get(g), notes, spans) for g in GAITS}
+    return cycles, check_cycles(cycles, spans) + notes
+
+
+def gait_cycles(path: Path) -> dict[str, Motion]:
+    """A manifest's gait cycles as a library build takes them (plants settled, on the ground),
+    before any speed map: the source a library's clips are measured against."""
+    doc, files = _open(path)
+    return _cycles(doc, files)[0]
+
+
+def build_from_manifest(path: Path) -> Library:
+    started = time.perf_counter()
+    doc, files = _open(path)
+    animal = doc["animal"]
+    manual = doc.get("contacts", {})
+    cycles, doubts = _cycles(doc, files)
     sources = {g: c.speed_mps() for g, c in cycles.items()}
     ranges = default_ranges(sources)
     for g, spec in doc.get("speeds", {}).items():
-        if g not in GAITS:
-            raise ManifestError(f"speeds.{g}: unknown gait")
+        _known_gait(g, "speeds")
         try:
             ranges[g] = SpeedRange(float(spec.get("low", ranges[g].low)),
                                    float(spec.get("high", ranges[g].high)),
@@ -229,7 +317,51 @@ def build_from_manifest(path: Path) -> Library:
     return Library(animal, cycles["walk"].skeleton, cycles["walk"].fps, maps, idle, transitions,
                    frozenset(generated), source=str(path),
                    extra={"ranges": {g: [r.low, r.high, r.count] for g, r in ranges.items()},
-                          "build_seconds": round(time.perf_counter() - started, 3)})
+                          "build_seconds": round(time.perf_counter() - started, 3),
+                          **({"warnings": doubts} if doubts else {})})
+
+
+def _known_gait(name: str, where: str) -> None:
+    if name not in GAITS:
+        raise ManifestError(f"{where}.{name}: unknown gait {name!r}; known: {', '.join(GAITS)}")
+
+
+MIN_CYCLE_SPEED = 0.25  # leg lengths per second: slower than this, a "gait cycle" is someone standing
+# The footfall families a gait tier takes (contacts.classify_gait's names, before any "-"): the
+# slow tiers are symmetric gaits (the real dog's usual walk is a pace), the fast ones asymmetric.
+TIER_FOOTFALLS = {"walk": ("walk", "walk-diagonal", "pace"), "trot": ("trot", "pace"),
+                  "canter": ("canter", "gallop"), "gallop": ("gallop", "canter")}
+
+
+def check_cycles(cycles: Mapping[str, Motion], where: Mapping[str, str]) -> list[str]:
+    """Refuse gait cycles that cannot make a library; return warnings about doubtful ones.
+
+    Refused (:class:`ManifestError`, naming the gait, its file and frames and what was found):
+    a cycle that does not move (a standing segment declared as a gait would build a map whose
+    every clip stands) and gaits out of speed order (a walk declared as the gallop would make a
+    gallop slower than the canter, and the graph would pick it for the wrong speeds). Warned:
+    a cycle whose footfall is not its tier's, e.g. a trot declared as the canter.
+    """
+    speeds = {g: c.speed_mps() for g, c in cycles.items()}
+    for g, clip in cycles.items():
+        least = MIN_CYCLE_SPEED * clip.skeleton.leg_length()
+        if speeds[g] < least:
+            raise ManifestError(f"gaits.{g}: {where[g]} moves at {speeds[g]:.2f} m/s: a gait cycle "
+                                f"must move (at least {least:.2f} m/s, {MIN_CYCLE_SPEED} leg lengths "
+                                "per second); is it a standing segment?")
+    order = [g for g in GAITS if g in cycles]
+    for slow, fast in zip(order[:-1], order[1:], strict=False):
+        if speeds[fast] <= speeds[slow]:
+            raise ManifestError(f"gaits.{fast}: {where[fast]} moves at {speeds[fast]:.2f} m/s, no "
+                                f"faster than the {slow} ({where[slow]}, {speeds[slow]:.2f} m/s); "
+                                f"gaits go {', '.join(GAITS)} from slow to fast")
+    warnings = []
+    for g, clip in cycles.items():
+        found = C.classify_gait(C.footfall_pattern(clip.contacts, cyclic=True))
+        if found.split("-")[0] not in TIER_FOOTFALLS[g] and found not in TIER_FOOTFALLS[g]:
+            warnings.append(f"gaits.{g}: {where[g]} has the footfall of a {found}, not of a {g} "
+                            f"(expected one of {', '.join(TIER_FOOTFALLS[g])})")
+    return warnings
 
 
 def still_clip(like: Motion, seconds: float = 2.0) -> Motion:
@@ -254,7 +386,8 @@ def _turned(motion: Motion, yaw: float, start: np.ndarray) -> Motion:
     root = quat.rotate(q, motion.root_pos - motion.root_pos[0]) + start
     rotations = motion.rotations.copy()
     rotations[:, 0] = quat.mul(q, rotations[:, 0])
-    return Motion(motion.skeleton, root, rotations, motion.fps, motion.contacts, motion.name, motion.gait)
+    return Motion(motion.skeleton, root.astype(np.float32), rotations, motion.fps, motion.contacts,
+                  motion.name, motion.gait)
 
 
 def _loops(clip: Motion, times: int) -> Motion:
@@ -311,6 +444,10 @@ def _best_shift(first: NDArray[np.bool_], second: NDArray[np.bool_], W: int, str
     return best[2]
 
 
+REACH_EASE_FRAMES = 9  # a transition's sink eases in and out over this many frames (as the foot lock's)
+SWITCH_GAP = 2  # frames: a gap this short where a blend switches contacts joins the plants
+
+
 def _crossfade(first: Motion, second: Motion, name: str, strides: int = 2) -> Motion:
     """first, then second, blended over the frames where they overlap; feet pinned by IK.
 
@@ -348,6 +485,10 @@ def _crossfade(first: Motion, second: Motion, name: str, strides: int = 2) -> Mo
     contacts = np.where((w < 0.5)[:, None],
                         np.concatenate([first.contacts, np.repeat(first.contacts[-1:], Fb - W, axis=0)]),
                         np.concatenate([np.repeat(con_b[:1], Fa - W, axis=0), con_b]))
+    # A foot planted in both clips around the switch but lifted for a frame or two there (one
+    # plant ends just before the other starts) stands in one plant: two would be pinned apart,
+    # and the foot would jump between them (11 cm in the real dog's canter2gallop).
+    contacts = C.fill_gaps(contacts, SWITCH_GAP)
     return _hold_plants(Motion(first.skeleton, root, rotations, first.fps, contacts, name, None))
 
 
@@ -356,7 +497,13 @@ def _hold_plants(motion: Motion) -> Motion:
     feet = motion.foot_positions()
     root = np.asarray(motion.root_pos, np.float64)
     targets = foot_targets(feet, root, root[None], motion.contacts, cyclic=False)[0]
-    solved = ik.solve(motion.skeleton, motion.root_pos, motion.rotations, targets,
-                      ground=float(feet[..., UP_AXIS].min()))
-    return Motion(motion.skeleton, motion.root_pos, solved.rotations, motion.fps, motion.contacts,
+    rigs = ik.limb_rigs(motion.skeleton)
+    # As in the speed maps, the root sinks where a plant would lock a leg straight (a straight
+    # leg has no bend side; the synthesis's foot lock would then pick one frame by frame).
+    root = sink_for_reach(motion, root, motion.rotations, targets, rigs, ease=REACH_EASE_FRAMES)
+    axes = ik.hinge_axes_over_time(motion.skeleton, motion.rotations, rigs)
+    solved = ik.solve(motion.skeleton, root, motion.rotations, targets, rigs,
+                      ground=float(feet[..., UP_AXIS].min()), axes=axes)
+    rotations = ik.mend_flips(solved.rotations, solved.wrong_side, rigs)
+    return Motion(motion.skeleton, root.astype(np.float32), rotations, motion.fps, motion.contacts,
                   motion.name, motion.gait)

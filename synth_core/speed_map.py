@@ -194,12 +194,10 @@ def foot_targets(source_feet: NDArray[np.floating], source_root: NDArray[np.floa
         sense = np.sign(np.sum(root_shift * direction, axis=-1))
         plant = average + (sense * d_c)[..., None] * direction
         # The swing's correction runs from where the foot left its last plant to where it meets
-        # the next one, over the ground (a foot sliding in its source plant would otherwise jump
-        # at touchdown); heights are corrected by the plant's (a settling paw would otherwise
-        # make its approach skim the ground).
+        # the next one (a foot sliding or settling in its source plant would otherwise jump at
+        # lift-off and drop at touchdown: the real dog's paws by 1-5 cm in a frame).
         lift_off = plant - feet3[:, stop - 1, k]  # (N, P, 3)
         touch_down = plant - feet3[:, start, k]
-        lift_off[..., UP_AXIS] = touch_down[..., UP_AXIS] = (plant - average)[..., UP_AXIS]
         # Per frame: the plant it is in, or the plants either side of its swing.
         prev = np.clip(np.searchsorted(start, t, side="right") - 1, 0, len(plants) - 1)
         nxt = np.clip(prev + 1, 0, len(plants) - 1)
@@ -218,17 +216,21 @@ REACH_EASE = 0.25  # of the cycle: a sink is spread over this much around where 
 STRAIGHT = 0.98, 0.999  # legs may straighten to 98% of their reach (more if the source does), never 100%
 
 
-def _sink_for_reach(source: Motion, new_root: Floats, rotations: NDArray[np.floating], targets: Floats,
-                    rigs: tuple[ik.LimbRig, ...] | None) -> Floats:
+def sink_for_reach(source: Motion, new_root: Floats, rotations: NDArray[np.floating], targets: Floats,
+                   rigs: tuple[ik.LimbRig, ...] | None, ease: int | None = None) -> Floats:
     """Lower the root where a relocated plant would straighten a leg beyond ``STRAIGHT`` (sped-up
     strides reach further fore and aft), eased in and out around the loop: no leg stretches,
-    no leg locks fully straight (where the hinge axis is undefined), the body does not bob."""
+    no leg locks fully straight (where the hinge axis is undefined), the body does not bob.
+
+    ``ease``: frames to spread a sink over in a clip that does not loop (default: a cyclic clip,
+    ``REACH_EASE`` of it, around the loop)."""
     source_max = ik.extension(source.skeleton, source.root_pos, source.rotations, rigs).max(axis=0)
     limit = np.clip(source_max, *STRAIGHT)
     sink = ik.sink_to_reach(source.skeleton, new_root, rotations, targets, limit, rigs)
-    frames = max(3, round(REACH_EASE * sink.shape[-1]))
-    sink = gaussian_filter1d(maximum_filter1d(sink, frames, axis=-1, mode="wrap"),
-                             frames / 6, axis=-1, mode="wrap")  # keeps >99% of a peak
+    frames = max(3, round(REACH_EASE * sink.shape[-1]) if ease is None else ease)
+    mode = "wrap" if ease is None else "nearest"
+    sink = gaussian_filter1d(maximum_filter1d(sink, frames, axis=-1, mode=mode),
+                             frames / 6, axis=-1, mode=mode)  # keeps >99% of a peak
     lowered = new_root.copy()
     lowered[..., UP_AXIS] -= sink
     return lowered
@@ -247,8 +249,12 @@ def build_speed_map(source: Motion, speeds: Sequence[float] | Floats,
     targets = foot_targets(source.foot_positions(), source.root_pos, new_root, source.contacts)
     ground = float(source.foot_positions()[..., UP_AXIS].min())
     rotations = np.broadcast_to(source.rotations, (len(speeds), *source.rotations.shape))
-    new_root = _sink_for_reach(source, new_root, rotations, targets, rigs)
-    result = ik.solve(source.skeleton, new_root, rotations, targets, rigs, ground=ground)
+    new_root = sink_for_reach(source, new_root, rotations, targets, rigs)
+    # Each frame's hinge side from the source's own pose, kept continuous around the loop.
+    rigs = ik.limb_rigs(source.skeleton) if rigs is None else rigs
+    axes = ik.hinge_axes_over_time(source.skeleton, source.rotations, rigs, cyclic=True)
+    result = ik.solve(source.skeleton, new_root, rotations, targets, rigs, ground=ground, axes=axes)
+    solved = ik.mend_flips(result.rotations, result.wrong_side, rigs, cyclic=True)
     return SpeedMap(source.gait or source.name, source.skeleton, source.fps, speeds,
-                    new_root.astype(np.float32), result.rotations, source.contacts.copy(),
+                    new_root.astype(np.float32), solved, source.contacts.copy(),
                     result.stretch.astype(np.float32), source.speed_mps())

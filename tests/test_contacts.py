@@ -87,6 +87,8 @@ def test_manual_annotation_overrides_detected_feet_only() -> None:
     assert manual[:, 1].all()  # RF untouched
     with pytest.raises(ValueError, match=r"contacts.LH: range \[40, 60\) is outside \[0, 50\)"):
         C.apply_annotation(detected, {"LH": [(40, 60)]})
+    with pytest.raises(ValueError, match=r"contacts.LH: range \[30, 20\) is reversed"):
+        C.apply_annotation(detected, {"LH": [(30, 20)]})
     with pytest.raises(ValueError, match="unknown foot 'XX'"):
         C.apply_annotation(detected, {"XX": [(0, 1)]})
 
@@ -137,3 +139,24 @@ def test_cyclic_pattern_wraps_the_clip_end() -> None:
     pattern = C.footfall_pattern(clip, cyclic=True)
     assert pattern.strides.tolist() == [[27, 67]]
     assert pattern.sequences[0] == ("LH", "LF", "RH", "RF")
+
+
+def test_settle_plants_keeps_the_frames_a_foot_is_down() -> None:
+    """A paw "planted" by the loose thresholds while still 6 cm up and after its heel rose:
+    only the frames within the tolerance of the plant's lowest point (and between) are kept."""
+    h = np.array([9.0, 6.0, 4.0, 2.0, 1.0, 1.2, 1.9, 1.1, 2.5, 4.0, 8.0]) / 100
+    planted = np.array([0, 1, 1, 1, 1, 1, 1, 1, 1, 1, 0], bool)
+    heights = np.stack([h, np.full_like(h, 0.5)], axis=1)
+    contacts = np.stack([planted, np.ones_like(planted)], axis=1)
+    settled = C.settle_plants(contacts, heights, 0.01)
+    assert settled[:, 0].tolist() == [False, False, False, True, True, True, True, True, False, False, False]
+    assert settled[:, 1].all()  # a foot flat on the ground keeps its whole plant
+    assert not C.settle_plants(np.zeros((5, 4), bool), np.zeros((5, 4)), 0.01).any()
+
+
+def test_plant_level_is_the_lowest_feet_median_plant_bottom() -> None:
+    h = np.array([[3.0, 0.9], [2.0, 0.8], [2.0, 5.0], [2.5, 0.7], [3.0, 0.6]]) / 100
+    contacts = np.array([[1, 1], [1, 1], [0, 0], [1, 1], [1, 1]], bool)
+    # foot 0: plants bottoming at 2.0 and 2.5 -> 2.25; foot 1: 0.8 and 0.6 -> 0.7
+    assert C.plant_level(contacts, h) == pytest.approx(0.007)
+    assert C.plant_level(np.zeros((5, 2), bool), h) is None

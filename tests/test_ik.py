@@ -168,3 +168,97 @@ def test_sinking_the_root_by_the_reported_amount_brings_far_targets_into_reach(t
     over = ik.extension(trot.skeleton, higher, ik.solve(trot.skeleton, higher, trot.rotations,
                                                         targets).rotations)
     assert np.any(over > limit + 1e-6)
+
+
+def twisted_leg(frames: int = 80, peak_deg: float = 150.0) -> tuple[Motion, np.ndarray]:
+    """The toy's left hind leg bent 60 deg, its bend plane turned about the thigh for a stretch
+    of frames (a paw lifted out to the side while turning) up to ``peak_deg`` from the body's
+    side and back; the rest of the clip it bends straight to the side. Returns the motion and
+    the twist per frame (deg)."""
+    from tests.conftest import toy_skeleton
+
+    skeleton = toy_skeleton()
+    rig = ik.limb_rigs(skeleton)[2]
+    t = np.arange(frames)
+    stretch = (t >= 20) & (t < 50)
+    twist = np.where(stretch, peak_deg * np.sin(np.pi * (t - 20) / 30), 0.0)
+    rotations = np.tile(quat.identity(), (frames, skeleton.n_joints, 1))
+    rotations[:, rig.upper] = quat.from_axis_angle(np.array([0.0, 1.0, 0.0]), np.radians(twist))
+    rotations[:, rig.hinge] = quat.from_axis_angle(np.array([0.0, 0.0, 1.0]), np.radians(60.0))
+    root = np.tile([0.0, 0.5, 0.0], (frames, 1))
+    return Motion(skeleton, root, rotations, 60.0), twist
+
+
+def hinge_axes_world(motion: Motion, rotations: np.ndarray, rig: ik.LimbRig) -> np.ndarray:
+    pos, _ = forward_kinematics(motion.skeleton, motion.root_pos, rotations)
+    return np.cross(pos[:, rig.hinge] - pos[:, rig.upper], pos[:, rig.ankle] - pos[:, rig.hinge])
+
+
+def test_a_bend_plane_turned_past_the_side_keeps_its_hinge_side_over_time() -> None:
+    """Signing each frame's hinge axis by the limb's dominant bend alone bends the knee the other
+    way wherever the plane has turned more than 90 deg from it: a flip in and a flip out (the real
+    dog's foreleg knotted at shoulder height). The axes kept continuous over time do not flip,
+    and the leg stays as the source posed it (its toe targets 2 cm above the source's)."""
+    motion, twist = twisted_leg()
+    rig = ik.limb_rigs(motion.skeleton)[2]
+    targets = motion.foot_positions().astype(np.float64) + [0.0, 0.02, 0.0]
+
+    def flips(rotations: np.ndarray) -> int:
+        axis = hinge_axes_world(motion, rotations, rig)
+        return int(np.sum(np.sum(axis[1:] * axis[:-1], axis=-1) < 0))
+
+    assert flips(motion.rotations) == 0  # the source turns smoothly
+    today = ik.solve(motion.skeleton, motion.root_pos, motion.rotations, targets, ground=None)
+    assert flips(today.rotations) >= 2  # the per-frame rule flips in and out of the stretch
+
+    axes = ik.hinge_axes_over_time(motion.skeleton, motion.rotations)
+    result = ik.solve(motion.skeleton, motion.root_pos, motion.rotations, targets, ground=None, axes=axes)
+    assert flips(result.rotations) == 0 and not result.wrong_side.any()
+    assert np.linalg.norm(toes(motion, result.rotations) - targets, axis=-1).max() < 1e-4
+    pos, _ = forward_kinematics(motion.skeleton, motion.root_pos, result.rotations)
+    source, _ = forward_kinematics(motion.skeleton, motion.root_pos, motion.rotations)
+    assert np.linalg.norm(pos[:, rig.hinge] - source[:, rig.hinge], axis=-1).max() < 0.03
+    assert np.linalg.norm(np.diff(pos[:, rig.hinge], axis=0), axis=-1).max() < 0.03  # no jump
+    assert twist.max() > 140  # the stretch does turn past the side
+
+
+def test_a_one_frame_reversal_in_the_source_is_turned_back() -> None:
+    """A mocap glitch: the knee bent the wrong way for one frame. The axis of that frame is
+    turned back to its neighbours' side (the IK then bends the knee their way)."""
+    motion, _ = twisted_leg(peak_deg=0.0)
+    rig = ik.limb_rigs(motion.skeleton)[2]
+    rotations = motion.rotations.copy()
+    rotations[30, rig.hinge] = quat.from_axis_angle(np.array([0.0, 0.0, 1.0]), np.radians(-40.0))
+    axes = ik.hinge_axes_over_time(motion.skeleton, rotations)[:, 2]
+    assert np.all(axes[:, 2] > 0.99)  # every frame bends about +Z, the glitch's included
+
+
+def test_a_looped_sequence_is_continuous_across_its_seam() -> None:
+    motion, _ = twisted_leg()
+    plain = ik.hinge_axes_over_time(motion.skeleton, motion.rotations, cyclic=True)
+    for shift in (35, 45):  # the turned stretch runs over the loop's end
+        rolled = np.roll(motion.rotations, -shift, axis=0)
+        looped = ik.hinge_axes_over_time(motion.skeleton, rolled, cyclic=True)
+        assert np.allclose(looped, np.roll(plain, -shift, axis=0), atol=1e-9)
+
+
+def test_mend_flips_blends_flipped_frames_from_their_good_neighbours() -> None:
+    motion, _ = twisted_leg(frames=10, peak_deg=0.0)
+    rigs = ik.limb_rigs(motion.skeleton)
+    rig = rigs[2]
+    angles = np.radians(np.arange(10) * 10.0)
+    rotations = motion.rotations.copy()
+    rotations[:, rig.hinge] = quat.from_axis_angle(np.array([0.0, 0.0, 1.0]), angles)
+    wrong = np.zeros((10, 4), bool)
+    wrong[[4, 5], 2] = True
+    rotations[[4, 5], rig.hinge] = quat.from_axis_angle(np.array([0.0, 0.0, 1.0]), np.radians(-70.0))
+    mended = ik.mend_flips(rotations, wrong, rigs)
+    got = np.degrees(2 * np.arctan2(mended[:, rig.hinge, 2], mended[:, rig.hinge, 3]))
+    assert np.allclose(got, np.arange(10) * 10.0, atol=0.5)  # 30 .. 60 deg: nlerp of 30 and 60
+    untouched = [j for j in range(motion.skeleton.n_joints) if j not in (rig.upper, rig.hinge, rig.ankle)]
+    assert np.array_equal(mended[:, untouched], rotations[:, untouched])
+    wrong[:, 2] = False
+    wrong[[0, 9], 2] = True  # looped: frame 0 and 9 sit between frames 8 and 1
+    looped = ik.mend_flips(rotations, wrong, rigs, cyclic=True)
+    got = np.degrees(2 * np.arctan2(looped[[9, 0], rig.hinge, 2], looped[[9, 0], rig.hinge, 3]))
+    assert np.allclose(got, [80 - 70 / 3, 80 - 2 * 70 / 3], atol=3.0)  # from frame 8 on to frame 1

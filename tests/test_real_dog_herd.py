@@ -1,0 +1,145 @@
+"""A library built from the real dog (tests/fixtures/mann_dog.toml), its clips and a 30-character
+herd, measured after FK against issue 28's targets: no limb flip, no paw jump over 6 cm,
+penetration <= 2 mm, floating <= 1 cm while slower than 0.1 m/s, and speed-map touchdowns that
+drop no further in their last frame than the source mocap's own."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from synth_core import UP_AXIS, crowd, ik
+from synth_core import contacts as C
+from synth_core.artifact import Library
+from synth_core.bank import Bank, build_bank
+from synth_core.build import map_positions
+from synth_core.evaluate import world_positions
+from synth_core.manifest import build_from_manifest, gait_cycles
+from synth_core.speed_map import cycle_displacement
+from synth_core.synthesis import Options, Result, synthesize
+from tests.conftest import MANN_DIR
+
+FIXTURE = Path(__file__).parent / "fixtures" / "mann_dog.toml"
+pytestmark = pytest.mark.skipif(not MANN_DIR.is_dir(), reason="real dog mocap not found beside the repo "
+                                "(../shared/mocap/mann_dog)")
+JUMP_M = 0.06  # issue 28: no one-frame paw jump over 6 cm
+BENT = np.sin(np.radians(10.0))  # a hinge bent less than this has no side to flip
+
+
+@pytest.fixture(scope="module")
+def mann() -> Library:
+    return build_from_manifest(FIXTURE)
+
+
+@pytest.fixture(scope="module")
+def herd(mann: Library) -> tuple[Bank, Result, np.ndarray]:
+    """30 dogs of the crowd-sim herd (stand, speed up into the gallop, slow to a walk)."""
+    bank = build_bank(mann)
+    paths = crowd.simulate(30, 900, seed=1, top=5.0)
+    result = synthesize(bank, paths, 60.0, options=Options(seed=1, scale_range=(0.8, 1.2)))
+    return bank, result, world_positions(bank, result).astype(np.float64)
+
+
+def hinge_flips(positions: np.ndarray, rigs: tuple[ik.LimbRig, ...]) -> np.ndarray:
+    """Per leg, frames where the IK hinge (elbow, stifle) bends the other way than the frame
+    before, both bent: thigh x shin reversing. ``positions (..., F, J, 3)`` -> (..., F-1, 4)."""
+    out = []
+    for rig in rigs:
+        thigh = positions[..., rig.hinge, :] - positions[..., rig.upper, :]
+        shin = positions[..., rig.ankle, :] - positions[..., rig.hinge, :]
+        lengths = np.linalg.norm(thigh, axis=-1) * np.linalg.norm(shin, axis=-1)
+        axis = np.cross(thigh, shin) / lengths[..., None]
+        bent = np.linalg.norm(axis, axis=-1) >= BENT
+        turned = np.sum(axis[..., 1:, :] * axis[..., :-1, :], axis=-1) < 0
+        out.append(turned & bent[..., 1:] & bent[..., :-1])
+    return np.stack(out, axis=-1)
+
+
+def paw_jumps(feet: np.ndarray) -> np.ndarray:
+    """How far each paw is off the path its two previous frames set (m), ``(..., F-2, 4)``."""
+    return np.asarray(np.linalg.norm(np.diff(feet, n=2, axis=-3), axis=-1))
+
+
+def looped(positions: np.ndarray, root: np.ndarray) -> np.ndarray:
+    """A speed map's clips ``(N, F, J, 3)`` with their first two frames again, a loop on."""
+    advance = np.stack([cycle_displacement(r) for r in root])[:, None, None]
+    return np.concatenate([positions, positions[:, :2] + advance], axis=1)
+
+
+def test_the_herd_never_flips_a_limb(mann: Library, herd: tuple[Bank, Result, np.ndarray]) -> None:
+    bank, _, positions = herd
+    assert not hinge_flips(positions, ik.limb_rigs(bank.skeleton)).any()
+
+
+def test_the_herd_stands_on_the_ground(herd: tuple[Bank, Result, np.ndarray]) -> None:
+    """Penetration <= 2 mm; while a dog is slower than 0.1 m/s its lowest paw is within 1 cm of
+    the ground (each take's floor and paw markers differ: the clips are put on one ground)."""
+    bank, result, positions = herd
+    heights = positions[..., bank.skeleton.foot_joints, UP_AXIS] - result.path[..., UP_AXIS, None]
+    assert heights.min() >= -0.002
+    root = result.root_pos[..., [0, 2]].astype(np.float64)
+    slow = np.linalg.norm(np.gradient(root, axis=1), axis=-1) * bank.fps < 0.1
+    assert slow.sum() > 1000  # the herd does stand and slow down
+    assert heights.min(axis=-1)[slow].max() <= 0.01
+
+
+@pytest.mark.xfail(strict=True, reason="synthesis (lead's files): a stitch fades out a finished "
+                   "transition's frozen last pose (paws 14 cm); canter and gallop lift-offs and "
+                   "touchdowns jump 9-11 cm in the herd where the library's clips jump at most 7.7; "
+                   "and the real dog's own gallop jumps 6.4-7.8 cm (second difference)")
+def test_the_herd_has_no_paw_jump_over_6_cm(herd: tuple[Bank, Result, np.ndarray]) -> None:
+    bank, _, positions = herd
+    assert paw_jumps(positions[..., bank.skeleton.foot_joints, :]).max() <= JUMP_M
+
+
+def test_the_librarys_clips_never_flip_a_limb_or_jump(mann: Library) -> None:
+    """Every speed-map clip (looped) and transition: no hinge flip and no leg locked straight
+    (a straight leg has no bend side: the synthesis's foot lock then flipped the real dog's
+    elbow for a frame); no paw jump over 6 cm but in the gallop, whose source cycle itself jumps
+    7.1 cm (the real dog's paw at 5.2 m/s): within 10% of its source's there."""
+    rigs = ik.limb_rigs(mann.skeleton)
+    feet = mann.skeleton.foot_joints
+    cycles = gait_cycles(FIXTURE)
+    for gait, speed_map in mann.maps.items():
+        positions = looped(map_positions(speed_map), speed_map.root_pos)
+        assert not hinge_flips(positions, rigs).any(), gait
+        assert bends(positions, rigs).min() > ik.HINGE_AXIS_MIN_SIN, gait
+        source = cycles[gait]
+        own = paw_jumps(looped(source.positions()[None], source.root_pos[None])[:, :, feet]).max()
+        limit = JUMP_M if gait != "gallop" else 1.1 * own
+        assert paw_jumps(positions[:, :, feet]).max() <= limit, (gait, own)
+    for name, clip in mann.transitions.items():
+        positions = np.asarray(clip.positions(), np.float64)
+        assert not hinge_flips(positions, rigs).any(), name
+        assert bends(positions, rigs).min() > ik.HINGE_AXIS_MIN_SIN, name
+
+
+def bends(positions: np.ndarray, rigs: tuple[ik.LimbRig, ...]) -> np.ndarray:
+    """Sine of each IK hinge's bend, ``(..., F, 4)``."""
+    out = []
+    for rig in rigs:
+        thigh = positions[..., rig.hinge, :] - positions[..., rig.upper, :]
+        shin = positions[..., rig.ankle, :] - positions[..., rig.hinge, :]
+        lengths = np.linalg.norm(thigh, axis=-1) * np.linalg.norm(shin, axis=-1)
+        out.append(np.linalg.norm(np.cross(thigh, shin), axis=-1) / lengths)
+    return np.stack(out, axis=-1)
+
+
+def touchdown_drops(heights: np.ndarray, contacts: np.ndarray) -> np.ndarray:
+    """Per foot, the largest fall (m) in the frame before a touchdown of a looped clip."""
+    return np.array([max((heights[d - 1, k] - heights[d, k] for d in downs), default=0.0)
+                     for k, downs in enumerate(C.touchdowns(contacts, cyclic=True))])
+
+
+def test_speed_map_touchdowns_drop_no_further_than_the_source(mann: Library) -> None:
+    """Issue 28: the exported speed-map clips dropped a paw 3-10 cm in the frame before it lands,
+    the source 1.6-4.6. Now no clip of any speed drops a paw further than its source cycle."""
+    cycles = gait_cycles(FIXTURE)
+    for gait, speed_map in mann.maps.items():
+        source = cycles[gait]
+        want = touchdown_drops(source.foot_positions()[..., UP_AXIS], source.contacts)
+        heights = map_positions(speed_map)[:, :, mann.skeleton.foot_joints, UP_AXIS]
+        got = np.stack([touchdown_drops(h, speed_map.contacts) for h in heights])
+        assert np.all(got <= want + 0.001), (gait, got.max(axis=0), want)
