@@ -39,9 +39,10 @@ from synth_core.synthesis import Options, Plan, compiled_backend, plan, prepare_
 
 RENDER_CHUNKS = 4  # chunks rendered at once after the first (the context's cost spread over more)
 # The first window's plan reaches this many mean cycles past its lock's pad, then (if a plant runs
-# past that) the next, then the whole: 500 crowd-sim horses' contexts end 1.2 cycles past it,
-# dogs' 3.2, a slow walk's 3.1-3.7, a standing animal's not before the batch does.
-FIRST_PLAN_STRIDES = (1.5, 4.0)
+# past that) the next, then the whole. With the horse's gaits at the literature's tempo (mean
+# cycle 42 frames, was 57) its crowd's start-up plants end ~1.6 cycles past it: so 2 first; a
+# slow walk's run to ~5; a standing animal's not before the batch does.
+FIRST_PLAN_STRIDES = (2.0, 5.5)
 MIN_PART = 32  # characters: a first window's part no smaller (a thread hop costs ~0.1 ms)
 
 
