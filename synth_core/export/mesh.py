@@ -53,8 +53,8 @@ class _Part:
 
 @dataclass(frozen=True)
 class _Frame:
-    forward: Floats  # (3,) from the hind limbs' branch to the fore limbs'
-    up: Floats  # (3,) world +Y made perpendicular to forward
+    forward: Floats  # (3,) level, from the hind limbs' roots to the fore limbs'
+    up: Floats  # (3,) world +Y
     lateral: Floats  # (3,) towards the left limbs
     scale: float  # mean fore limb length, metres: every radius is a fraction of it
 
@@ -80,8 +80,9 @@ def _chain_length(rest: Floats, chain: tuple[int, ...]) -> float:
 def _frame(skeleton: Skeleton, rest: Floats) -> _Frame:
     limbs = [skeleton.limb_chain(f.end_effector) for f in skeleton.feet]
     tops = np.array([rest[c[0]] for c in limbs])  # LF, RF, LH, RH limb roots
-    forward = _unit(tops[:2].mean(0) - tops[2:].mean(0), np.array([0.0, 0.0, 1.0]))
-    up = _unit(np.array([0.0, 1.0, 0.0]) - forward[1] * forward, np.cross(forward, [1.0, 0.0, 0.0]))
+    # Level (the rest pose stands on the ground): soles flat, the body's belly straight down.
+    forward = _unit((tops[:2].mean(0) - tops[2:].mean(0)) * [1.0, 0.0, 1.0], np.array([0.0, 0.0, 1.0]))
+    up = np.array([0.0, 1.0, 0.0])
     side = tops[[0, 2]].mean(0) - tops[[1, 3]].mean(0)
     side -= (side @ forward) * forward + (side @ up) * up
     lateral = _unit(side, np.cross(up, forward))
@@ -201,13 +202,16 @@ def _chain(rest: Floats, joints: list[int], skeleton: Skeleton) -> _Chain:
 
 def _sweep(skeleton: Skeleton, frame: _Frame, chain: _Chain, radius: Floats | float,
            profile: object, sides: int, spacing: float, lead_in: int | None = None,
-           caps: tuple[float, float] | None = None) -> _Part | None:
+           caps: tuple[float, float] | None = None, end_facing: Floats | None = None) -> _Part | None:
     """A tube along ``chain`` with radius ``profile(a) * radius`` at fraction ``a`` of its length
     (``profile`` a callable on arrays). ``lead_in``: a joint whose bone ends where the chain
-    starts, blended into the first ring (a limb's top moves half with the body)."""
+    starts, blended into the first ring (a limb's top moves half with the body). ``end_facing``:
+    the last ring's normal (a hoof's sole: flat on the ground the foot stands on)."""
     if len(chain.owners) == 0:
         return None
     s, centres, tangents, lengths = _ring_stations(chain.points, spacing)
+    if end_facing is not None:
+        tangents[-1] = end_facing
     owners = chain.owners
     if lead_in is not None:  # a virtual bone before the chain, as long as its first bone
         s, lengths, owners = s + lengths[0], np.concatenate([lengths[:1], lengths]), [lead_in, *owners]
@@ -266,7 +270,8 @@ def _parts(skeleton: Skeleton) -> list[_Part]:
             return (0.02 + top * (1 - x) ** power) * hoof
         top_cap = 0.15 * S * (0.02 + top)  # flat: a round cap pokes out of the back at the withers
         parts.append(_sweep(skeleton, frame, _chain(rest, list(limb), skeleton), S, limb_profile, 12,
-                            spacing, lead_in=int(skeleton.parents[limb[0]]), caps=(top_cap, 0.01 * S)))
+                            spacing, lead_in=int(skeleton.parents[limb[0]]), caps=(top_cap, 0.0),
+                            end_facing=-frame.up))
 
     def reach(branch: int, sign: float) -> list[int] | None:
         """The path from ``branch`` to the leaf furthest along ``sign * forward`` below its
