@@ -157,7 +157,10 @@ def _synth(args: argparse.Namespace, extra: list[str]) -> int:
     result = synthesize(bank, traj.positions, traj.fps, options=options, ids=traj.ids,
                         progress=_progress("synthesizing"))
     ids = [traj.ids[c] for c in result.kept]
-    return _write_herd(args, bank.skeleton, result, ids, traj.ids, bank.fps, bank.hubs, library.animal)
+    from synth_core.export.mesh import standing_rotations
+
+    bind = standing_rotations(library.skeleton, library.idle.rotations[0])
+    return _write_herd(args, bank.skeleton, result, ids, traj.ids, bank.fps, bank.hubs, library.animal, bind)
 
 
 def _client_synth(args: argparse.Namespace, extra: list[str]) -> int:
@@ -178,11 +181,14 @@ def _client_synth(args: argparse.Namespace, extra: list[str]) -> int:
     except httpx.HTTPError as exc:
         raise ValueError(f"cannot reach the service at {args.url}: {exc}") from None
     print(f"{herd.requests} request(s) to {args.url}", file=sys.stderr)
-    return _write_herd(args, herd.skeleton, herd.result, herd.ids, traj.ids, herd.fps, herd.hubs, args.animal)
+    bind = remote.bind_pose(args.url, args.animal, herd.skeleton) if args.glb else None
+    return _write_herd(args, herd.skeleton, herd.result, herd.ids, traj.ids, herd.fps, herd.hubs, args.animal,
+                       bind)
 
 
 def _write_herd(args: argparse.Namespace, skeleton: Skeleton, result: Result, ids: list[str],
-                all_ids: list[str], fps: float, hubs: tuple[str, ...], animal: str) -> int:
+                all_ids: list[str], fps: float, hubs: tuple[str, ...], animal: str,
+                bind: np.ndarray | None) -> int:
     """What `synth` and `client synth` write: motion.npz, summary.json, and BVH / glTF / GIF if asked."""
     from synth_core.export import write_bvh_files, write_glb
 
@@ -198,7 +204,7 @@ def _write_herd(args: argparse.Namespace, skeleton: Skeleton, result: Result, id
     if args.bvh:
         write_bvh_files(skeleton, result, ids, out, fps, _progress("writing BVH"))
     if args.glb:
-        print(write_glb(skeleton, result, ids, args.glb, fps))
+        print(write_glb(skeleton, result, ids, args.glb, fps, bind))
     if args.preview:
         from quadsynth.herd_preview import render_herd
 
@@ -255,8 +261,10 @@ def _herd_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--scale-max", type=float, default=1.2)
     parser.add_argument("--skip-invalid", action="store_true", help="skip bad characters instead of failing")
     parser.add_argument("--out", required=True, help="output directory: motion.npz, summary.json, BVH files")
-    parser.add_argument("--bvh", action="store_true", help="write DIR/<id>.bvh per character (centimetres)")
-    parser.add_argument("--glb", help="write the herd as one glTF 2.0 binary FILE.glb")
+    parser.add_argument("--bvh", action="store_true", help="write DIR/<id>.bvh per character (centimetres) "
+                        "and DIR/<id>.contacts.json (gaits and foot contacts)")
+    parser.add_argument("--glb", help="write the herd as one glTF 2.0 binary FILE.glb: a skinned mesh per "
+                        "character, one animation, gaits and contacts in each mesh node's extras")
     parser.add_argument("--preview", help="write a herd preview FILE.gif")
 
 

@@ -17,7 +17,7 @@ from mpl_toolkits.mplot3d.art3d import Poly3DCollection  # noqa: E402
 from numpy.typing import NDArray  # noqa: E402
 
 from synth_core.artifact import Library  # noqa: E402
-from synth_core.export.mesh import SkinnedMesh, build_mesh, pose_mesh  # noqa: E402
+from synth_core.export.mesh import SkinnedMesh, build_mesh, pose_mesh, standing_rotations  # noqa: E402
 from synth_core.skeleton import forward_kinematics  # noqa: E402
 
 LIGHT = np.array([0.4, 0.8, 0.45]) / np.linalg.norm([0.4, 0.8, 0.45])
@@ -51,10 +51,10 @@ def _draw(ax: object, mesh: SkinnedMesh, vertices: NDArray[np.float64], title: s
 
 
 def render_mesh(library: Library, out: str | Path, gait: str = "gallop") -> Path:
-    """A PNG: the mesh in its rest pose and at the middle frame of ``gait``'s middle clip, each
+    """A PNG: the mesh in its bind pose (the rest pose where it stands) and at the middle frame of ``gait``'s middle clip, each
     from the side and three-quarters front."""
     skeleton = library.skeleton
-    mesh = build_mesh(skeleton)
+    mesh = build_mesh(skeleton, standing_rotations(skeleton, library.idle.rotations[0]))
     rest = mesh.positions.astype(np.float64)
     speed_map = library.maps[gait]
     clip = speed_map.clip(len(speed_map.speeds) // 2)
@@ -62,8 +62,8 @@ def render_mesh(library: Library, out: str | Path, gait: str = "gallop") -> Path
     pos, rot = forward_kinematics(skeleton, clip.root_pos[f], clip.rotations[f])
     posed = pose_mesh(mesh, pos, rot)
     posed[:, [0, 2]] -= pos[0, [0, 2]]  # centred under the root, as the rest pose is
-    views = [(f"rest pose, side ({len(mesh.triangles)} triangles)", rest, 5.0, 0.0),
-             ("rest pose, three-quarters", rest, 20.0, 35.0),
+    views = [(f"bind pose, side ({len(mesh.triangles)} triangles)", rest, 5.0, 0.0),
+             ("bind pose, three-quarters", rest, 20.0, 35.0),
              (f"{gait} {speed_map.speeds[len(speed_map.speeds) // 2]:.1f} m/s, frame {f}, side", posed, 5.0, 0.0),
              (f"{gait}, three-quarters", posed, 20.0, 35.0)]
     fig = plt.figure(figsize=(12, 10), dpi=100)

@@ -18,6 +18,7 @@ from api_schemas import LibrarySummary
 from synth_core.artifact import SUFFIX, Library, LibraryFileError, load_library, save_library
 from synth_core.bank import Bank, build_bank
 from synth_core.export.gltf import mesh_glb
+from synth_core.export.mesh import standing_rotations
 from synth_core.library import BUILTIN_ANIMALS
 
 DEFAULT_LIBRARY_DIR = "library"
@@ -88,5 +89,6 @@ class LibraryRegistry:
             self.summaries[library.animal] = summarize(library, path)
             self.banks[library.animal] = build_bank(library)
             # Made once here (some tens of ms), so the route only sends bytes.
-            self.meshes[library.animal] = mesh_glb(library.skeleton, library.animal)
+            bind = standing_rotations(library.skeleton, library.idle.rotations[0])
+            self.meshes[library.animal] = mesh_glb(library.skeleton, library.animal, bind)
         self.loaded = True

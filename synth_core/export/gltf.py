@@ -5,7 +5,7 @@ glTF is Y up, metres, quaternions xyzw: our layout, written as it is. Every char
 node hierarchy (a node per skeleton joint, the skeleton's order) plus a mesh node at the scene's
 root holding the shared mesh (:mod:`synth_core.export.mesh`) and the character's own skin. A
 character of scale h has bones h times as long; its skin's inverse bind matrices scale the
-shared mesh by h too (``scale(h) @ translate(-rest_world[j])``), so one mesh serves the herd.
+shared mesh by h too (``scale(h) @ inverse(bind[j])``), so one mesh serves the herd.
 
 A herd is ONE animation (named ``herd``): every character shares the timeline, so an engine
 plays the herd as a whole with one clip; per-character animations would have to be started
@@ -21,7 +21,7 @@ import numpy as np
 import pygltflib as G
 from numpy.typing import NDArray
 
-from synth_core import FOOT_NAMES
+from synth_core import FOOT_NAMES, quat
 from synth_core.export.annotations import character_annotations
 from synth_core.export.mesh import SkinnedMesh, build_mesh
 from synth_core.motion_graph import HUBS
@@ -85,53 +85,67 @@ def _add_mesh(b: _Builder, mesh: SkinnedMesh, name: str) -> int:
     return len(b.gltf.meshes) - 1
 
 
-def inverse_bind_matrices(rest_world: NDArray[np.floating], scale: float) -> NDArray[np.float32]:
-    """(J, 16) column-major ``scale(h) @ translate(-rest_world[j])`` (the bind pose is the rest
-    pose: no rotation)."""
-    m = np.zeros((len(rest_world), 4, 4))
-    m[:, [0, 1, 2], [0, 1, 2]] = scale
-    m[:, :3, 3] = -scale * np.asarray(rest_world)
+def inverse_bind_matrices(mesh: SkinnedMesh, scale: float) -> NDArray[np.float32]:
+    """(J, 16) column-major ``scale(h) @ inverse(bind[j])``, bind[j] joint j's world transform in
+    the mesh's bind pose (rotation R, position p): ``[h R^T | -h R^T p]``."""
+    r = quat.to_matrix(mesh.bind_rot.astype(np.float64)).transpose(0, 2, 1)  # R^T
+    m = np.zeros((len(r), 4, 4))
+    m[:, :3, :3] = scale * r
+    m[:, :3, 3] = -scale * np.einsum("jab,jb->ja", r, mesh.bind_pos.astype(np.float64))
     m[:, 3, 3] = 1.0
     return m.transpose(0, 2, 1).reshape(-1, 16).astype("<f4")
 
 
 def _add_character(b: _Builder, skeleton: Skeleton, mesh: SkinnedMesh, mesh_index: int, scale: float,
-                   name: str, prefix: str, root: list[float]) -> tuple[int, int]:
-    """A character's joint nodes, skin and mesh node; returns (root joint node, mesh node)."""
+                   name: str, prefix: str, root: list[float], posed: bool) -> tuple[int, int]:
+    """A character's joint nodes, skin and mesh node; returns (root joint node, mesh node).
+    ``posed``: the nodes hold the bind pose's rotations (else none: the animation sets them)."""
     first = len(b.gltf.nodes)
     for j in range(skeleton.n_joints):
         children = [first + k for k in np.flatnonzero(skeleton.parents == j)]
         offset = root if j == 0 else [float(v) * scale for v in skeleton.offsets[j]]
-        b.gltf.nodes.append(G.Node(name=prefix + skeleton.names[j], translation=offset,
+        turned = posed and not np.allclose(mesh.bind_local[j], [0, 0, 0, 1], atol=1e-7)
+        rotation = [float(v) for v in mesh.bind_local[j] / np.linalg.norm(mesh.bind_local[j])] if turned else None
+        b.gltf.nodes.append(G.Node(name=prefix + skeleton.names[j], translation=offset, rotation=rotation,
                                    children=[int(k) for k in children] or None))
-    ibm = b.array(inverse_bind_matrices(mesh.rest_world, scale), "MAT4")
+    ibm = b.array(inverse_bind_matrices(mesh, scale), "MAT4")
     b.gltf.skins.append(G.Skin(name=name, joints=list(range(first, first + skeleton.n_joints)),
                                skeleton=first, inverseBindMatrices=ibm))
     b.gltf.nodes.append(G.Node(name=name, mesh=mesh_index, skin=len(b.gltf.skins) - 1))
     return first, len(b.gltf.nodes) - 1
 
 
-def mesh_glb(skeleton: Skeleton, animal: str) -> bytes:
-    """The library's mesh (:func:`build_mesh`) bound to its skeleton in the rest pose, standing
-    on y = 0: joint nodes named as the skeleton's joints, in its order."""
+def mesh_glb(skeleton: Skeleton, animal: str, bind_local: NDArray[np.floating] | None = None) -> bytes:
+    """The library's mesh (:func:`build_mesh`) bound to its skeleton, standing on y = 0: joint
+    nodes named as the skeleton's joints, in its order, with the skeleton's rest offsets and the
+    bind pose's rotations (none where the rest pose is the bind pose)."""
     b = _Builder()
-    mesh = build_mesh(skeleton)
+    mesh = build_mesh(skeleton, bind_local)
     mesh_index = _add_mesh(b, mesh, f"{animal} mesh")
     root, node = _add_character(b, skeleton, mesh, mesh_index, 1.0, animal, "",
-                                [float(v) for v in mesh.rest_world[0]])
+                                [float(v) for v in mesh.bind_pos[0]], posed=True)
     b.gltf.scenes.append(G.Scene(name=f"{animal} rest pose", nodes=[root, node]))
     b.gltf.scene = 0
     return b.glb()
 
 
-def write_glb(skeleton: Skeleton, result: Result, ids: list[str], path: str | Path, fps: float) -> Path:
+def bind_rotations(glb: bytes, n_joints: int) -> NDArray[np.float32]:
+    """The bind pose (local rotations (J, 4)) of a :func:`mesh_glb` file: its first J nodes'."""
+    gltf = G.GLTF2.load_from_bytes(glb)
+    return np.array([n.rotation if n.rotation else [0.0, 0.0, 0.0, 1.0] for n in gltf.nodes[:n_joints]],
+                    np.float32)
+
+
+def write_glb(skeleton: Skeleton, result: Result, ids: list[str], path: str | Path, fps: float,
+              bind_local: NDArray[np.floating] | None = None) -> Path:
     """The herd: per character ``<id>_<joint>`` nodes (three.js strips ``:`` and ``.`` from
     node names, so neither separates), a skinned mesh node ``<id>`` whose
-    ``extras`` hold its gaits and contacts, and one animation ``herd`` for them all."""
+    ``extras`` hold its gaits and contacts, and one animation ``herd`` for them all.
+    ``bind_local``: the library's bind pose (:func:`synth_core.export.mesh.standing_rotations`)."""
     path = Path(path)
     C, T, J = result.rotations.shape[:3]
     b = _Builder()
-    mesh = build_mesh(skeleton)
+    mesh = build_mesh(skeleton, bind_local)
     mesh_index = _add_mesh(b, mesh, f"{skeleton.name or 'animal'} mesh")
     animation = G.Animation(name="herd", channels=[], samplers=[])
     times = np.arange(T, dtype="<f4") / np.float32(fps)
@@ -139,7 +153,7 @@ def write_glb(skeleton: Skeleton, result: Result, ids: list[str], path: str | Pa
     scene_nodes = []
     for c in range(C):
         first, node = _add_character(b, skeleton, mesh, mesh_index, float(result.scales[c]), str(ids[c]),
-                                     f"{ids[c]}_", [float(v) for v in result.root_pos[c, 0]])
+                                     f"{ids[c]}_", [float(v) for v in result.root_pos[c, 0]], posed=False)
         b.gltf.nodes[node].extras = character_annotations(result, c, fps, str(ids[c]))
         scene_nodes += [first, node]
         rot_view = b.view(result.rotations[c].transpose(1, 0, 2).astype("<f4"))  # (J, T, 4): a run per joint

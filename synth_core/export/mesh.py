@@ -12,9 +12,10 @@ from, the head is the chain leaving the fore branch that reaches furthest forwar
 one leaving the hind branch that reaches furthest back. Other chains that end in more than one
 bone get a thin tube; single end-site bones (a withers tip) get none.
 
-The bind pose is the rest pose (every local rotation the identity) with the root lifted so the
-lowest joint is at y = 0; joint ``j``'s inverse bind matrix is then a translation by
-``-rest_world[j]``.
+The mesh is made on, and bound to, a standing pose: the rest pose (every local rotation the
+identity) where it stands, as the built-in animals' does; otherwise (a BVH rig whose zero pose
+lies along +X) a standing frame of the library, its idle clip's first, given as local
+rotations. Either way the pose is turned to face +Z and lifted so its lowest joint is at y = 0.
 """
 
 from __future__ import annotations
@@ -39,7 +40,9 @@ class SkinnedMesh:
     triangles: NDArray[np.uint32]  # (T, 3) counter-clockwise seen from outside
     joints: NDArray[np.uint16]  # (V, 4) joint indices (the skeleton's order)
     weights: NDArray[np.float32]  # (V, 4) sums to 1; unused slots 0
-    rest_world: NDArray[np.float32]  # (J, 3) each joint's bind-pose world position
+    bind_pos: NDArray[np.float32]  # (J, 3) each joint's world position in the bind pose
+    bind_rot: NDArray[np.float32]  # (J, 4) each joint's world rotation in the bind pose
+    bind_local: NDArray[np.float32]  # (J, 4) the bind pose's local rotations (joint 0: world)
 
 
 @dataclass(frozen=True)
@@ -66,6 +69,40 @@ def rest_world_positions(skeleton: Skeleton) -> Floats:
         world[j] = world[skeleton.parents[j]] + skeleton.offsets[j]
     world[:, 1] -= world[:, 1].min()
     return world
+
+
+def rest_stands(skeleton: Skeleton) -> bool:
+    """Whether the rest pose is a standing pose: every foot at the bottom, well below its limb's
+    root (a zero pose along +X, as the MANN dog's, is not)."""
+    rest = rest_world_positions(skeleton)
+    for foot in skeleton.feet:
+        limb = skeleton.limb_chain(foot.end_effector)
+        drop = rest[limb[0], 1] - rest[foot.end_effector, 1]
+        if rest[foot.end_effector, 1] > 0.05 * _chain_length(rest, limb) or drop < 0.5 * _chain_length(rest, limb):
+            return False
+    return True
+
+
+def bind_pose(skeleton: Skeleton, local: NDArray[np.floating] | None = None
+              ) -> tuple[Floats, Floats, Floats]:
+    """World positions (J, 3), world rotations (J, 4) and local rotations (J, 4) of the pose the
+    mesh is made on: ``local`` rotations (default the rest pose) turned about +Y to face +Z and
+    lifted so the lowest joint is at y = 0."""
+    from synth_core import quat
+    from synth_core.skeleton import forward_kinematics
+
+    local = quat.identity((skeleton.n_joints,), np.float64) if local is None else np.array(local, np.float64)
+    pos, _ = forward_kinematics(skeleton, np.zeros(3), local)
+    if skeleton.feet:
+        tops = pos[[skeleton.limb_chain(f.end_effector)[0] for f in skeleton.feet]]
+        heading = (tops[:2].mean(0) - tops[2:].mean(0)) * [1.0, 0.0, 1.0]
+        if np.linalg.norm(heading) > 1e-9:
+            yaw = np.arctan2(heading[0], heading[2])
+            local[0] = quat.mul(quat.from_axis_angle(np.array([0.0, 1.0, 0.0]), -yaw), local[0])
+    pos, rot = forward_kinematics(skeleton, np.zeros(3), local)
+    pos = np.asarray(pos, np.float64)
+    pos[:, 1] -= pos[:, 1].min()
+    return pos, np.asarray(rot, np.float64), local
 
 
 def _unit(v: Floats, fallback: Floats) -> Floats:
@@ -202,16 +239,17 @@ def _chain(rest: Floats, joints: list[int], skeleton: Skeleton) -> _Chain:
 
 def _sweep(skeleton: Skeleton, frame: _Frame, chain: _Chain, radius: Floats | float,
            profile: object, sides: int, spacing: float, lead_in: int | None = None,
-           caps: tuple[float, float] | None = None, end_facing: Floats | None = None) -> _Part | None:
+           caps: tuple[float, float] | None = None, sole: bool = False) -> _Part | None:
     """A tube along ``chain`` with radius ``profile(a) * radius`` at fraction ``a`` of its length
     (``profile`` a callable on arrays). ``lead_in``: a joint whose bone ends where the chain
-    starts, blended into the first ring (a limb's top moves half with the body). ``end_facing``:
-    the last ring's normal (a hoof's sole: flat on the ground the foot stands on)."""
+    starts, blended into the first ring (a limb's top moves half with the body). ``sole``: the
+    last ring is a hoof's or paw's sole, level, and behind the chain's end (the toe): a foot
+    planted on its toe rolls over it without its sole sinking into the ground."""
     if len(chain.owners) == 0:
         return None
     s, centres, tangents, lengths = _ring_stations(chain.points, spacing)
-    if end_facing is not None:
-        tangents[-1] = end_facing
+    if sole:
+        tangents[-1] = -frame.up
     owners = chain.owners
     if lead_in is not None:  # a virtual bone before the chain, as long as its first bone
         s, lengths, owners = s + lengths[0], np.concatenate([lengths[:1], lengths]), [lead_in, *owners]
@@ -219,6 +257,8 @@ def _sweep(skeleton: Skeleton, frame: _Frame, chain: _Chain, radius: Floats | fl
     a = (s - s[0]) / max(s[-1] - s[0], 1e-9)
     r = np.asarray(profile(a)) * radius  # type: ignore[operator]
     r2 = np.stack([r, r], -1) if r.ndim == 1 else r
+    if sole:
+        centres[-1] -= 0.8 * r2[-1, 0] * frame.forward
     end_caps = caps if caps is not None else (0.5 * float(r2[0].min()), 0.5 * float(r2[-1].min()))
     return _tube(centres, tangents, r2, frame.lateral, frame.up, weights, sides, end_caps)
 
@@ -233,10 +273,8 @@ def _ear(skeleton: Skeleton, frame: _Frame, base: Floats, direction: Floats, len
                  frame.forward, frame.up, weights, 6, (0.0, 0.01 * length))
 
 
-def _parts(skeleton: Skeleton) -> list[_Part]:
-    if not skeleton.feet:
-        raise ValueError(f"skeleton {skeleton.name!r}: a mesh needs the four feet declared")
-    rest = rest_world_positions(skeleton)
+def _parts(skeleton: Skeleton, rest: Floats) -> list[_Part]:
+    """The surfaces around the joints at ``rest`` (J, 3), the bind pose's world positions."""
     frame = _frame(skeleton, rest)
     S, spacing = frame.scale, 0.045 * frame.scale
     limbs = [skeleton.limb_chain(f.end_effector) for f in skeleton.feet]
@@ -248,7 +286,12 @@ def _parts(skeleton: Skeleton) -> list[_Part]:
     # Body: along the spine, reaching past both branch joints; below the spine more than above.
     rv = 0.2 * S
     body = _chain(rest, spine, skeleton)
-    ends = [rest[hind] - 0.9 * rv * frame.forward, rest[fore] + 0.85 * rv * frame.forward]
+    # To the limbs' roots where they sit beyond the branch joints (a rig whose shoulders hang
+    # from the middle of the back, as the MANN dog's, still gets a chest), then a little beyond.
+    roots = np.array([rest[c[0]] for c in limbs])
+    ahead = max(0.0, float((roots[:2].mean(0) - rest[fore]) @ frame.forward))
+    behind = max(0.0, float((rest[hind] - roots[2:].mean(0)) @ frame.forward))
+    ends = [rest[hind] - (behind + 0.9 * rv) * frame.forward, rest[fore] + (ahead + 0.85 * rv) * frame.forward]
     owners = body.owners or [fore]
     body = _Chain(np.vstack([ends[0], body.points, ends[1]]), [owners[0], *owners, fore])
     s, centres, tangents, lengths = _ring_stations(body.points, spacing)
@@ -271,7 +314,7 @@ def _parts(skeleton: Skeleton) -> list[_Part]:
         top_cap = 0.15 * S * (0.02 + top)  # flat: a round cap pokes out of the back at the withers
         parts.append(_sweep(skeleton, frame, _chain(rest, list(limb), skeleton), S, limb_profile, 12,
                             spacing, lead_in=int(skeleton.parents[limb[0]]), caps=(top_cap, 0.0),
-                            end_facing=-frame.up))
+                            sole=True))
 
     def reach(branch: int, sign: float) -> list[int] | None:
         """The path from ``branch`` to the leaf furthest along ``sign * forward`` below its
@@ -341,18 +384,34 @@ def _top_influences(weights: Floats) -> tuple[NDArray[np.uint16], NDArray[np.flo
     return joints.astype(np.uint16), top.astype(np.float32)
 
 
-@functools.lru_cache(maxsize=16)  # per skeleton (identity): a library's mesh is made once
-def build_mesh(skeleton: Skeleton) -> SkinnedMesh:
-    """The procedural skinned mesh of ``skeleton`` (see the module docstring)."""
-    parts = _parts(skeleton)
+def build_mesh(skeleton: Skeleton, bind_local: NDArray[np.floating] | None = None) -> SkinnedMesh:
+    """The procedural skinned mesh of ``skeleton`` made on :func:`bind_pose` of ``bind_local``
+    (local rotations (J, 4); default: the rest pose, which must then stand)."""
+    if not skeleton.feet:
+        raise ValueError(f"skeleton {skeleton.name!r}: a mesh needs the four feet declared")
+    key = None if bind_local is None else np.asarray(bind_local, np.float32).tobytes()
+    return _build_mesh(skeleton, key)
+
+
+@functools.lru_cache(maxsize=16)  # per skeleton (identity) and bind pose: made once per library
+def _build_mesh(skeleton: Skeleton, bind_key: bytes | None) -> SkinnedMesh:
+    local = None if bind_key is None else np.frombuffer(bind_key, np.float32).reshape(-1, 4)
+    pos, rot, local_rot = bind_pose(skeleton, local)
+    parts = _parts(skeleton, pos)
     starts = np.cumsum([0] + [len(p.positions) for p in parts])
     positions = np.concatenate([p.positions for p in parts])
     triangles = np.concatenate([p.triangles + s for p, s in zip(parts, starts, strict=False)])
     normals = np.concatenate([_vertex_normals(p.positions, p.triangles) for p in parts])
     joints, weights = _top_influences(np.concatenate([p.weights for p in parts]))
     return SkinnedMesh(positions.astype(np.float32), normals.astype(np.float32),
-                       triangles.astype(np.uint32), joints, weights,
-                       rest_world_positions(skeleton).astype(np.float32))
+                       triangles.astype(np.uint32), joints, weights, pos.astype(np.float32),
+                       rot.astype(np.float32), local_rot.astype(np.float32))
+
+
+def standing_rotations(skeleton: Skeleton, standing: NDArray[np.floating]) -> NDArray[np.float32] | None:
+    """The bind pose for a library: None (its rest pose) where the rest pose stands, else
+    ``standing`` (local rotations (J, 4) of a standing frame, e.g. its idle clip's first)."""
+    return None if rest_stands(skeleton) else np.asarray(standing, np.float32)
 
 
 def pose_mesh(mesh: SkinnedMesh, world_pos: NDArray[np.floating], world_rot: NDArray[np.floating],
@@ -362,6 +421,7 @@ def pose_mesh(mesh: SkinnedMesh, world_pos: NDArray[np.floating], world_rot: NDA
     character of ``scale`` (its bones ``scale`` times as long, so its mesh is too)."""
     from synth_core import quat
 
-    local = scale * (mesh.positions[:, None, :] - mesh.rest_world[mesh.joints])  # (V, 4, 3)
-    moved = quat.rotate(np.asarray(world_rot)[mesh.joints], local) + np.asarray(world_pos)[mesh.joints]
+    bound = quat.rotate(quat.inv(mesh.bind_rot[mesh.joints]),
+                        mesh.positions[:, None, :] - mesh.bind_pos[mesh.joints])  # (V, 4, 3) joint space
+    moved = quat.rotate(np.asarray(world_rot)[mesh.joints], scale * bound) + np.asarray(world_pos)[mesh.joints]
     return np.einsum("vk,vkc->vc", mesh.weights.astype(np.float64), moved)

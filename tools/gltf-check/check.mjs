@@ -3,7 +3,9 @@
 // validator: Khronos' glTF-Validator report counts and its messages (errors, warnings, infos).
 // three: what three.js' GLTFLoader builds: skinned meshes with their bone names, animations, and
 // how far the animation moves the bones (largest world displacement of a bone between the
-// first frame and the middle of the clip, metres).
+// first frame and the middle of the clip, metres), and the skinned positions three.js computes
+// for every SAMPLE-th vertex of the first two meshes at that middle time (world, metres), for a
+// test to compare with its own skinning.
 import { readFileSync } from "node:fs";
 import validator from "gltf-validator";
 import * as THREE from "three";
@@ -52,6 +54,22 @@ async function three(bytes) {
     gltf.scene.updateMatrixWorld(true);
     const after = bonePositions(meshes);
     out.moved = Math.max(0, ...before.map((p, i) => p.distanceTo(after[i])));
+    out.time = gltf.animations[0].duration / 2;
+  }
+  out.sample = meshes.slice(0, 2).map((m) => { m.skeleton.update(); return skinnedSample(m); });
+  out.sampleEvery = SAMPLE;
+  return out;
+}
+
+const SAMPLE = 37;
+
+function skinnedSample(mesh) {
+  const out = [];
+  const v = new THREE.Vector3();
+  for (let i = 0; i < mesh.geometry.attributes.position.count; i += SAMPLE) {
+    mesh.getVertexPosition(i, v);
+    v.applyMatrix4(mesh.matrixWorld);
+    out.push([v.x, v.y, v.z]);
   }
   return out;
 }
