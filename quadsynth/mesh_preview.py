@@ -51,8 +51,8 @@ def _draw(ax: object, mesh: SkinnedMesh, vertices: NDArray[np.float64], title: s
 
 
 def render_mesh(library: Library, out: str | Path, gait: str = "gallop") -> Path:
-    """A PNG: the mesh in its bind pose (the rest pose where it stands) and at the middle frame of ``gait``'s middle clip, each
-    from the side and three-quarters front."""
+    """A PNG: the mesh in its bind pose (the rest pose where it stands) and at the middle frame
+    of ``gait``'s middle clip, each from the side and three-quarters front."""
     skeleton = library.skeleton
     mesh = build_mesh(skeleton, standing_rotations(skeleton, library.idle.rotations[0]))
     rest = mesh.positions.astype(np.float64)
@@ -62,9 +62,10 @@ def render_mesh(library: Library, out: str | Path, gait: str = "gallop") -> Path
     pos, rot = forward_kinematics(skeleton, clip.root_pos[f], clip.rotations[f])
     posed = pose_mesh(mesh, pos, rot)
     posed[:, [0, 2]] -= pos[0, [0, 2]]  # centred under the root, as the rest pose is
+    speed = speed_map.speeds[len(speed_map.speeds) // 2]
     views = [(f"bind pose, side ({len(mesh.triangles)} triangles)", rest, 5.0, 0.0),
              ("bind pose, three-quarters", rest, 20.0, 35.0),
-             (f"{gait} {speed_map.speeds[len(speed_map.speeds) // 2]:.1f} m/s, frame {f}, side", posed, 5.0, 0.0),
+             (f"{gait} {speed:.1f} m/s, frame {f}, side", posed, 5.0, 0.0),
              (f"{gait}, three-quarters", posed, 20.0, 35.0)]
     fig = plt.figure(figsize=(12, 10), dpi=100)
     for i, (title, vertices, elev, azim) in enumerate(views):

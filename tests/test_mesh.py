@@ -9,12 +9,19 @@ import pytest
 
 from synth_core import bvh
 from synth_core.build import build_builtin
-from synth_core.export.mesh import (SkinnedMesh, build_mesh, pose_mesh, rest_stands, rest_world_positions,
-                                    standing_rotations)
+from synth_core.export.mesh import (
+    SkinnedMesh,
+    build_mesh,
+    pose_mesh,
+    rest_stands,
+    rest_world_positions,
+    standing_rotations,
+)
 from synth_core.library import build_skeleton
 from synth_core.skeleton import Skeleton, forward_kinematics
 from tests.conftest import mann_path, toy_skeleton
 
+Posed = tuple[Skeleton, np.ndarray | None]  # a skeleton and its bind pose (None: the rest pose)
 MANN_FEET = {"LF": "LeftHand_end", "RF": "RightHand_end", "LH": "LeftFoot_end", "RH": "RightFoot_end"}
 
 
@@ -29,14 +36,14 @@ def mann_standing() -> tuple[Skeleton, np.ndarray]:
 
 
 @pytest.fixture(params=["horse", "dog", "toy", "mann_dog"])
-def posed(request: pytest.FixtureRequest) -> tuple[Skeleton, np.ndarray | None]:
+def posed(request: pytest.FixtureRequest) -> Posed:
     if request.param == "mann_dog":
         skeleton, standing = mann_standing()
         return skeleton, standing_rotations(skeleton, standing)
     return skeletons()[request.param], None
 
 
-def test_mesh_is_closed_outward_and_a_few_thousand_triangles(posed: tuple[Skeleton, np.ndarray | None]) -> None:
+def test_mesh_is_closed_outward_and_a_few_thousand_triangles(posed: Posed) -> None:
     mesh = build_mesh(*posed)
     tri = mesh.triangles.astype(np.int64)
     assert 1000 <= len(tri) <= 8000
@@ -53,7 +60,7 @@ def test_mesh_is_closed_outward_and_a_few_thousand_triangles(posed: tuple[Skelet
     assert np.mean(np.einsum("ij,ij->i", face, vertex) > 0) > 0.99
 
 
-def test_weights_are_smooth_normalized_and_on_moving_joints(posed: tuple[Skeleton, np.ndarray | None]) -> None:
+def test_weights_are_smooth_normalized_and_on_moving_joints(posed: Posed) -> None:
     skeleton, mesh = posed[0], build_mesh(*posed)
     assert np.allclose(mesh.weights.sum(axis=1), 1.0, atol=1e-6)
     assert mesh.weights.shape[1] == 4 and mesh.weights.min() >= 0

@@ -105,7 +105,8 @@ def _add_character(b: _Builder, skeleton: Skeleton, mesh: SkinnedMesh, mesh_inde
         children = [first + k for k in np.flatnonzero(skeleton.parents == j)]
         offset = root if j == 0 else [float(v) * scale for v in skeleton.offsets[j]]
         turned = posed and not np.allclose(mesh.bind_local[j], [0, 0, 0, 1], atol=1e-7)
-        rotation = [float(v) for v in mesh.bind_local[j] / np.linalg.norm(mesh.bind_local[j])] if turned else None
+        unit = mesh.bind_local[j] / np.linalg.norm(mesh.bind_local[j])
+        rotation = [float(v) for v in unit] if turned else None
         b.gltf.nodes.append(G.Node(name=prefix + skeleton.names[j], translation=offset, rotation=rotation,
                                    children=[int(k) for k in children] or None))
     ibm = b.array(inverse_bind_matrices(mesh, scale), "MAT4")

@@ -78,7 +78,8 @@ def rest_stands(skeleton: Skeleton) -> bool:
     for foot in skeleton.feet:
         limb = skeleton.limb_chain(foot.end_effector)
         drop = rest[limb[0], 1] - rest[foot.end_effector, 1]
-        if rest[foot.end_effector, 1] > 0.05 * _chain_length(rest, limb) or drop < 0.5 * _chain_length(rest, limb):
+        length = _chain_length(rest, limb)
+        if rest[foot.end_effector, 1] > 0.05 * length or drop < 0.5 * length:
             return False
     return True
 
@@ -99,10 +100,10 @@ def bind_pose(skeleton: Skeleton, local: NDArray[np.floating] | None = None
         if np.linalg.norm(heading) > 1e-9:
             yaw = np.arctan2(heading[0], heading[2])
             local[0] = quat.mul(quat.from_axis_angle(np.array([0.0, 1.0, 0.0]), -yaw), local[0])
-    pos, rot = forward_kinematics(skeleton, np.zeros(3), local)
-    pos = np.asarray(pos, np.float64)
-    pos[:, 1] -= pos[:, 1].min()
-    return pos, np.asarray(rot, np.float64), local
+    world, rot = forward_kinematics(skeleton, np.zeros(3), local)
+    lifted: Floats = np.asarray(world, np.float64)
+    lifted[:, 1] -= lifted[:, 1].min()
+    return lifted, np.asarray(rot, np.float64), np.asarray(local, np.float64)
 
 
 def _unit(v: Floats, fallback: Floats) -> Floats:
@@ -291,7 +292,8 @@ def _parts(skeleton: Skeleton, rest: Floats) -> list[_Part]:
     roots = np.array([rest[c[0]] for c in limbs])
     ahead = max(0.0, float((roots[:2].mean(0) - rest[fore]) @ frame.forward))
     behind = max(0.0, float((rest[hind] - roots[2:].mean(0)) @ frame.forward))
-    ends = [rest[hind] - (behind + 0.9 * rv) * frame.forward, rest[fore] + (ahead + 0.85 * rv) * frame.forward]
+    ends = [rest[hind] - (behind + 0.9 * rv) * frame.forward,
+            rest[fore] + (ahead + 0.85 * rv) * frame.forward]
     owners = body.owners or [fore]
     body = _Chain(np.vstack([ends[0], body.points, ends[1]]), [owners[0], *owners, fore])
     s, centres, tangents, lengths = _ring_stations(body.points, spacing)
@@ -371,7 +373,7 @@ def _vertex_normals(positions: Floats, triangles: NDArray[np.int64]) -> Floats:
     normals = np.zeros_like(positions)
     for corner in range(3):
         np.add.at(normals, triangles[:, corner], face)
-    return normals / np.maximum(np.linalg.norm(normals, axis=1, keepdims=True), 1e-12)
+    return np.asarray(normals / np.maximum(np.linalg.norm(normals, axis=1, keepdims=True), 1e-12), np.float64)
 
 
 def _top_influences(weights: Floats) -> tuple[NDArray[np.uint16], NDArray[np.float32]]:
@@ -423,5 +425,6 @@ def pose_mesh(mesh: SkinnedMesh, world_pos: NDArray[np.floating], world_rot: NDA
 
     bound = quat.rotate(quat.inv(mesh.bind_rot[mesh.joints]),
                         mesh.positions[:, None, :] - mesh.bind_pos[mesh.joints])  # (V, 4, 3) joint space
-    moved = quat.rotate(np.asarray(world_rot)[mesh.joints], scale * bound) + np.asarray(world_pos)[mesh.joints]
-    return np.einsum("vk,vkc->vc", mesh.weights.astype(np.float64), moved)
+    moved = (quat.rotate(np.asarray(world_rot)[mesh.joints], scale * bound)
+             + np.asarray(world_pos)[mesh.joints])
+    return np.asarray(np.einsum("vk,vkc->vc", mesh.weights.astype(np.float64), moved), np.float64)
