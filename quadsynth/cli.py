@@ -68,6 +68,24 @@ def _library_export(args: argparse.Namespace, extra: list[str]) -> int:
     return 0
 
 
+def _library_mesh(args: argparse.Namespace, extra: list[str]) -> int:
+    from synth_core.export.gltf import mesh_glb
+    from synth_core.export.mesh import standing_rotations
+
+    library = _load_library(args.animal, args.library)
+    bind = standing_rotations(library.skeleton, library.idle.rotations[0])
+    if args.out:
+        out = Path(args.out)
+        out.parent.mkdir(parents=True, exist_ok=True)
+        out.write_bytes(mesh_glb(library.skeleton, library.animal, bind))
+        print(out)
+    if args.png:
+        from quadsynth.mesh_preview import render_mesh
+
+        print(render_mesh(library, args.png, args.gait))
+    return 0
+
+
 def _build(args: argparse.Namespace, extra: list[str]) -> int:
     from synth_core.artifact import save_library
 
@@ -293,6 +311,14 @@ def build_parser() -> argparse.ArgumentParser:
     export.add_argument("--animal", required=True, choices=["horse", "dog"])
     export.add_argument("--out", required=True, help="output directory (created if missing)")
     export.set_defaults(func=_library_export, passthrough=False)
+    mesh = library_sub.add_parser("mesh", help="the animal's skinned mesh as glTF (what GET "
+                                  "/v1/libraries/{animal}/mesh.glb serves) and/or a picture of it")
+    mesh.add_argument("--animal", default="horse", help="horse or dog (built-in), or with --library its name")
+    mesh.add_argument("--library", help="a library file (.qslib.npz) instead of a built-in animal")
+    mesh.add_argument("--out", help="write the mesh to FILE.glb")
+    mesh.add_argument("--png", help="write a picture: bind pose and a pose of --gait, side and 3/4 views")
+    mesh.add_argument("--gait", default="gallop", help="the gait of the picture's second pose (default gallop)")
+    mesh.set_defaults(func=_library_mesh, passthrough=False)
 
     build = sub.add_parser("build", help="build a library file: speed maps, motion graph, clips")
     what = build.add_mutually_exclusive_group(required=True)

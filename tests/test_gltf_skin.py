@@ -179,3 +179,13 @@ def test_a_bvh_rigs_mesh_is_bound_standing_and_valid(node_tools: Path, tmp_path:
     assert np.abs(np.array(sample) - mesh.positions[::report["three"]["sampleEvery"]]).max() < 1e-3
     stored = bind_rotations(glb, skeleton.n_joints)
     assert np.allclose(np.abs(quat.dot(stored, mesh.bind_local)), 1, atol=1e-5)
+
+
+def test_library_mesh_command_writes_the_served_glb_and_a_picture(tmp_path: Path) -> None:
+    from quadsynth.cli import main
+
+    dog = build_builtin("dog")
+    assert main(["library", "mesh", "--animal", "dog", "--out", str(tmp_path / "dog.glb"),
+                 "--png", str(tmp_path / "dog.png"), "--gait", "trot"]) == 0
+    assert (tmp_path / "dog.glb").read_bytes() == mesh_glb(dog.skeleton, "dog")
+    assert (tmp_path / "dog.png").read_bytes()[:4] == b"\x89PNG"

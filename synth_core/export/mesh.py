@@ -333,9 +333,12 @@ def _parts(skeleton: Skeleton, rest: Floats) -> list[_Part]:
         used |= set(head_path)
         head_len = float(np.linalg.norm(rest[head_path[-1]] - rest[head_path[-2]]))
         rh = 0.22 * head_len
-        neck = _chain(rest, head_path[:-1], skeleton)
+        # From the first neck joint (the body's front covers the bone up to it; a tube from the
+        # branch joint pokes its end out of the back), its base moving half with the body.
+        short = len(head_path) >= 4
+        neck = _chain(rest, head_path[1:-1] if short else head_path[:-1], skeleton)
         parts.append(_sweep(skeleton, frame, neck, 1.0, lambda x: 0.55 * rv + (rh - 0.55 * rv) * x,
-                            14, spacing))
+                            14, spacing, lead_in=fore if short else None))
         skull = _chain(rest, head_path[-2:], skeleton)
         parts.append(_sweep(skeleton, frame, skull, rh,
                             lambda x: 1.0 + 0.15 * np.sin(np.pi * np.minimum(x / 0.5, 1.0)) - 0.45 * x,
