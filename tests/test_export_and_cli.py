@@ -49,8 +49,8 @@ def test_glb_holds_one_hierarchy_and_animation_per_character(bank: Bank, result:
     path = write_glb(bank.skeleton, result, ["a", "b", "c"], tmp_path / "herd.glb", bank.fps)
     gltf = pygltflib.GLTF2().load(str(path))
     J, (C, T) = bank.skeleton.n_joints, result.root_pos.shape[:2]
-    # Per character: its joints, then its skinned mesh node; both at the scene's root.
-    assert len(gltf.nodes) == C * (J + 1) and len(gltf.scenes[0].nodes) == 2 * C
+    # Per character: its joints, its skinned mesh node, the node its joints hang from.
+    assert len(gltf.nodes) == C * (J + 2) and len(gltf.scenes[0].nodes) == 2 * C
     assert len(gltf.animations[0].channels) == C * (J + 1)
     times = gltf.accessors[gltf.animations[0].samplers[0].input]
     assert times.max == [pytest.approx((T - 1) / bank.fps)]
@@ -58,12 +58,12 @@ def test_glb_holds_one_hierarchy_and_animation_per_character(bank: Bank, result:
     # The second character's LF upper leg rotation track decodes to the synthesized rotations.
     j = bank.skeleton.index("L_Humerus")
     channel = next(ch for ch in gltf.animations[0].channels
-                   if ch.target.node == J + 1 + j and ch.target.path == "rotation")
+                   if ch.target.node == J + 2 + j and ch.target.path == "rotation")
     acc = gltf.accessors[gltf.animations[0].samplers[channel.sampler].output]
     view = gltf.bufferViews[acc.bufferView]
     data = np.frombuffer(blob, "<f4", acc.count * 4, view.byteOffset + acc.byteOffset).reshape(-1, 4)
     assert np.allclose(data, result.rotations[1, :, j])
-    node = gltf.nodes[J + 1 + j]
+    node = gltf.nodes[J + 2 + j]
     assert np.allclose(node.translation, bank.skeleton.offsets[j] * result.scales[1], atol=1e-6)
 
 

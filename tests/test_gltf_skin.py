@@ -68,7 +68,8 @@ def test_library_glb_binds_the_mesh_to_the_skeleton_in_its_rest_pose(horse: Libr
     world = np.tile(np.eye(4), (J, 1, 1))
     world[:, :3, 3] = mesh.bind_pos
     assert np.allclose(ibms(gltf, 0) @ world, np.eye(4), atol=1e-5)  # inverse bind = inverse rest
-    assert gltf.scenes[0].nodes == [0, J] and gltf.nodes[J].translation is None
+    assert gltf.scenes[0].nodes == [J + 1, J] and gltf.nodes[J + 1].children == [0]
+    assert gltf.nodes[J].translation is None and gltf.nodes[J + 1].translation is None
     assert np.allclose(gltf.nodes[0].translation, mesh.bind_pos[0])  # standing on y = 0
     assert np.allclose(bind_rotations(mesh_glb(skeleton, "horse"), J), quat.identity((J,)))
 
@@ -79,13 +80,13 @@ def test_herd_glb_has_a_skin_per_character_scaled_with_gaits_and_contacts(horse:
     path = write_glb(horse.skeleton, result, ids, tmp_path / "herd.glb", 60.0)
     gltf = pygltflib.GLTF2().load(str(path))
     J, (C, T) = horse.skeleton.n_joints, result.root_pos.shape[:2]
-    assert len(gltf.nodes) == C * (J + 1) and len(gltf.skins) == C and len(gltf.meshes) == 1
+    assert len(gltf.nodes) == C * (J + 2) and len(gltf.skins) == C and len(gltf.meshes) == 1
     assert len(gltf.animations) == 1 and len(gltf.animations[0].channels) == C * (J + 1)
     unit = ibms(pygltflib.GLTF2.load_from_bytes(mesh_glb(horse.skeleton, "horse")), 0)
     for c in range(C):
-        node = gltf.nodes[c * (J + 1) + J]
+        node = gltf.nodes[c * (J + 2) + J]
         assert node.name == ids[c] and node.skin == c and node.mesh == 0
-        assert gltf.skins[c].joints == list(range(c * (J + 1), c * (J + 1) + J))
+        assert gltf.skins[c].joints == list(range(c * (J + 2), c * (J + 2) + J))
         scale = np.diag([result.scales[c]] * 3 + [1.0])
         assert np.allclose(ibms(gltf, c), scale @ unit, atol=1e-5)
         extras = node.extras
@@ -189,3 +190,25 @@ def test_library_mesh_command_writes_the_served_glb_and_a_picture(tmp_path: Path
                  "--png", str(tmp_path / "dog.png"), "--gait", "trot"]) == 0
     assert (tmp_path / "dog.glb").read_bytes() == mesh_glb(dog.skeleton, "dog")
     assert (tmp_path / "dog.png").read_bytes()[:4] == b"\x89PNG"
+
+
+def test_blender_imports_an_armature_per_character(horse: Library, result: Result, tmp_path: Path) -> None:
+    run = subprocess.run([str(REPO / "scripts" / "ensure-blender")], capture_output=True, text=True)
+    if run.returncode != 0:
+        pytest.skip(f"scripts/ensure-blender: {run.stderr.strip().splitlines()[-1:]}")
+    blender = run.stdout.strip().splitlines()[-1]
+    write_glb(horse.skeleton, result, ["a", "b", "c"], tmp_path / "herd.glb", 60.0)
+    (tmp_path / "horse.glb").write_bytes(mesh_glb(horse.skeleton, "horse"))
+    script = REPO / "tools" / "gltf-check" / "blender_import.py"
+    done = subprocess.run([blender, "-b", "--factory-startup", "--python", str(script), "--",
+                           str(tmp_path / "herd.glb"), str(tmp_path / "horse.glb")],
+                          capture_output=True, text=True, timeout=600)
+    reports = [json.loads(line.split(" ", 1)[1]) for line in done.stdout.splitlines()
+               if line.startswith("QUADSYNTH_REPORT ")]
+    assert len(reports) == 2, done.stdout[-2000:] + done.stderr[-2000:]
+    herd, single = reports
+    J = horse.skeleton.n_joints
+    assert len(herd["armatures"]) == 3 and herd["skinned_meshes"] == 3 and herd["actions"] >= 1
+    assert all(len(a["bones"]) == J for a in herd["armatures"])
+    assert len(single["armatures"]) == 1 and single["skinned_meshes"] == 1
+    assert single["armatures"][0]["bones"] == list(horse.skeleton.names)

@@ -98,7 +98,8 @@ def inverse_bind_matrices(mesh: SkinnedMesh, scale: float) -> NDArray[np.float32
 
 def _add_character(b: _Builder, skeleton: Skeleton, mesh: SkinnedMesh, mesh_index: int, scale: float,
                    name: str, prefix: str, root: list[float], posed: bool) -> tuple[int, int]:
-    """A character's joint nodes, skin and mesh node; returns (root joint node, mesh node).
+    """A character's joint nodes, its mesh node and the node its joints hang from (no
+    transform), in that order; returns (that rig node, mesh node).
     ``posed``: the nodes hold the bind pose's rotations (else none: the animation sets them)."""
     first = len(b.gltf.nodes)
     for j in range(skeleton.n_joints):
@@ -113,7 +114,10 @@ def _add_character(b: _Builder, skeleton: Skeleton, mesh: SkinnedMesh, mesh_inde
     b.gltf.skins.append(G.Skin(name=name, joints=list(range(first, first + skeleton.n_joints)),
                                skeleton=first, inverseBindMatrices=ibm))
     b.gltf.nodes.append(G.Node(name=name, mesh=mesh_index, skin=len(b.gltf.skins) - 1))
-    return first, len(b.gltf.nodes) - 1
+    # The joints hang from a node of their own: Blender's importer makes an armature of the
+    # parent of a skin's root joint, and of a scene root all skins' joints would share one.
+    b.gltf.nodes.append(G.Node(name=f"{name}_rig", children=[first]))
+    return len(b.gltf.nodes) - 1, len(b.gltf.nodes) - 2
 
 
 def mesh_glb(skeleton: Skeleton, animal: str, bind_local: NDArray[np.floating] | None = None) -> bytes:
@@ -123,9 +127,9 @@ def mesh_glb(skeleton: Skeleton, animal: str, bind_local: NDArray[np.floating] |
     b = _Builder()
     mesh = build_mesh(skeleton, bind_local)
     mesh_index = _add_mesh(b, mesh, f"{animal} mesh")
-    root, node = _add_character(b, skeleton, mesh, mesh_index, 1.0, animal, "",
-                                [float(v) for v in mesh.bind_pos[0]], posed=True)
-    b.gltf.scenes.append(G.Scene(name=f"{animal} rest pose", nodes=[root, node]))
+    rig, node = _add_character(b, skeleton, mesh, mesh_index, 1.0, animal, "",
+                               [float(v) for v in mesh.bind_pos[0]], posed=True)
+    b.gltf.scenes.append(G.Scene(name=f"{animal} rest pose", nodes=[rig, node]))
     b.gltf.scene = 0
     return b.glb()
 
@@ -153,10 +157,11 @@ def write_glb(skeleton: Skeleton, result: Result, ids: list[str], path: str | Pa
     time_acc = b.array(times, "SCALAR", bounds=True)
     scene_nodes = []
     for c in range(C):
-        first, node = _add_character(b, skeleton, mesh, mesh_index, float(result.scales[c]), str(ids[c]),
+        rig, node = _add_character(b, skeleton, mesh, mesh_index, float(result.scales[c]), str(ids[c]),
                                      f"{ids[c]}_", [float(v) for v in result.root_pos[c, 0]], posed=False)
         b.gltf.nodes[node].extras = character_annotations(result, c, fps, str(ids[c]))
-        scene_nodes += [first, node]
+        first = rig - 1 - J
+        scene_nodes += [rig, node]
         rot_view = b.view(result.rotations[c].transpose(1, 0, 2).astype("<f4"))  # (J, T, 4): a run per joint
         targets = [(first, "translation", b.array(result.root_pos[c].astype("<f4"), "VEC3"))]
         targets += [(first + j, "rotation", b.accessor(rot_view, T, "VEC4", offset=j * T * 16))

@@ -1,4 +1,4 @@
-"""A procedural low-poly skinned mesh for any quadruped skeleton, bound in its rest pose.
+"""A procedural low-poly skinned mesh for any quadruped skeleton, bound in a standing pose.
 
 Body, neck, head, limbs and tail are tubes swept along the skeleton's bones; ears are cones on
 the head. Radii come from the skeleton's own proportions (the fore limb's length sets the scale,
