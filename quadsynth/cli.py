@@ -317,7 +317,7 @@ def build_parser() -> argparse.ArgumentParser:
     mesh.add_argument("--library", help="a library file (.qslib.npz) instead of a built-in animal")
     mesh.add_argument("--out", help="write the mesh to FILE.glb")
     mesh.add_argument("--png", help="write a picture: bind pose and a pose of --gait, side and 3/4 views")
-    mesh.add_argument("--gait", default="gallop", help="the gait of the picture's second pose (default gallop)")
+    mesh.add_argument("--gait", default="gallop", help="the gait of the picture's second pose (gallop)")
     mesh.set_defaults(func=_library_mesh, passthrough=False)
 
     build = sub.add_parser("build", help="build a library file: speed maps, motion graph, clips")
