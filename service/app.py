@@ -382,12 +382,13 @@ def create_app(directory: Path | None = None, settings: Settings | None = None) 
         sk = lib.skeleton
         gaits = [GaitRange(index=HUBS.index(g), name=g, min_speed=float(m.speeds[0]),
                            max_speed=float(m.speeds[-1])) for g, m in lib.maps.items()]
+        mesh_url = f"/v1/libraries/{animal}/mesh.glb" if animal in registry.meshes else None
         return LibraryDetail(animal=animal, skeleton_id=skeleton_id(animal, sk), fps=bank.fps,
                              joint_names=list(sk.names), parents=[int(p) for p in sk.parents],
                              offsets=sk.offsets.astype(float).tolist(),
                              end_sites=[bool(e) for e in sk.end_site],
                              feet={f.name: sk.names[f.end_effector] for f in sk.feet}, gaits=gaits,
-                             mesh_url=f"/v1/libraries/{animal}/mesh.glb")
+                             mesh_url=mesh_url)
 
     @app.get("/v1/libraries/{animal}/mesh.glb", response_class=Response, tags=["libraries"],
              responses={200: {"description": "glTF 2.0 binary: one skinned mesh on the animal's skeleton "
@@ -398,8 +399,10 @@ def create_app(directory: Path | None = None, settings: Settings | None = None) 
         """The animal's skinned mesh: a node per joint named and ordered as
         `GET /v1/libraries/{animal}` lists them, skin joints in that order, inverse bind
         matrices of the rest pose; Y up, metres, facing +Z."""
+        if animal in registry.mesh_errors:
+            raise ApiError(404, "animal", f"no mesh for {animal!r}: {registry.mesh_errors[animal]}")
         if animal not in registry.meshes:
-            loaded = ", ".join(sorted(registry.meshes))
+            loaded = ", ".join(sorted(registry.libraries))
             raise ApiError(404, "animal", f"unknown animal {animal!r}; loaded: {loaded}")
         return Response(registry.meshes[animal], media_type=GLB)
 

@@ -70,6 +70,7 @@ class LibraryRegistry:
     banks: dict[str, Bank] = field(default_factory=dict)  # what synthesis reads, per animal
     errors: dict[str, str] = field(default_factory=dict)  # file -> why it was not loaded
     meshes: dict[str, bytes] = field(default_factory=dict)  # animal -> its skinned mesh, a .glb
+    mesh_errors: dict[str, str] = field(default_factory=dict)  # animal -> why it has no mesh
     loaded: bool = False
 
     def load(self) -> None:
@@ -89,6 +90,10 @@ class LibraryRegistry:
             self.summaries[library.animal] = summarize(library, path)
             self.banks[library.animal] = build_bank(library)
             # Made once here (some tens of ms), so the route only sends bytes.
-            bind = standing_rotations(library.skeleton, library.idle.rotations[0])
-            self.meshes[library.animal] = mesh_glb(library.skeleton, library.animal, bind)
+            try:
+                bind = standing_rotations(library.skeleton, library.idle.rotations[0])
+                self.meshes[library.animal] = mesh_glb(library.skeleton, library.animal, bind)
+            except ValueError as exc:  # the library still serves motion; its mesh route says why not
+                self.mesh_errors[library.animal] = str(exc)
+                log.error("no mesh for %s: %s", library.animal, exc)
         self.loaded = True
