@@ -6,6 +6,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from synth_core import bvh
 from synth_core.build import build_builtin
@@ -44,7 +46,28 @@ def posed(request: pytest.FixtureRequest) -> Posed:
 
 
 def test_mesh_is_closed_outward_and_a_few_thousand_triangles(posed: Posed) -> None:
-    mesh = build_mesh(*posed)
+    assert_closed_and_outward(build_mesh(*posed))
+
+
+@settings(max_examples=25, deadline=None)
+@given(st.lists(st.floats(0.5, 2.0), min_size=20, max_size=20), st.floats(-np.pi, np.pi))
+def test_any_proportions_and_heading_make_a_closed_standing_mesh(lengths: list[float], yaw: float) -> None:
+    """The toy quadruped with every bone 0.5-2x as long, its rest pose turned to any heading."""
+    toy = toy_skeleton()
+    turn = np.array([[np.cos(yaw), 0, np.sin(yaw)], [0, 1, 0], [-np.sin(yaw), 0, np.cos(yaw)]])
+    offsets = (toy.offsets * np.array(lengths)[:, None]) @ turn.T
+    skeleton = Skeleton(toy.names, toy.parents, offsets.astype(np.float32), toy.end_site, toy.feet, "toy")
+    mesh = build_mesh(skeleton)
+    assert_closed_and_outward(mesh)
+    assert np.allclose(mesh.weights.sum(axis=1), 1.0, atol=1e-6)
+    assert abs(float(mesh.positions[:, 1].min())) < 1e-3  # soles on the ground
+    # Turned to face +Z: from the hind limbs' roots to the fore limbs', level.
+    roots = mesh.bind_pos[[skeleton.limb_chain(f.end_effector)[0] for f in skeleton.feet]][:, [0, 2]]
+    heading = roots[:2].mean(0) - roots[2:].mean(0)
+    assert abs(heading[0]) < 1e-4 and heading[1] > 0
+
+
+def assert_closed_and_outward(mesh: SkinnedMesh) -> None:
     tri = mesh.triangles.astype(np.int64)
     assert 1000 <= len(tri) <= 8000
     # Closed and consistently wound: every directed edge meets its reverse exactly once.
