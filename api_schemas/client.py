@@ -183,6 +183,12 @@ class Client:
         _raise_for(response.status_code, response.content)
         return dict(response.json())
 
+    def mesh(self, animal: str) -> bytes:
+        """The animal's skinned mesh, a glTF binary (.glb) bound to its skeleton's rest pose."""
+        response = self._http.get(f"/v1/libraries/{animal}/mesh.glb")
+        _raise_for(response.status_code, response.content)
+        return bytes(response.content)
+
     def limits(self) -> dict[str, Any]:
         response = self._http.get("/v1/limits")
         _raise_for(response.status_code, response.content)

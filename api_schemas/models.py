@@ -218,6 +218,9 @@ class LibraryDetail(BaseModel):
                                               "of their own matters)")
     feet: dict[str, str] = Field(description="foot (LF, RF, LH, RH) -> end-effector joint name")
     gaits: list[GaitRange]
+    mesh_url: str | None = Field(description="the animal's skinned mesh (glTF binary): one mesh bound to "
+                                             "these joints (node per joint, same names and order), Y up, "
+                                             "metres, facing +Z; null if none could be made")
 
 
 class Limits(BaseModel):

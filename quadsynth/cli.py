@@ -70,6 +70,24 @@ def _library_export(args: argparse.Namespace, extra: list[str]) -> int:
     return 0
 
 
+def _library_mesh(args: argparse.Namespace, extra: list[str]) -> int:
+    from synth_core.export.gltf import mesh_glb
+    from synth_core.export.mesh import standing_rotations
+
+    library = _load_library(args.animal, args.library)
+    bind = standing_rotations(library.skeleton, library.idle.rotations[0])
+    if args.out:
+        out = Path(args.out)
+        out.parent.mkdir(parents=True, exist_ok=True)
+        out.write_bytes(mesh_glb(library.skeleton, library.animal, bind))
+        print(out)
+    if args.png:
+        from quadsynth.mesh_preview import render_mesh
+
+        print(render_mesh(library, args.png, args.gait))
+    return 0
+
+
 def _build(args: argparse.Namespace, extra: list[str]) -> int:
     from synth_core.artifact import save_library
 
@@ -162,7 +180,10 @@ def _synth(args: argparse.Namespace, extra: list[str]) -> int:
     result = synthesize(bank, traj.positions, traj.fps, options=options, ids=traj.ids,
                         progress=_progress("synthesizing"))
     ids = [traj.ids[c] for c in result.kept]
-    return _write_herd(args, bank.skeleton, result, ids, traj.ids, bank.fps, bank.hubs, library.animal)
+    from synth_core.export.mesh import standing_rotations
+
+    bind = standing_rotations(library.skeleton, library.idle.rotations[0])
+    return _write_herd(args, bank.skeleton, result, ids, traj.ids, bank.fps, bank.hubs, library.animal, bind)
 
 
 def _client_synth(args: argparse.Namespace, extra: list[str]) -> int:
@@ -185,11 +206,14 @@ def _client_synth(args: argparse.Namespace, extra: list[str]) -> int:
     except httpx.HTTPError as exc:
         raise ValueError(f"cannot reach the service at {args.url}: {exc}") from None
     print(f"{herd.requests} request(s) to {args.url}", file=sys.stderr)
-    return _write_herd(args, herd.skeleton, herd.result, herd.ids, traj.ids, herd.fps, herd.hubs, args.animal)
+    bind = remote.bind_pose(args.url, args.animal, herd.skeleton) if args.glb else None
+    return _write_herd(args, herd.skeleton, herd.result, herd.ids, traj.ids, herd.fps, herd.hubs, args.animal,
+                       bind)
 
 
 def _write_herd(args: argparse.Namespace, skeleton: Skeleton, result: Result, ids: list[str],
-                all_ids: list[str], fps: float, hubs: tuple[str, ...], animal: str) -> int:
+                all_ids: list[str], fps: float, hubs: tuple[str, ...], animal: str,
+                bind: np.ndarray | None) -> int:
     """What `synth` and `client synth` write: motion.npz, summary.json, and BVH / glTF / GIF if asked."""
     from synth_core.export import write_bvh_files, write_glb
 
@@ -208,7 +232,7 @@ def _write_herd(args: argparse.Namespace, skeleton: Skeleton, result: Result, id
     if args.bvh:
         write_bvh_files(skeleton, result, ids, out, fps, _progress("writing BVH"))
     if args.glb:
-        print(write_glb(skeleton, result, ids, args.glb, fps))
+        print(write_glb(skeleton, result, ids, args.glb, fps, bind))
     if args.preview:
         from quadsynth.herd_preview import render_herd
 
@@ -312,8 +336,10 @@ def _herd_arguments(parser: argparse.ArgumentParser) -> None:
                         help=f"each character's stride frequency varies by up to this share (default "
                              f"{TEMPO_SPREAD}; 0: none)")
     parser.add_argument("--out", required=True, help="output directory: motion.npz, summary.json, BVH files")
-    parser.add_argument("--bvh", action="store_true", help="write DIR/<id>.bvh per character (centimetres)")
-    parser.add_argument("--glb", help="write the herd as one glTF 2.0 binary FILE.glb")
+    parser.add_argument("--bvh", action="store_true", help="write DIR/<id>.bvh per character (centimetres) "
+                        "and DIR/<id>.contacts.json (gaits and foot contacts)")
+    parser.add_argument("--glb", help="write the herd as one glTF 2.0 binary FILE.glb: a skinned mesh per "
+                        "character, one animation, gaits and contacts in each mesh node's extras")
     parser.add_argument("--preview", help="write a herd preview FILE.gif")
 
 
@@ -342,6 +368,14 @@ def build_parser() -> argparse.ArgumentParser:
     export.add_argument("--animal", required=True, choices=["horse", "dog"])
     export.add_argument("--out", required=True, help="output directory (created if missing)")
     export.set_defaults(func=_library_export, passthrough=False)
+    mesh = library_sub.add_parser("mesh", help="the animal's skinned mesh as glTF (what GET "
+                                  "/v1/libraries/{animal}/mesh.glb serves) and/or a picture of it")
+    mesh.add_argument("--animal", default="horse", help="horse or dog (built-in), or with --library its name")
+    mesh.add_argument("--library", help="a library file (.qslib.npz) instead of a built-in animal")
+    mesh.add_argument("--out", help="write the mesh to FILE.glb")
+    mesh.add_argument("--png", help="write a picture: bind pose and a pose of --gait, side and 3/4 views")
+    mesh.add_argument("--gait", default="gallop", help="the gait of the picture's second pose (gallop)")
+    mesh.set_defaults(func=_library_mesh, passthrough=False)
 
     build = sub.add_parser("build", help="build a library file: speed maps, motion graph, clips")
     what = build.add_mutually_exclusive_group(required=True)

@@ -49,6 +49,20 @@ def skeleton_of(detail: dict[str, Any]) -> Skeleton:
     return skeleton.with_feet(detail["feet"])
 
 
+def bind_pose(url: str, animal: str, skeleton: Skeleton) -> NDArray[np.float32] | None:
+    """The bind pose of the service's mesh of ``animal`` (its ``mesh.glb``'s joint rotations), so
+    a herd written here wears the mesh the service serves; None (the rest pose) from a service
+    without meshes."""
+    from synth_core.export.gltf import bind_rotations
+
+    with Client(url) as client:
+        try:
+            glb = client.mesh(animal)
+        except ServiceError:
+            return None
+    return bind_rotations(glb, skeleton.n_joints)
+
+
 def piece_size(limits: dict[str, Any], points: int, out_frames: int) -> int:
     """Characters per request that keep within every published limit (at least 1)."""
     by_frames = limits["max_character_frames"] // max(1, int(out_frames * RATE_ALLOWANCE))

@@ -51,6 +51,8 @@ from synth_core.motion_graph import HUBS
 from synth_core.scratch import Shelf
 from synth_core.synthesis import Result
 
+GLB = "model/gltf-binary"  # glTF 2.0 binary media type (IANA)
+
 Answer = TypeVar("Answer")
 
 log = logging.getLogger("quadsynth.service")
@@ -380,11 +382,29 @@ def create_app(directory: Path | None = None, settings: Settings | None = None) 
         sk = lib.skeleton
         gaits = [GaitRange(index=HUBS.index(g), name=g, min_speed=float(m.speeds[0]),
                            max_speed=float(m.speeds[-1])) for g, m in lib.maps.items()]
+        mesh_url = f"/v1/libraries/{animal}/mesh.glb" if animal in registry.meshes else None
         return LibraryDetail(animal=animal, skeleton_id=skeleton_id(animal, sk), fps=bank.fps,
                              joint_names=list(sk.names), parents=[int(p) for p in sk.parents],
                              offsets=sk.offsets.astype(float).tolist(),
                              end_sites=[bool(e) for e in sk.end_site],
-                             feet={f.name: sk.names[f.end_effector] for f in sk.feet}, gaits=gaits)
+                             feet={f.name: sk.names[f.end_effector] for f in sk.feet}, gaits=gaits,
+                             mesh_url=mesh_url)
+
+    @app.get("/v1/libraries/{animal}/mesh.glb", response_class=Response, tags=["libraries"],
+             responses={200: {"description": "glTF 2.0 binary: one skinned mesh on the animal's skeleton "
+                                             "in its rest pose (synth_core.export.mesh)",
+                              "content": {GLB: {"schema": {"type": "string", "format": "binary"}}}},
+                        **_errors(404)})
+    async def library_mesh(animal: str) -> Response:
+        """The animal's skinned mesh: a node per joint named and ordered as
+        `GET /v1/libraries/{animal}` lists them, skin joints in that order, inverse bind
+        matrices of the rest pose; Y up, metres, facing +Z."""
+        if animal in registry.mesh_errors:
+            raise ApiError(404, "animal", f"no mesh for {animal!r}: {registry.mesh_errors[animal]}")
+        if animal not in registry.meshes:
+            loaded = ", ".join(sorted(registry.libraries))
+            raise ApiError(404, "animal", f"unknown animal {animal!r}; loaded: {loaded}")
+        return Response(registry.meshes[animal], media_type=GLB)
 
     @app.get("/v1/limits", response_model=Limits, tags=["libraries"])
     async def limits() -> Limits:

@@ -17,6 +17,8 @@ from pathlib import Path
 from api_schemas import LibrarySummary
 from synth_core.artifact import SUFFIX, Library, LibraryFileError, load_library, save_library
 from synth_core.bank import Bank, build_bank
+from synth_core.export.gltf import mesh_glb
+from synth_core.export.mesh import standing_rotations
 from synth_core.library import BUILTIN_ANIMALS
 
 DEFAULT_LIBRARY_DIR = "library"
@@ -67,6 +69,8 @@ class LibraryRegistry:
     summaries: dict[str, LibrarySummary] = field(default_factory=dict)
     banks: dict[str, Bank] = field(default_factory=dict)  # what synthesis reads, per animal
     errors: dict[str, str] = field(default_factory=dict)  # file -> why it was not loaded
+    meshes: dict[str, bytes] = field(default_factory=dict)  # animal -> its skinned mesh, a .glb
+    mesh_errors: dict[str, str] = field(default_factory=dict)  # animal -> why it has no mesh
     loaded: bool = False
 
     def load(self) -> None:
@@ -85,4 +89,11 @@ class LibraryRegistry:
             self.libraries[library.animal] = library
             self.summaries[library.animal] = summarize(library, path)
             self.banks[library.animal] = build_bank(library)
+            # Made once here (some tens of ms), so the route only sends bytes.
+            try:
+                bind = standing_rotations(library.skeleton, library.idle.rotations[0])
+                self.meshes[library.animal] = mesh_glb(library.skeleton, library.animal, bind)
+            except ValueError as exc:  # the library still serves motion; its mesh route says why not
+                self.mesh_errors[library.animal] = str(exc)
+                log.error("no mesh for %s: %s", library.animal, exc)
         self.loaded = True

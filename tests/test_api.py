@@ -230,6 +230,24 @@ def test_libraries_and_docs(server: str) -> None:
     assert httpx.get(f"{server}/docs").status_code == 200
 
 
+def test_library_mesh_is_a_skinned_glb_on_the_listed_joints(server: str) -> None:
+    import pygltflib
+
+    for animal in ("horse", "dog"):
+        detail = httpx.get(f"{server}/v1/libraries/{animal}").json()
+        assert detail["mesh_url"] == f"/v1/libraries/{animal}/mesh.glb"
+        response = httpx.get(server + detail["mesh_url"])
+        assert response.status_code == 200 and response.headers["content-type"] == "model/gltf-binary"
+        gltf = pygltflib.GLTF2.load_from_bytes(response.content)
+        J = len(detail["joint_names"])
+        assert [n.name for n in gltf.nodes[:J]] == detail["joint_names"]
+        assert len(gltf.skins) == 1 and gltf.skins[0].joints == list(range(J))
+        assert len(gltf.meshes) == 1 and gltf.nodes[J].mesh == 0 and gltf.nodes[J].skin == 0
+    refused(httpx.get(f"{server}/v1/libraries/cat/mesh.glb"), 404, "animal", "unknown animal 'cat'")
+    spec = httpx.get(f"{server}/openapi.json").json()
+    assert "model/gltf-binary" in spec["paths"]["/v1/libraries/{animal}/mesh.glb"]["get"]["responses"]["200"]["content"]
+
+
 def test_metrics_count_requests_and_character_frames(server: str, herd: np.ndarray) -> None:
     def value(text: str, prefix: str) -> float:
         return sum(float(line.rsplit(" ", 1)[1]) for line in text.splitlines() if line.startswith(prefix))

@@ -8,6 +8,7 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
+import pygltflib
 import pytest
 
 from quadsynth.cli import main
@@ -62,7 +63,8 @@ def test_client_synth_cuts_the_herd_and_gets_the_local_motion(server: str, herd:
     assert f"{5 if resample else 3} request(s)" in err
     assert ("warning: character 17: moves at" in err) != resample
     code, local, err = run("synth", "--trajectories", str(traj), "--seed", "7",
-                           "--out", str(tmp_path / "local"), *flag, capsys=capsys)
+                           "--out", str(tmp_path / "local"), "--glb", str(tmp_path / "l.glb"), *flag,
+                           capsys=capsys)
     assert code == 0, err
     assert summary == local
     if resample:
@@ -76,6 +78,12 @@ def test_client_synth_cuts_the_herd_and_gets_the_local_motion(server: str, herd:
     assert files == sorted(f"{c}.bvh" for c in range(20))
     motion = bvh.read(tmp_path / "remote" / "17.bvh", feet=None)
     assert motion.n_frames == summary["frames"] and (tmp_path / "r.glb").read_bytes()[:4] == b"glTF"
+    assert (tmp_path / "remote" / "17.contacts.json").exists()
+    # The herd wears the mesh the service serves, a skin per character, as a local synth's does.
+    remote_glb, local_glb = (pygltflib.GLTF2().load(str(tmp_path / name)) for name in ("r.glb", "l.glb"))
+    assert len(remote_glb.skins) == len(local_glb.skins) == 20
+    mesh = [g.accessors[g.meshes[0].primitives[0].attributes.POSITION] for g in (remote_glb, local_glb)]
+    assert mesh[0].count == mesh[1].count and mesh[0].max == mesh[1].max
 
 
 def test_client_synth_skips_or_names_a_bad_character_by_its_place_in_the_herd(

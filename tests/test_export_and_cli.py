@@ -49,19 +49,21 @@ def test_glb_holds_one_hierarchy_and_animation_per_character(bank: Bank, result:
     path = write_glb(bank.skeleton, result, ["a", "b", "c"], tmp_path / "herd.glb", bank.fps)
     gltf = pygltflib.GLTF2().load(str(path))
     J, (C, T) = bank.skeleton.n_joints, result.root_pos.shape[:2]
-    assert len(gltf.nodes) == C * J and len(gltf.scenes[0].nodes) == C
+    # Per character: its joints, its skinned mesh node, the node its joints hang from.
+    assert len(gltf.nodes) == C * (J + 2) and len(gltf.scenes[0].nodes) == 2 * C
     assert len(gltf.animations[0].channels) == C * (J + 1)
-    assert gltf.accessors[0].max == [pytest.approx((T - 1) / bank.fps)]
+    times = gltf.accessors[gltf.animations[0].samplers[0].input]
+    assert times.max == [pytest.approx((T - 1) / bank.fps)]
     blob = gltf.binary_blob()
     # The second character's LF upper leg rotation track decodes to the synthesized rotations.
     j = bank.skeleton.index("L_Humerus")
     channel = next(ch for ch in gltf.animations[0].channels
-                   if ch.target.node == J + j and ch.target.path == "rotation")
+                   if ch.target.node == J + 2 + j and ch.target.path == "rotation")
     acc = gltf.accessors[gltf.animations[0].samplers[channel.sampler].output]
     view = gltf.bufferViews[acc.bufferView]
     data = np.frombuffer(blob, "<f4", acc.count * 4, view.byteOffset + acc.byteOffset).reshape(-1, 4)
     assert np.allclose(data, result.rotations[1, :, j])
-    node = gltf.nodes[J + j]
+    node = gltf.nodes[J + 2 + j]
     assert np.allclose(node.translation, bank.skeleton.offsets[j] * result.scales[1], atol=1e-6)
 
 
@@ -87,6 +89,7 @@ def test_crowd_sim_then_synth_writes_every_output(tmp_path: Path, capsys: pytest
     summary = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
     assert summary["characters"] == 4 and summary["frames"] == 150
     assert sorted(p.name for p in out.glob("*.bvh")) == ["0.bvh", "1.bvh", "2.bvh", "3.bvh"]
+    assert sorted(p.name for p in out.glob("*.contacts.json")) == [f"{c}.contacts.json" for c in range(4)]
     assert (tmp_path / "h.glb").stat().st_size > 0 and (tmp_path / "h.gif").read_bytes()[:3] == b"GIF"
     motion = np.load(out / "motion.npz")
     assert motion["rotations"].shape == (4, 150, bvh.read(out / "0.bvh", feet=None).skeleton.n_joints, 4)

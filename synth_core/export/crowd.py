@@ -1,13 +1,17 @@
-"""One synthesized character as a :class:`Motion` of its own (scaled) skeleton; BVH per character."""
+"""One synthesized character as a :class:`Motion` of its own (scaled) skeleton; BVH per character,
+each with a ``<id>.contacts.json`` sidecar of its gaits and foot contacts
+(:mod:`synth_core.export.annotations`; ``quadsynth preview`` reads it)."""
 
 from __future__ import annotations
 
+import json
 import re
 from collections.abc import Callable
 from dataclasses import replace
 from pathlib import Path
 
 from synth_core import bvh
+from synth_core.export.annotations import character_annotations
 from synth_core.motion import Motion
 from synth_core.skeleton import Skeleton
 from synth_core.synthesis import Result
@@ -31,12 +35,14 @@ def safe_name(name: str) -> str:
 
 def write_bvh_files(skeleton: Skeleton, result: Result, ids: list[str], out: Path, fps: float,
                     progress: Callable[[int, int], None] | None = None) -> list[Path]:
-    """``out/<id>.bvh`` (centimetres) for every character synthesized."""
+    """``out/<id>.bvh`` (centimetres) and ``out/<id>.contacts.json`` for every character synthesized."""
     out.mkdir(parents=True, exist_ok=True)
     written = []
     for c, name in enumerate(ids):
         path = out / f"{safe_name(name)}.bvh"
         bvh.write(character_motion(skeleton, result, c, fps, name), path, unit="cm")
+        sidecar = path.with_name(f"{path.stem}.contacts.json")
+        sidecar.write_text(json.dumps(character_annotations(result, c, fps, name)))
         written.append(path)
         if progress:
             progress(c + 1, len(ids))
