@@ -13,6 +13,7 @@ from api_schemas.models import (
     Health,
     LibrariesResponse,
     LibraryDetail,
+    LibraryStatus,
     LibrarySummary,
     Limits,
     LiveCharacter,
@@ -25,6 +26,6 @@ from api_schemas.models import (
 )
 
 __all__ = ["Blob", "CharacterIn", "CharacterOut", "ErrorDetail", "ErrorResponse", "GaitRange", "Health",
-           "LibrariesResponse", "LibraryDetail", "LibrarySummary", "Limits", "LiveCharacter",
+           "LibrariesResponse", "LibraryDetail", "LibraryStatus", "LibrarySummary", "Limits", "LiveCharacter",
            "LiveRequest", "PackedRotations", "Readiness",
            "Skipped", "SynthesizeRequest", "SynthesizeResponse"]

@@ -31,3 +31,6 @@ if [ ! -f "$STAMP" ] || [ "$(cat "$STAMP")" != "$WANT" ]; then
     echo "$WANT" > "$STAMP"
 fi
 export PATH="$ROOT/.venv/bin:$PATH"
+# A checkout serves and tests the libraries its own code builds (the installed default is a
+# per-user data directory, shared by every checkout).
+export QUADSYNTH_LIBRARY_DIR="${QUADSYNTH_LIBRARY_DIR:-$ROOT/library}"
