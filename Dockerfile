@@ -42,11 +42,12 @@ USER quadsynth
 WORKDIR /home/quadsynth
 RUN python -c "from service.app import compile_kernels; compile_kernels()"
 
+ENV PORT=8000
 EXPOSE 8000
 # Healthy = ready: every configured library loaded (/readyz is 503 while one is missing or failed,
 # and while draining), so nothing routes to a replica that cannot serve.
 HEALTHCHECK --interval=10s --timeout=2s --start-period=30s --retries=3 \
-    CMD python -c "import urllib.request,sys; sys.exit(urllib.request.urlopen('http://127.0.0.1:8000/readyz', timeout=2).status != 200)"
-# Worker processes: one per core of the container's CPU quota (service.cpus), or WORKERS.
+    CMD python -c "import urllib.request,sys; sys.exit(urllib.request.urlopen('http://127.0.0.1:$PORT/readyz', timeout=2).status != 200)"
+# Worker processes: one per core of the container's CPU quota (service.cpus), or WORKERS; PORT.
 # SIGTERM drains (QUADSYNTH_DRAIN_GRACE_S).
-CMD ["sh", "-c", "exec quadsynth serve --host 0.0.0.0 --port 8000 ${WORKERS:+--workers $WORKERS}"]
+CMD ["sh", "-c", "exec quadsynth serve --host 0.0.0.0 --port $PORT ${WORKERS:+--workers $WORKERS}"]
