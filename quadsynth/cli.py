@@ -224,7 +224,8 @@ def _client_synth(args: argparse.Namespace, extra: list[str]) -> int:
         herd = remote.synthesize(args.url, traj.positions, traj.fps, traj.ids, animal=args.animal,
                                  progress=_progress("requests"), seed=args.seed, sigma=args.sigma,
                                  scale_min=args.scale_min, scale_max=args.scale_max,
-                                 skip_invalid=args.skip_invalid, encoding=args.encoding)
+                                 skip_invalid=args.skip_invalid, encoding=args.encoding,
+                                 concurrency=args.concurrency)
     except ServiceError as exc:
         raise ValueError(f"the service refused: {exc}") from None
     except httpx.HTTPError as exc:
@@ -378,6 +379,9 @@ def build_parser() -> argparse.ArgumentParser:
     csyn.add_argument("--animal", default="horse", help="a library the service has (default horse)")
     csyn.add_argument("--encoding", default="f32", choices=["f32", "i16", "s48"],
                       help="rotations on the wire (default f32: the files get full precision)")
+    csyn.add_argument("--concurrency", type=int, default=1, metavar="N",
+                      help="requests in flight at once: the herd in >= N pieces, shared by the replicas "
+                           "behind a load balancer (default 1)")
     _herd_arguments(csyn)
     csyn.set_defaults(func=_client_synth, passthrough=False)
 
