@@ -108,11 +108,11 @@ def synthesize(url: str, positions: NDArray[np.floating], fps: float, ids: list[
         sent: list[tuple[int, int]] = []
         slower: list[tuple[int, int]] = []
         with ThreadPoolExecutor(concurrency, thread_name_prefix="request") as pool:
-            list(pool.map(lambda p: send(*p, 1.0), pieces))  # list(): the first error raises here
+            list(pool.map(lambda p: send(p[0], p[1], 1.0), pieces))  # list(): the first error raises here
             rate = max(m.resample_rate for m in done.values())
             slower += [p for p, m in done.items() if m.resample_rate < rate and m.characters]
             # The formation: every piece at the fastest piece's rate.
-            list(pool.map(lambda p: send(*p, rate), slower))
+            list(pool.map(lambda p: send(p[0], p[1], rate), slower))
         requests = len(sent)
     finally:
         for one in opened:
