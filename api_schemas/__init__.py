@@ -14,6 +14,7 @@ from api_schemas.models import (
     Health,
     LibrariesResponse,
     LibraryDetail,
+    LibraryStatus,
     LibrarySummary,
     Limits,
     LiveCharacter,
@@ -26,7 +27,7 @@ from api_schemas.models import (
 )
 
 __all__ = ["Blob", "CharacterIn", "CharacterOut", "CharacterWarning", "ErrorDetail", "ErrorResponse",
-           "GaitRange", "Health",
-           "LibrariesResponse", "LibraryDetail", "LibrarySummary", "Limits", "LiveCharacter",
+           "GaitRange", "Health", "LibrariesResponse", "LibraryDetail", "LibraryStatus", "LibrarySummary",
+           "Limits", "LiveCharacter",
            "LiveRequest", "PackedRotations", "Readiness",
            "Skipped", "SynthesizeRequest", "SynthesizeResponse"]

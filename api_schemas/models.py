@@ -21,9 +21,19 @@ class Health(BaseModel):
     status: str = Field(description="'ok' while the process serves requests")
 
 
+class LibraryStatus(BaseModel):
+    name: str = Field(description="the animal, or the library file's name when the file could not be read")
+    state: str = Field(description="'loaded', 'missing' (configured, no file of it loaded) or 'failed'")
+    reason: str = Field("", description="why it is missing or failed ('' when loaded)")
+
+
 class Readiness(BaseModel):
-    status: str = Field(description="'ready', 'starting' or 'draining'")
+    status: str = Field(description="'ready'; 'starting'; 'incomplete' (a configured library is missing "
+                                    "or failed to load: see library_status); or 'draining'")
     libraries: int = Field(description="number of animal libraries loaded")
+    library_status: list[LibraryStatus] = Field(
+        default_factory=list,
+        description="each configured library and each library file, once loading is done")
 
 
 class ErrorDetail(BaseModel):
@@ -193,7 +203,8 @@ class LibrarySummary(BaseModel):
     feet: dict[str, str] = Field(description="foot (LF, RF, LH, RH) -> end-effector joint name")
     fps: float = Field(description="frame rate of the library's clips")
     gaits: list[str] = Field(description="gaits the library can synthesize (empty until built)")
-    source: str = Field(description="'built-in' or the artifact file it was loaded from")
+    source: str = Field(description="the name of the library file it was loaded from, in the service's "
+                                    "library directory")
 
 
 class LibrariesResponse(BaseModel):

@@ -5,13 +5,17 @@ bytes, character-frames). Two request fields make the pieces one herd again: ``f
 (each character draws its gait and scale as in one request) and ``min_resample_rate`` (a piece
 whose paths were resampled less than the fastest piece's is sent again at that rate, so every
 character keeps the same frames and the formation holds). Same file, seed and options: the motion
-``quadsynth synth`` makes locally, whatever the cut.
+``quadsynth synth`` makes locally, whatever the cut. With ``concurrency`` N the herd is cut into
+at least N pieces and N requests are in flight at once, so N replicas behind a load balancer
+share it (each request on a connection of its own).
 """
 
 from __future__ import annotations
 
+import queue
 import re
 from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import Any
 
@@ -78,40 +82,55 @@ def _global_field(error: ServiceError, first: int) -> ServiceError:
 
 def synthesize(url: str, positions: NDArray[np.floating], fps: float, ids: list[str], *,
                animal: str = "horse", progress: Callable[[int, int], None] | None = None,
-               timeout: float = 600.0, **options: Any) -> Remote:
-    """``positions`` (C, F, 3) at ``fps`` through the service at ``url``; ``options``: the
-    request's fields (seed, sigma, scale_min, scale_max, skip_invalid, encoding, foot_lock)."""
+               timeout: float = 600.0, concurrency: int = 1, **options: Any) -> Remote:
+    """``positions`` (C, F, 3) at ``fps`` through the service at ``url``, ``concurrency`` requests
+    in flight at once; ``options``: the request's fields (seed, sigma, scale_min, scale_max,
+    skip_invalid, encoding, foot_lock)."""
+    if concurrency < 1:
+        raise ValueError(f"concurrency: must be at least 1, got {concurrency}")
     C, F = positions.shape[:2]
-    with Client(url, timeout=timeout) as client:
+    clients: queue.SimpleQueue[Client] = queue.SimpleQueue()
+    opened = [Client(url, timeout=timeout) for _ in range(concurrency)]
+    for one in opened:
+        clients.put(one)
+    try:
+        client = opened[0]
         limits, detail = client.limits(), client.library(animal)
         out_frames = int(np.ceil((F - 1) * detail["fps"] / fps)) + 1
-        size = piece_size(limits, F, out_frames)
+        # At least N pieces for N in flight.
+        size = max(1, min(piece_size(limits, F, out_frames), -(-C // concurrency)))
         pieces = [(a, min(a + size, C)) for a in range(0, C, size)]
         done: dict[tuple[int, int], Motion] = {}
 
         def send(a: int, b: int, rate: float) -> None:
+            mine = clients.get()  # a client (connection) per request in flight
             try:
-                done[(a, b)] = client.synthesize(positions[a:b], ids[a:b], animal=animal, fps=fps,
-                                                 first_index=a, min_resample_rate=rate, **options)
+                done[(a, b)] = mine.synthesize(positions[a:b], ids[a:b], animal=animal, fps=fps,
+                                               first_index=a, min_resample_rate=rate, **options)
             except ServiceError as exc:
                 if not (options.get("skip_invalid") and exc.status == 422 and ALL_INVALID in exc.message):
                     raise _global_field(exc, a) from None
                 # Every character of this piece was bad: skipped, as they would be in one request.
                 done[(a, b)] = Motion(animal, detail["skeleton_id"], detail["fps"], 1.0, [],
                                       [{"index": i, "reason": exc.message} for i in range(b - a)])
+            finally:
+                clients.put(mine)
             sent.append((a, b))
             if progress:
                 progress(len(sent), len(pieces) + len(slower))
 
         sent: list[tuple[int, int]] = []
         slower: list[tuple[int, int]] = []
-        for a, b in pieces:
-            send(a, b, 1.0)
-        rate = max(m.resample_rate for m in done.values())
-        slower += [p for p, m in done.items() if m.resample_rate < rate and m.characters]
-        for a, b in slower:  # the formation: every piece at the fastest piece's rate
-            send(a, b, rate)
+        with ThreadPoolExecutor(concurrency, thread_name_prefix="request") as pool:
+            list(pool.map(lambda p: send(p[0], p[1], 1.0), pieces))  # list(): the first error raises here
+            rate = max(m.resample_rate for m in done.values())
+            slower += [p for p, m in done.items() if m.resample_rate < rate and m.characters]
+            # The formation: every piece at the fastest piece's rate.
+            list(pool.map(lambda p: send(p[0], p[1], rate), slower))
         requests = len(sent)
+    finally:
+        for one in opened:
+            one.close()
 
     kept: list[int] = []
     characters: list[CharacterMotion] = []

@@ -1,5 +1,5 @@
 # Sourced by scripts/serve and scripts/test: make .venv and install the project into it.
-# Re-installs only when pyproject.toml changes (a stamp holds its hash), so repeat runs are fast.
+# Re-installs only when pyproject.toml or the lock changes (a stamp holds their hash), so repeat runs are fast.
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 cd "$ROOT"
@@ -23,11 +23,16 @@ if [ ! -x .venv/bin/python ]; then
 fi
 
 STAMP=.venv/.quadsynth-installed
-WANT="$(sha256sum pyproject.toml | cut -d' ' -f1)"
+WANT="$(cat pyproject.toml requirements-dev.lock | sha256sum | cut -d' ' -f1)"
 if [ ! -f "$STAMP" ] || [ "$(cat "$STAMP")" != "$WANT" ]; then
-    echo "==> installing quadsynth and its dependencies into .venv" >&2
-    .venv/bin/python -m pip install --quiet --upgrade pip
-    .venv/bin/python -m pip install --quiet -e ".[dev]"
+    echo "==> installing quadsynth and its dependencies into .venv (requirements-dev.lock)" >&2
+    # Exact versions, every file checked against its hash (refresh with ./scripts/lock); then the
+    # project itself, built with the locked setuptools rather than whatever is newest.
+    .venv/bin/python -m pip install --quiet --require-hashes -r requirements-dev.lock
+    .venv/bin/python -m pip install --quiet --no-deps --no-build-isolation -e .
     echo "$WANT" > "$STAMP"
 fi
 export PATH="$ROOT/.venv/bin:$PATH"
+# A checkout serves and tests the libraries its own code builds (the installed default is a
+# per-user data directory, shared by every checkout).
+export QUADSYNTH_LIBRARY_DIR="${QUADSYNTH_LIBRARY_DIR:-$ROOT/library}"

@@ -354,12 +354,18 @@ def create_app(directory: Path | None = None, settings: Settings | None = None) 
         return Health(status="ok")
 
     @app.get("/readyz", response_model=Readiness, tags=["health"],
-             responses={503: {"model": Readiness, "description": "starting or draining"}})
+             responses={503: {"model": Readiness, "description":
+                              "starting, a configured library missing or failed, or draining"}})
     async def readyz() -> JSONResponse:
-        """200 once the animal libraries are loaded; 503 before, and from SIGTERM on."""
-        status = "draining" if state.draining else "ready" if registry.loaded else "starting"
+        """200 once every configured animal library and every library file is loaded (and the
+        kernels warmed up); 503 before, while any of them is missing or failed to load (the
+        process keeps serving what it has: see ``library_status``), and from SIGTERM on."""
+        status = ("draining" if state.draining else "starting" if not registry.loaded
+                  else "ready" if registry.complete else "incomplete")
         code = 200 if status == "ready" else 503
-        return JSONResponse(Readiness(status=status, libraries=len(registry.summaries)).model_dump(), code)
+        answer = Readiness(status=status, libraries=len(registry.summaries),
+                           library_status=registry.status() if registry.loaded else [])
+        return JSONResponse(answer.model_dump(), code)
 
     @app.get("/metrics", response_class=PlainTextResponse, tags=["health"])
     async def metrics() -> PlainTextResponse:
@@ -413,7 +419,7 @@ def create_app(directory: Path | None = None, settings: Settings | None = None) 
 
     @app.post("/v1/synthesize", tags=["synthesis"],
               responses={200: _binary_body(SynthesizeResponse, "motion per character"),
-                         **_errors(413, 415, 422, 503, 504)},
+                         **_errors(404, 413, 415, 422, 503, 504)},
               openapi_extra={"requestBody": {"required": True, **_binary_body(
                   SynthesizeRequest, "characters' trajectories and options")}})
     async def synthesize(request: Request) -> Response:

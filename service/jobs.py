@@ -59,7 +59,8 @@ def validate(model: type[Checked], body: Any, settings: Settings, banks: dict[st
     except ValidationError as exc:
         raise from_validation(exc) from None
     if req.animal not in banks:
-        raise ApiError(422, "animal", f"unknown animal {req.animal!r}; loaded: {', '.join(sorted(banks))}")
+        # 404 as for GET /v1/libraries/{animal}: the resource named is not here (docs/wire-format.md)
+        raise ApiError(404, "animal", f"unknown animal {req.animal!r}; loaded: {', '.join(sorted(banks))}")
     if req.scale_min > req.scale_max:
         raise ApiError(422, "scale_min", f"must not exceed scale_max ({req.scale_min} > {req.scale_max})")
     seen: dict[str, int] = {}

@@ -1,10 +1,15 @@
 """Animal libraries held in memory by the service, loaded once at start-up.
 
 Libraries are artifact files (:mod:`synth_core.artifact`) in the library directory
-(``QUADSYNTH_LIBRARY_DIR``, default ``./library``): every ``*.qslib.npz`` there is loaded. The
-built-in horse and dog are built into it first when missing (about a second each), so a fresh
-checkout serves out of the box. A file that fails validation is skipped with a logged reason;
-the others still load.
+(``QUADSYNTH_LIBRARY_DIR``; default a per-user data directory, :func:`library_dir`): every
+``*.qslib.npz`` there is loaded. The built-in horse and dog are built into it first when missing
+(about a second each), so a fresh install serves out of the box.
+
+Readiness (``GET /readyz``) is true only when the service can serve what it was configured for:
+every animal in ``QUADSYNTH_LIBRARIES`` (default: the built-in ones) loaded, and every library
+file in the directory loaded. A missing or failed library does not stop the process (the others
+still serve, and the reason is visible) but keeps ``/readyz`` at 503 with a status per library,
+so health checks and load balancers send it no traffic. Reasons name files, never server paths.
 """
 
 from __future__ import annotations
@@ -14,19 +19,34 @@ import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from api_schemas import LibrarySummary
+from api_schemas import LibraryStatus, LibrarySummary
 from synth_core.artifact import SUFFIX, Library, LibraryFileError, load_library, save_library
 from synth_core.bank import Bank, build_bank
 from synth_core.export.gltf import mesh_glb
 from synth_core.export.mesh import standing_rotations
 from synth_core.library import BUILTIN_ANIMALS
 
-DEFAULT_LIBRARY_DIR = "library"
 log = logging.getLogger("quadsynth.libraries")
 
 
 def library_dir() -> Path:
-    return Path(os.environ.get("QUADSYNTH_LIBRARY_DIR", DEFAULT_LIBRARY_DIR))
+    """``QUADSYNTH_LIBRARY_DIR``, else ``$XDG_DATA_HOME/quadsynth/library`` (XDG base directory
+    spec; ``~/.local/share`` when unset): never the working directory, so a ``quadsynth serve``
+    started elsewhere finds the same libraries instead of silently building new ones there."""
+    configured = os.environ.get("QUADSYNTH_LIBRARY_DIR")
+    if configured:
+        return Path(configured)
+    data_home = os.environ.get("XDG_DATA_HOME") or str(Path.home() / ".local" / "share")
+    return Path(data_home) / "quadsynth" / "library"
+
+
+def required_animals() -> tuple[str, ...]:
+    """``QUADSYNTH_LIBRARIES`` (comma-separated animals that must be loaded for readiness);
+    default the built-in animals."""
+    raw = os.environ.get("QUADSYNTH_LIBRARIES")
+    if raw is None:
+        return tuple(BUILTIN_ANIMALS)
+    return tuple(name.strip() for name in raw.split(",") if name.strip())
 
 
 def ensure_builtin_libraries(directory: Path) -> list[Path]:
@@ -58,33 +78,43 @@ def summarize(library: Library, path: Path) -> LibrarySummary:
         feet={foot.name: skeleton.names[foot.end_effector] for foot in skeleton.feet},
         fps=library.fps,
         gaits=list(library.maps),
-        source=str(path),
+        source=path.name,  # a file name, not the server's path
     )
 
 
 @dataclass
 class LibraryRegistry:
     directory: Path
+    required: tuple[str, ...] = field(default_factory=required_animals)
     libraries: dict[str, Library] = field(default_factory=dict)
     summaries: dict[str, LibrarySummary] = field(default_factory=dict)
     banks: dict[str, Bank] = field(default_factory=dict)  # what synthesis reads, per animal
-    errors: dict[str, str] = field(default_factory=dict)  # file -> why it was not loaded
+    errors: dict[str, str] = field(default_factory=dict)  # file name -> why it was not loaded
     meshes: dict[str, bytes] = field(default_factory=dict)  # animal -> its skinned mesh, a .glb
     mesh_errors: dict[str, str] = field(default_factory=dict)  # animal -> why it has no mesh
-    loaded: bool = False
+    loaded: bool = False  # loading is done (whatever its outcome: see complete)
+
+    def _reason(self, exc: BaseException) -> str:
+        """``exc``'s message with the directory left out: it may be shown to any client."""
+        return str(exc).replace(f"{self.directory}{os.sep}", "").replace(str(self.directory), "<library dir>")
+
+    def _fail(self, path: Path, reason: str) -> None:
+        self.errors[path.name] = reason
+        log.error("library not loaded: %s: %s", path, reason)
 
     def load(self) -> None:
-        ensure_builtin_libraries(self.directory)
+        try:
+            ensure_builtin_libraries(self.directory)
+        except OSError as exc:  # e.g. a read-only directory: what is there may still serve
+            log.error("cannot build the missing built-in libraries in %s: %s", self.directory, exc)
         for path in sorted(self.directory.glob(f"*{SUFFIX}")):
             try:
                 library = load_library(path)
             except LibraryFileError as exc:
-                self.errors[str(path)] = str(exc)
-                log.error("library not loaded: %s", exc)
+                self._fail(path, self._reason(exc))
                 continue
             if library.animal in self.libraries:
-                self.errors[str(path)] = f"a library named {library.animal!r} is already loaded"
-                log.error("library not loaded: %s: %s", path, self.errors[str(path)])
+                self._fail(path, f"a library named {library.animal!r} is already loaded")
                 continue
             self.libraries[library.animal] = library
             self.summaries[library.animal] = summarize(library, path)
@@ -97,3 +127,17 @@ class LibraryRegistry:
                 self.mesh_errors[library.animal] = str(exc)
                 log.error("no mesh for %s: %s", library.animal, exc)
         self.loaded = True
+
+    @property
+    def complete(self) -> bool:
+        """Every configured library loaded and every library file with it."""
+        return self.loaded and not self.errors and all(a in self.libraries for a in self.required)
+
+    def status(self) -> list[LibraryStatus]:
+        """One entry per loaded or configured animal and per file that failed, in that order."""
+        animals = [*self.libraries, *(a for a in self.required if a not in self.libraries)]
+        states = [LibraryStatus(name=a, state="loaded", reason="") if a in self.libraries else LibraryStatus(
+            name=a, state="missing",
+            reason=f"configured (QUADSYNTH_LIBRARIES) but no library file for {a!r} was loaded")
+            for a in animals]
+        return states + [LibraryStatus(name=n, state="failed", reason=r) for n, r in self.errors.items()]

@@ -41,7 +41,8 @@ LIVE_INBOX = 64  # points messages waiting for synthesis, at most: a client furt
 LIVE_INBOX_BODIES = 4  # ... and at most this many max_body_bytes of them
 CLOSE_TIMEOUT_S = 1.0
 # HTTP status of an error -> the close code after it.
-CLOSE_FOR = {413: TOO_BIG, 415: INVALID_DATA, 422: INVALID_DATA, 503: TRY_LATER, 504: TRY_LATER}
+CLOSE_FOR = {404: INVALID_DATA, 413: TOO_BIG, 415: INVALID_DATA, 422: INVALID_DATA,
+             503: TRY_LATER, 504: TRY_LATER}
 
 
 class Closing(Exception):

@@ -3,6 +3,7 @@ built-in horse's synthesis tables."""
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import numpy as np
@@ -15,6 +16,9 @@ from synth_core.motion import Motion
 from synth_core.skeleton import Skeleton
 
 REPO = Path(__file__).resolve().parents[1]
+# Library files built by this checkout's code, as ./scripts/serve and ./scripts/test use (the
+# installed default is a per-user directory, which another checkout's code may have filled).
+os.environ.setdefault("QUADSYNTH_LIBRARY_DIR", str(REPO / "library"))
 MANN_DIR = REPO.parent / "shared" / "mocap" / "mann_dog"
 MANN_FILES = sorted(MANN_DIR.glob("*.bvh")) if MANN_DIR.is_dir() else []
 

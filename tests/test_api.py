@@ -135,7 +135,7 @@ def test_bad_input_is_refused_naming_the_field(server: str, herd: np.ndarray) ->
         (msgpack.packb([1, 2]), 422, "body", "expected an object"),
         ({"characters": []}, 422, "characters", "at least 1"),
         ({"characters": [{"id": "a"}]}, 422, "characters[0].points", "required"),
-        ({"animal": "cat", "characters": [{"id": "a", "points": ok}]}, 422, "animal", "unknown animal 'cat'"),
+        ({"animal": "cat", "characters": [{"id": "a", "points": ok}]}, 404, "animal", "unknown animal 'cat'"),
         ({"characters": [{"id": "a", "points": ok, "scale": 0}]}, 422, "characters[0].scale", "greater than 0"),
         ({"characters": [{"id": "a", "points": ok, "scale": -2}]}, 422, "characters[0].scale", "greater than 0"),
         ({"characters": [{"id": "a", "points": blob(herd[0, :1])}]}, 422, "characters[0].points", "at least 2"),
@@ -381,7 +381,7 @@ def test_python_client_gives_the_motion_synthesize_gives_locally(server: str, he
     with Client(server) as qs:
         motion = qs.synthesize(herd[:3], ids=["a", "b", "c"], scales=[1.1, None, 0.9], seed=5, encoding="f32")
         assert [c.id for c in motion.characters] == ["a", "b", "c"]
-        with pytest.raises(ServiceError, match="422 animal: unknown animal 'cat'"):
+        with pytest.raises(ServiceError, match="404 animal: unknown animal 'cat'"):
             qs.synthesize(herd[:1], animal="cat")
     local = synthesize(build_bank(build_builtin("horse")), herd[:3].astype(np.float64), 60.0,
                        [1.1, np.nan, 0.9], Options(seed=5, scale_range=(0.8, 1.2)))

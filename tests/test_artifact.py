@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import json
+import os
+import stat
 from pathlib import Path
 
 import numpy as np
@@ -120,7 +122,19 @@ def test_registry_loads_good_files_builds_missing_built_ins_and_skips_bad_ones(s
     assert set(registry.libraries) == {"horse", "dog"}  # horse was missing: built
     assert (tmp_path / "horse.qslib.npz").exists()
     assert registry.summaries["dog"].gaits == ["walk", "trot", "canter", "gallop"]
-    assert list(registry.errors) == [str(tmp_path / "broken.qslib.npz")]
+    assert list(registry.errors) == ["broken.qslib.npz"]  # its name: the server's path is not shown
+    assert str(tmp_path) not in registry.errors["broken.qslib.npz"]
+    assert not registry.complete  # a library file that failed: not ready (service.libraries)
+
+
+@pytest.mark.parametrize(("umask", "mode"), [(0o022, 0o644), (0o002, 0o664), (0o077, 0o600)])
+def test_saved_files_honour_the_umask(dog: Library, tmp_path: Path, umask: int, mode: int) -> None:
+    previous = os.umask(umask)
+    try:
+        path = save_library(dog, tmp_path / "dog.qslib.npz")
+    finally:
+        os.umask(previous)
+    assert stat.S_IMODE(path.stat().st_mode) == mode  # mkstemp alone gives 0600 whatever the umask
 
 
 def test_cli_build_report_and_export_speedmap(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

@@ -4,9 +4,12 @@ requests and comes back as the motion `quadsynth synth` makes locally, with the 
 from __future__ import annotations
 
 import json
+import threading
+import time
 from collections.abc import Iterator
 from pathlib import Path
 
+import httpx
 import numpy as np
 import pygltflib
 import pytest
@@ -15,7 +18,8 @@ from quadsynth.cli import main
 from synth_core import bvh, crowd, crowd_io
 from tests.test_service import free_port, running
 
-LIMITS = {"QUADSYNTH_MAX_CHARACTERS": "8", "QUADSYNTH_MAX_CHARACTER_FRAMES": "20000"}
+LIMITS = {"QUADSYNTH_MAX_CHARACTERS": "8", "QUADSYNTH_MAX_CHARACTER_FRAMES": "20000",
+          "QUADSYNTH_TEST_HOOKS": "1"}  # /_test/hold: the worker waits, so requests pile up in flight
 
 
 @pytest.fixture(scope="module")
@@ -110,3 +114,43 @@ def test_client_synth_says_when_the_service_cannot_be_reached(herd: np.ndarray, 
     code, _, err = run("client", "synth", "--url", f"http://127.0.0.1:{free_port()}",
                        "--trajectories", str(traj), "--out", str(tmp_path / "o"), capsys=capsys)
     assert code == 2 and "cannot reach the service" in err
+
+
+def in_flight(url: str) -> int:
+    metrics = httpx.get(f"{url}/metrics").text
+    return int(float(next(line.split()[1] for line in metrics.splitlines()
+                          if line.startswith("quadsynth_in_flight{"))))
+
+
+def test_client_synth_with_concurrency_has_n_requests_in_flight_and_the_local_motion(
+        server: str, herd: np.ndarray, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    traj = crowd_io.write_npz(tmp_path / "traj.npz", herd, 60.0)
+    httpx.post(f"{server}/_test/hold")  # the worker waits: the requests sent meanwhile stay in flight
+    outcome: list[tuple[int, dict[str, object], str]] = []
+    client = threading.Thread(target=lambda: outcome.append(run(
+        "client", "synth", "--url", server, "--trajectories", str(traj), "--seed", "7", "--concurrency", "3",
+        "--out", str(tmp_path / "remote"), capsys=capsys)))
+    client.start()
+    try:
+        deadline = time.monotonic() + 60
+        while in_flight(server) < 3 and time.monotonic() < deadline and client.is_alive():
+            time.sleep(0.05)
+        assert in_flight(server) == 3  # one running (held), two queued: the herd's three pieces at once
+    finally:
+        httpx.post(f"{server}/_test/release")
+        client.join(120)
+    code, summary, err = outcome[0]
+    assert code == 0, err
+    assert "5 request(s)" in err  # 7 + 7 + 6 characters (>= 3 pieces), then the first two at the last's rate
+    code, local, err = run("synth", "--trajectories", str(traj), "--seed", "7",
+                           "--out", str(tmp_path / "local"), capsys=capsys)
+    assert code == 0 and summary == local, err
+    same_motion(tmp_path / "remote", tmp_path / "local")
+
+
+def test_concurrency_below_one_is_refused(tmp_path: Path, herd: np.ndarray,
+                                          capsys: pytest.CaptureFixture[str]) -> None:
+    traj = crowd_io.write_npz(tmp_path / "traj.npz", herd[:2], 60.0)
+    code, _, err = run("client", "synth", "--url", "http://127.0.0.1:9", "--trajectories", str(traj),
+                       "--concurrency", "0", "--out", str(tmp_path / "out"), capsys=capsys)
+    assert code == 2 and "concurrency: must be at least 1, got 0" in err

@@ -13,7 +13,12 @@ from contextlib import contextmanager
 from pathlib import Path
 
 import httpx
+import msgpack
+import numpy as np
 import pytest
+
+from api_schemas.wire import blob
+from service.cpus import available_cpus
 
 STARTUP_TIMEOUT_S = 120.0  # the first start after an empty numba cache compiles the kernels (~30 s here)
 
@@ -101,7 +106,7 @@ def worker_processes(pid: int) -> list[int]:
 def test_serve_starts_one_worker_process_per_core_by_default(
         served: tuple[str, subprocess.Popen[bytes]]) -> None:
     url, proc = served
-    cores = os.cpu_count() or 1
+    cores = available_cpus()  # the CPU quota's cores, as serve counts them (service.cpus)
     assert len(worker_processes(proc.pid)) == (cores if cores > 1 else 0)  # one core: no supervisor
     assert httpx.get(f"{url}/livez").status_code == 200
 
@@ -114,7 +119,10 @@ def test_livez(server: str) -> None:
 def test_readyz_once_libraries_are_loaded(server: str) -> None:
     response = httpx.get(f"{server}/readyz")
     assert response.status_code == 200
-    assert response.json() == {"status": "ready", "libraries": 2}
+    answer = response.json()
+    assert answer["status"] == "ready" and answer["libraries"] == 2
+    assert sorted(answer["library_status"], key=lambda s: s["name"]) == [
+        {"name": "dog", "state": "loaded", "reason": ""}, {"name": "horse", "state": "loaded", "reason": ""}]
 
 
 def test_libraries_lists_the_built_in_animals(server: str) -> None:
@@ -138,3 +146,51 @@ def test_unknown_passthrough_option_fails_with_usage(tmp_path: Path) -> None:
     output, _ = proc.communicate(timeout=30)
     assert proc.returncode != 0
     assert b"no-such-option" in output
+
+
+def test_a_missing_or_broken_library_keeps_readyz_at_503_naming_it(tmp_path: Path) -> None:
+    """Configured for a cat it has no file of, and given a corrupt file: the horse and dog still
+    serve, but /readyz says 503 with a status per library (no load balancer sends it traffic)."""
+    (tmp_path / "library").mkdir()
+    (tmp_path / "library" / "zebra.qslib.npz").write_bytes(b"PK\x03\x04 truncated")
+    port = free_port()
+    proc = start(["--port", str(port)], tmp_path, {"QUADSYNTH_LIBRARIES": "horse,dog,cat"})
+    url = f"http://127.0.0.1:{port}"
+    try:
+        wait_until_live(proc, url)
+        while (ready := httpx.get(f"{url}/readyz")).json()["status"] == "starting":
+            time.sleep(0.1)
+        assert ready.status_code == 503 and ready.json()["status"] == "incomplete"
+        states = {s["name"]: s for s in ready.json()["library_status"]}
+        assert {n: s["state"] for n, s in states.items()} == {
+            "horse": "loaded", "dog": "loaded", "cat": "missing", "zebra.qslib.npz": "failed"}
+        assert "truncated or corrupt" in states["zebra.qslib.npz"]["reason"]
+        listed = httpx.get(f"{url}/v1/libraries").json()["libraries"]
+        assert sorted(lib["source"] for lib in listed) == ["dog.qslib.npz", "horse.qslib.npz"]
+        assert str(tmp_path) not in ready.text + httpx.get(f"{url}/v1/libraries").text  # no server paths
+        points = np.zeros((30, 3), np.float32)
+        points[:, 2] = np.linspace(0.0, 0.5, 30)
+        body = {"animal": "cat", "characters": [{"id": "a", "points": blob(points)}]}
+        unknown = httpx.post(f"{url}/v1/synthesize", content=msgpack.packb(body),
+                             headers={"content-type": "application/vnd.msgpack"})
+        assert unknown.status_code == 404 and unknown.json()["error"]["field"] == "animal", unknown.text
+        served = httpx.post(f"{url}/v1/synthesize", content=msgpack.packb({**body, "animal": "horse"}),
+                            headers={"content-type": "application/vnd.msgpack"})
+        assert served.status_code == 200  # what is loaded still serves
+    finally:
+        proc.terminate()
+        output = proc.communicate(timeout=30)[0].decode()
+    steps = [line.split(": ", 1)[1].split(":")[0].split(" ")[0] for line in output.splitlines()
+             if line.startswith("quadsynth serve: ")]
+    assert steps[:3] == ["port", "libraries", "kernels"] and steps[-1] == "starting", output
+    assert "(built horse.qslib.npz, dog.qslib.npz in " in output
+
+
+def test_a_taken_port_fails_before_anything_is_built(tmp_path: Path) -> None:
+    with socket.socket() as taken:
+        taken.bind(("127.0.0.1", 0))
+        taken.listen()
+        proc = start(["--port", str(taken.getsockname()[1])], tmp_path)
+        output, _ = proc.communicate(timeout=30)
+    assert proc.returncode == 2 and b"cannot listen on 127.0.0.1:" in output and b"in use" in output, output
+    assert not (tmp_path / "library").exists()  # nothing built, nothing compiled

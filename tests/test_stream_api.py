@@ -286,7 +286,7 @@ def test_live_refusals_name_the_field(server: str) -> None:
         closed_with(ws, 1008, 422, "type", "without a live session")
     with connect(ws_url(server), compression=None) as ws:
         send(ws, {"type": "live", "animal": "cat", "characters": [{"id": "a"}]})
-        closed_with(ws, 1007, 422, "animal", "unknown animal 'cat'")
+        closed_with(ws, 1007, 404, "animal", "unknown animal 'cat'")
     with connect(ws_url(server), compression=None) as ws:
         send(ws, {"type": "live", "characters": [{"id": f"c{c}"} for c in range(41)]})
         closed_with(ws, 1007, 422, "characters", "41 characters", "max_characters")

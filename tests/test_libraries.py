@@ -1,0 +1,47 @@
+"""Where the service looks for libraries, and what it says when one it should serve is not there."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from service.libraries import LibraryRegistry, library_dir, required_animals
+from synth_core.artifact import SUFFIX
+
+
+def test_library_dir_is_per_user_not_the_working_directory(monkeypatch: pytest.MonkeyPatch,
+                                                           tmp_path: Path) -> None:
+    monkeypatch.delenv("QUADSYNTH_LIBRARY_DIR", raising=False)
+    monkeypatch.setenv("HOME", str(tmp_path / "home"))
+    monkeypatch.delenv("XDG_DATA_HOME", raising=False)
+    monkeypatch.chdir(tmp_path)
+    assert library_dir() == tmp_path / "home" / ".local" / "share" / "quadsynth" / "library"
+    monkeypatch.setenv("XDG_DATA_HOME", str(tmp_path / "data"))
+    assert library_dir() == tmp_path / "data" / "quadsynth" / "library"
+    monkeypatch.setenv("QUADSYNTH_LIBRARY_DIR", str(tmp_path / "mine"))
+    assert library_dir() == tmp_path / "mine"
+
+
+def test_required_animals_default_to_the_built_in_ones(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.delenv("QUADSYNTH_LIBRARIES", raising=False)
+    assert required_animals() == ("horse", "dog")
+    monkeypatch.setenv("QUADSYNTH_LIBRARIES", " horse, cat ,")
+    assert required_animals() == ("horse", "cat")
+
+
+def test_a_configured_animal_without_a_file_is_missing_and_the_registry_incomplete(tmp_path: Path) -> None:
+    registry = LibraryRegistry(tmp_path, required=("horse", "cat"))
+    registry.load()
+    assert sorted(registry.libraries) == ["dog", "horse"] and not registry.complete
+    states = {s.name: (s.state, s.reason) for s in registry.status()}
+    assert states["horse"] == ("loaded", "") and states["dog"][0] == "loaded"
+    assert states["cat"][0] == "missing" and "QUADSYNTH_LIBRARIES" in states["cat"][1]
+    (tmp_path / f"cat{SUFFIX}").write_bytes((tmp_path / f"dog{SUFFIX}").read_bytes())  # a dog named cat
+    again = LibraryRegistry(tmp_path, required=("horse", "dog"))
+    again.load()
+    assert not again.complete and again.errors == {f"dog{SUFFIX}": "a library named 'dog' is already loaded"}
+    whole = LibraryRegistry(tmp_path, required=("horse",))
+    (tmp_path / f"cat{SUFFIX}").unlink()
+    whole.load()
+    assert whole.complete and [s.state for s in whole.status()] == ["loaded", "loaded"]

@@ -1,0 +1,61 @@
+"""The lock files (scripts/lock) pin every dependency pyproject.toml names, within its range, by
+exact version and hash -- what ./scripts/*, CI and the Dockerfile install."""
+
+from __future__ import annotations
+
+import re
+import tomllib
+from pathlib import Path
+
+import pytest
+from packaging.requirements import Requirement
+from packaging.utils import canonicalize_name
+
+REPO = Path(__file__).resolve().parents[1]
+PYPROJECT = tomllib.loads((REPO / "pyproject.toml").read_text())
+PIN = re.compile(r"^([A-Za-z0-9][A-Za-z0-9._-]*)==([^\s;\\]+)\s*(?:;\s*([^\\]*?))?\s*\\?$")
+
+
+def pins(lock: Path) -> dict[str, list[tuple[str, str, int]]]:
+    """name -> [(version, marker, hashes)] of a pip requirements file with hashes (a universal
+    lock pins some packages once per Python version range, each under its marker)."""
+    found: dict[str, list[tuple[str, str, int]]] = {}
+    name = ""
+    for line in lock.read_text().splitlines():
+        if match := PIN.match(line):
+            name = canonicalize_name(match[1])
+            found.setdefault(name, []).append((match[2], match[3] or "", 0))
+        elif line.strip().startswith("--hash=sha256:"):
+            version, marker, hashes = found[name][-1]
+            found[name][-1] = (version, marker, hashes + 1)
+        elif line.strip() and not line.lstrip().startswith("#"):
+            raise AssertionError(f"{lock.name}: not a pin, a hash or a comment: {line!r}")
+    return found
+
+
+def wanted(extra: bool) -> list[Requirement]:
+    project = PYPROJECT["project"]
+    names = [*project["dependencies"], *PYPROJECT["build-system"]["requires"]]
+    return [Requirement(r) for r in names + (project["optional-dependencies"]["dev"] if extra else [])]
+
+
+@pytest.mark.parametrize(("lock", "extra"), [("requirements.lock", False), ("requirements-dev.lock", True)])
+def test_the_lock_pins_every_dependency_within_its_range_with_hashes(lock: str, extra: bool) -> None:
+    pinned = pins(REPO / lock)
+    for requirement in wanted(extra):
+        name = canonicalize_name(requirement.name)
+        assert name in pinned, f"{lock} lacks {name} (pyproject.toml): run ./scripts/lock"
+        for version, _, _ in pinned[name]:
+            assert requirement.specifier.contains(version, prereleases=True), \
+                f"{lock} pins {name}=={version}, outside {requirement.specifier}: run ./scripts/lock"
+    assert {"numba", "llvmlite", "numpy", "setuptools"} <= set(pinned)  # the compiled core and its build
+    unhashed = [name for name, versions in pinned.items() if any(h == 0 for _, _, h in versions)]
+    assert not unhashed
+
+
+def test_the_runtime_lock_agrees_with_the_dev_lock() -> None:
+    """The image and the tests run the same versions of what they share."""
+    runtime, dev = pins(REPO / "requirements.lock"), pins(REPO / "requirements-dev.lock")
+    assert set(runtime) <= set(dev)
+    assert {n: sorted(v[:2] for v in vs) for n, vs in runtime.items()} == \
+        {n: sorted(v[:2] for v in dev[n]) for n in runtime}
