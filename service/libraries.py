@@ -14,11 +14,14 @@ so health checks and load balancers send it no traffic. Reasons name files, neve
 
 from __future__ import annotations
 
+import functools
+import hashlib
 import logging
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import synth_core
 from api_schemas import LibraryStatus, LibrarySummary
 from synth_core.artifact import SUFFIX, Library, LibraryFileError, load_library, save_library
 from synth_core.bank import Bank, build_bank
@@ -49,25 +52,59 @@ def required_animals() -> tuple[str, ...]:
     return tuple(name.strip() for name in raw.split(",") if name.strip())
 
 
+# The modules a built-in library is made by: a file built by other code than these is stale.
+_BUILDERS = ("library", "ik.py", "speed_map.py", "build.py", "motion_graph.py", "contacts.py", "bank.py",
+             "artifact.py")
+
+
+@functools.cache
+def builtin_source() -> str:
+    """A digest of the code that builds the built-in animals (written beside each built file)."""
+    root = Path(synth_core.__file__).parent
+    files = sorted(f for name in _BUILDERS
+                   for f in ((root / name).glob("*.py") if (root / name).is_dir() else [root / name]))
+    digest = hashlib.sha256()
+    for f in files:
+        digest.update(f.name.encode() + b"\0" + f.read_bytes())
+    return digest.hexdigest()[:16]
+
+
+def _stamp(path: Path) -> Path:
+    return path.with_name(path.name + ".source")
+
+
+def _current(path: Path) -> bool:
+    """A built-in library file built by this code (its stamp says so)."""
+    stamp = _stamp(path)
+    return path.exists() and stamp.exists() and stamp.read_text().strip() == builtin_source()
+
+
 def ensure_builtin_libraries(directory: Path) -> list[Path]:
-    """Build and save the built-in animals' libraries that are missing; returns the new files."""
+    """Build and save the built-in animals' libraries that are missing or were built by other code
+    (an upgrade: the library directory outlives a checkout); returns the new files."""
     from synth_core.build import build_builtin
 
     built = []
     for animal in BUILTIN_ANIMALS:
         path = directory / f"{animal}{SUFFIX}"
-        if not path.exists():
-            log.info("building the built-in %s library into %s", animal, path)
+        if not _current(path):
+            why = "missing"
+            if path.exists():  # kept aside, not lost: it may be the user's own file of that name
+                path.replace(path.with_name(path.name + ".old"))
+                why = f"built by other code; the old file kept as {path.name}.old"
+            log.info("building the built-in %s library into %s (%s)", animal, path, why)
             built.append(save_library(build_builtin(animal), path))
+            _stamp(path).write_text(builtin_source() + "\n")
     return built
 
 
 def builtin_library(animal: str) -> Library:
-    """A built-in animal's library: its file in the library directory, else built now."""
+    """A built-in animal's library: its file in the library directory if this code built it,
+    else built now."""
     from synth_core.build import build_builtin
 
     path = library_dir() / f"{animal}{SUFFIX}"
-    return load_library(path) if path.exists() else build_builtin(animal)
+    return load_library(path) if _current(path) else build_builtin(animal)
 
 
 def summarize(library: Library, path: Path) -> LibrarySummary:

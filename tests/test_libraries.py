@@ -6,6 +6,7 @@ from pathlib import Path
 
 import pytest
 
+from service import libraries
 from service.libraries import LibraryRegistry, library_dir, required_animals
 from synth_core.artifact import SUFFIX
 
@@ -45,3 +46,22 @@ def test_a_configured_animal_without_a_file_is_missing_and_the_registry_incomple
     (tmp_path / f"cat{SUFFIX}").unlink()
     whole.load()
     assert whole.complete and [s.state for s in whole.status()] == ["loaded", "loaded"]
+
+
+def test_a_built_in_library_built_by_other_code_is_built_again_and_the_old_file_kept(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The library directory outlives a checkout: a built-in file whose stamp names other code
+    (or that has none) is rebuilt, the old one moved aside; a current one is left alone."""
+    monkeypatch.setattr(libraries, "BUILTIN_ANIMALS", ("dog",))
+    first = libraries.ensure_builtin_libraries(tmp_path)
+    assert [p.name for p in first] == ["dog.qslib.npz"]
+    stamp = tmp_path / "dog.qslib.npz.source"
+    assert stamp.read_text().strip() == libraries.builtin_source()
+    assert libraries.ensure_builtin_libraries(tmp_path) == []  # current: not built again
+    stamp.write_text("0123456789abcdef\n")  # built by an older version
+    old = (tmp_path / "dog.qslib.npz").read_bytes()
+    assert [p.name for p in libraries.ensure_builtin_libraries(tmp_path)] == ["dog.qslib.npz"]
+    assert (tmp_path / "dog.qslib.npz.old").read_bytes() == old
+    assert stamp.read_text().strip() == libraries.builtin_source()
+    stamp.unlink()  # no stamp at all (a file from before stamps, or the user's own)
+    assert len(libraries.ensure_builtin_libraries(tmp_path)) == 1 and stamp.exists()
