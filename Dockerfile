@@ -10,6 +10,8 @@ COPY pyproject.toml README.md ./
 COPY synth_core ./synth_core
 COPY api_schemas ./api_schemas
 COPY service ./service
+# The JS client the viewer runs on (its one home is js/, the npm package; service.web finds it here).
+COPY js/src ./service/static/client
 COPY quadsynth ./quadsynth
 RUN pip install . \
     # The libraries (speed maps + motion graph) are built into the image, not at start-up.

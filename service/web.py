@@ -29,11 +29,11 @@ def mount(app: FastAPI) -> None:
     app.mount("/viewer/client", StaticFiles(directory=client_dir()), name="viewer-client")
     app.mount("/viewer/static", StaticFiles(directory=STATIC / "viewer"), name="viewer-static")
 
-    @app.get("/", include_in_schema=False)
+    @app.api_route("/", methods=["GET", "HEAD"], include_in_schema=False)
     async def home() -> RedirectResponse:
         return RedirectResponse("/viewer")
 
-    @app.get("/viewer", include_in_schema=False)
+    @app.api_route("/viewer", methods=["GET", "HEAD"], include_in_schema=False)
     async def viewer() -> HTMLResponse:
         """The herd viewer: a live herd streamed from a simulation in the page."""
         return HTMLResponse((STATIC / "viewer" / "index.html").read_text(encoding="utf-8"))

@@ -1,7 +1,6 @@
 // QuadSynth client: REST (POST /v1/synthesize) and WebSocket /v1/stream, batch and live
 // (docs/streaming.md). Runs in browsers and in Node >= 20 (pass a WebSocket factory there, e.g.
 // from the `ws` package: Node 20 has fetch but no WebSocket).
-import { decode, encode } from '@msgpack/msgpack';
 import { blob, decodeRotations, unblob } from './wire.js';
 import { Skeleton } from './pose.js';
 
@@ -17,6 +16,14 @@ export class ServiceError extends Error {
     this.status = status; this.field = field; this.detail = message;
     this.code = code; // the WebSocket close code, for stream errors
   }
+}
+
+/** msgpack: @msgpack/msgpack, loaded when first needed unless a codec ({encode, decode}) was given
+ * (a Web Worker, which has no import map to resolve the package name, passes one). */
+let defaultCodec = null;
+async function loadCodec() {
+  defaultCodec ??= await import('@msgpack/msgpack');
+  return defaultCodec;
 }
 
 const sleep = (ms) => new Promise((resolve) => { setTimeout(resolve, ms); });
@@ -66,20 +73,20 @@ export function sliceChunk(chunk, from) {
 
 /** One WebSocket with its binary msgpack messages queued for `next()`. */
 class Socket {
-  static open(url, connect) {
+  static open(url, connect, codec) {
     return new Promise((resolve, reject) => {
       const ws = connect(url);
       ws.binaryType = 'arraybuffer';
-      const sock = new Socket(ws);
+      const sock = new Socket(ws, codec);
       ws.addEventListener('open', () => resolve(sock), { once: true });
       ws.addEventListener('close', (ev) => reject(new ServiceError(503, '', `could not connect (${ev.code})`, ev.code)), { once: true });
     });
   }
 
-  constructor(ws) {
-    this.ws = ws; this.queue = []; this.waiters = []; this.closed = null; this.error = null;
+  constructor(ws, codec) {
+    this.ws = ws; this.codec = codec; this.queue = []; this.waiters = []; this.closed = null; this.error = null;
     ws.addEventListener('message', (ev) => {
-      const message = decode(new Uint8Array(ev.data));
+      const message = codec.decode(new Uint8Array(ev.data));
       if (message.type === 'error') this.error = message.error; // the close follows
       else this.deliver(message);
     });
@@ -101,7 +108,7 @@ class Socket {
     return new Promise((resolve, reject) => { this.waiters.push({ resolve, reject }); });
   }
 
-  send(message) { if (!this.closed) this.ws.send(encode(message)); }
+  send(message) { if (!this.closed) this.ws.send(this.codec.encode(message)); }
 
   close() { if (!this.closed) this.ws.close(1000); }
 }
@@ -110,6 +117,7 @@ export class QuadSynthClient {
   /**
    * @param url  the service, e.g. "http://127.0.0.1:8000"
    * @param options.webSocket  (url) => WebSocket; default the global WebSocket
+   * @param options.codec  {encode, decode} of msgpack; default @msgpack/msgpack
    * @param options.retries  reconnections after a 1001/1013 close (default 5), backoff from
    *                         options.retryDelayMs (default 250) doubling each time
    */
@@ -119,7 +127,12 @@ export class QuadSynthClient {
     this.retries = options.retries ?? 5;
     this.retryDelayMs = options.retryDelayMs ?? 250;
     this.fetch = options.fetch ?? globalThis.fetch.bind(globalThis);
+    this.givenCodec = options.codec ?? null;
   }
+
+  async codec() { return this.givenCodec ?? loadCodec(); }
+
+  async openSocket() { return Socket.open(this.streamUrl, this.connect, await this.codec()); }
 
   get streamUrl() { return `${this.url.replace(/^http/, 'ws')}/v1/stream`; }
 
@@ -141,6 +154,7 @@ export class QuadSynthClient {
   /** POST /v1/synthesize (msgpack both ways). `request`: the body's fields, characters' `points`
    * as Float32Array (F x 3) or [[x, y, z], ...]. Rotations come back decoded, whatever the encoding. */
   async synthesize(request) {
+    const { encode, decode } = await this.codec();
     const response = await this.fetch(`${this.url}/v1/synthesize`, {
       method: 'POST', body: encode(requestBody(request)),
       headers: { 'content-type': MSGPACK, accept: MSGPACK },
@@ -177,7 +191,7 @@ export class QuadSynthClient {
     for (let attempt = 0; ; attempt++) {
       let sock;
       try {
-        sock = await Socket.open(this.streamUrl, this.connect);
+        sock = await this.openSocket();
         sock.send(message);
         for (;;) {
           const m = await sock.next();
@@ -235,7 +249,7 @@ export class LiveSession {
     const characters = this.options.characters.map((ch, c) => ({
       ...ch, scale: this.header ? this.header.characters[c].scale : ch.scale,
     })).map((ch) => Object.fromEntries(Object.entries(ch).filter(([, v]) => v !== undefined)));
-    this.sock = await Socket.open(this.client.streamUrl, this.client.connect);
+    this.sock = await this.client.openSocket();
     this.sock.send({ ...this.options, type: 'live', characters });
     const start = await this.sock.next();
     this.header = start;

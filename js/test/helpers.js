@@ -19,7 +19,7 @@ export function herd(C, F, fps = 60) {
   const out = new Float32Array(C * F * 3);
   for (let c = 0; c < C; c++) {
     let x = 4 * c, z = 0, heading = 0.3 * c;
-    const top = 1.5 + 1.5 * c; // m/s
+    const top = 1.5 + 1.5 * (c % 4); // m/s: walk to canter
     for (let f = 0; f < F; f++) {
       const t = f / fps;
       const speed = top * Math.min(Math.max(t - 0.5, 0) / 2, 1);

@@ -3,7 +3,6 @@
 import * as THREE from 'three';
 import { OrbitControls, GLTFLoader } from 'three';
 import { QuadSynthClient, GAITS } from 'quadsynth-client';
-import { HerdSim } from './herd-sim.js';
 import { Player } from './player.js';
 import { BoneHerd, SkinnedHerd, GAIT_COLOURS, restHeight } from './render.js';
 
@@ -17,24 +16,50 @@ const client = new QuadSynthClient(location.origin);
 const stats = window.quadsynthViewer = {
   loadMs: performance.now(), firstChunkMs: null, firstDrawMs: null, chunks: 0, frames: 0, animals: 0,
   renderFps: 0, frameMs: 0, frameMsP95: 0, latencyS: 0, aheadS: 0, stalls: 0, stalledS: 0,
-  pointsSent: 0, reconnects: 0, drawn: 0, mode: '', errors: [],
+  pointsSent: 0, reconnects: 0, drawn: 0, mode: '', errors: [], arrivals: [],
 };
 
-const renderer = new THREE.WebGLRenderer({ canvas: $('view'), antialias: true, preserveDrawingBuffer: true });
-renderer.setPixelRatio(Math.min(devicePixelRatio, 2));
+/** Software GL (no GPU: SwiftShader, llvmpipe) pays for every multisample and pixel with CPU the
+ * stream needs too: no antialiasing and one pixel per CSS pixel there. */
+function softwareGl() {
+  const gl = document.createElement('canvas').getContext('webgl2');
+  const info = gl?.getExtension('WEBGL_debug_renderer_info');
+  const name = info ? String(gl.getParameter(info.UNMASKED_RENDERER_WEBGL)) : '';
+  gl?.getExtension('WEBGL_lose_context')?.loseContext();
+  return /swiftshader|llvmpipe|software/i.test(name);
+}
+const software = softwareGl();
+const renderer = new THREE.WebGLRenderer({ canvas: $('view'), antialias: !software, preserveDrawingBuffer: true });
+renderer.setPixelRatio(software ? 1 : Math.min(devicePixelRatio, 2));
 const scene = new THREE.Scene();
 scene.background = new THREE.Color('#cfd8dc');
 scene.add(new THREE.HemisphereLight('#ffffff', '#6d6552', 2.2));
 const sun = new THREE.DirectionalLight('#ffffff', 1.6);
 sun.position.set(30, 60, 20);
 scene.add(sun);
+scene.fog = new THREE.Fog('#cfd8dc', 250, 900);
+// The ground grid as a texture on the ground plane (5 m cells): lines drawn as triangles, with
+// mipmaps, so it shows under software GL too (its GL lines did not) and does not shimmer afar.
+function gridTexture() {
+  const canvas = document.createElement('canvas');
+  canvas.width = canvas.height = 128;
+  const g = canvas.getContext('2d');
+  g.fillStyle = '#b7c4a4';
+  g.fillRect(0, 0, 128, 128);
+  g.fillStyle = '#7d8d6b';
+  g.fillRect(0, 0, 128, 3);
+  g.fillRect(0, 0, 3, 128);
+  const texture = new THREE.CanvasTexture(canvas);
+  texture.colorSpace = THREE.SRGBColorSpace;
+  texture.wrapS = texture.wrapT = THREE.RepeatWrapping;
+  texture.repeat.set(4000 / 5, 4000 / 5);
+  texture.anisotropy = 8;
+  return texture;
+}
 const ground = new THREE.Mesh(new THREE.PlaneGeometry(4000, 4000).rotateX(-Math.PI / 2),
-  new THREE.MeshLambertMaterial({ color: '#b7c4a4' }));
-ground.position.y = -0.002;
+  new THREE.MeshLambertMaterial({ map: gridTexture() }));
 scene.add(ground);
-const grid = new THREE.GridHelper(2000, 1000, '#7a8a6a', '#9aaa8a');
-scene.add(grid);
-const camera = new THREE.PerspectiveCamera(45, 1, 0.1, 5000);
+const camera = new THREE.PerspectiveCamera(45, 1, 0.5, 3000);
 const controls = new OrbitControls(camera, renderer.domElement);
 controls.enableDamping = true;
 
@@ -53,7 +78,8 @@ function showError(error) {
   $('error').textContent = String(error);
 }
 
-let run = null; // the herd being streamed: {session, sim, player, herd, ...}
+let last = performance.now(), fpsCount = 0, fpsSince = last, shown = -1, dirty = true;
+let run = null; // the herd being streamed: {worker, player, herd, ...}
 
 async function meshFor(animal) {
   const response = await fetch(`/v1/libraries/${encodeURIComponent(animal)}/mesh.glb`);
@@ -66,90 +92,89 @@ async function start(animal, count) {
   $('error').hidden = true;
   const [skeleton, limits] = await Promise.all([client.skeleton(animal), client.limits()]);
   const height = restHeight(skeleton);
-  const sim = new HerdSim(count, skeleton.detail.gaits, { fps: POINTS_FPS, spacing: 1.6 * height, seed: 1 });
   const gltf = count <= SKINNED_MAX ? await meshFor(animal).catch(() => null) : null;
   const herd = gltf ? new SkinnedHerd(scene, skeleton, count, gltf) : new BoneHerd(scene, skeleton, count);
   stats.mode = gltf ? 'skinned mesh' : 'instanced bones';
-  const ids = Array.from({ length: count }, (_, c) => ({ id: `${animal}-${c}` }));
-  const me = { sim, herd, player: null, scales: new Float32Array(count).fill(1), skeleton, sent: 0, began: performance.now() };
+  stats.animals = count;
+  stats.openMs = performance.now();
+  const worker = new Worker('/viewer/static/stream-worker.js', { type: 'module' });
+  const me = { worker, herd, player: null, scales: null, count, sent: 0, perPoint: 1 };
   run = me;
-  const session = await client.live({ animal, fps: POINTS_FPS, seed: 1, encoding: 's48', characters: ids }, {
-    onChunk: (chunk) => {
-      if (run !== me) return;
+  worker.onmessage = (ev) => {
+    if (run !== me) return;
+    const m = ev.data;
+    if (m.type === 'header') {
+      stats.startMs = performance.now();
+      me.player = new Player(m.header.fps);
+      me.scales = Float32Array.from(m.header.characters, (ch) => ch.scale);
+      me.perPoint = m.perPoint;
+      const size = Math.sqrt(count) * 1.6 * height;
+      const [x, z] = m.centre;
+      controls.target.set(x, height * 0.5, z);
+      camera.position.set(x + size + 6 * height, size * 0.7 + 3 * height, z - size - 6 * height);
+      dirty = true;
+    } else if (m.type === 'chunk') {
       if (stats.firstChunkMs === null) stats.firstChunkMs = performance.now();
-      me.player.add(chunk);
+      if (stats.arrivals.length < 12) stats.arrivals.push([Math.round(performance.now()), m.chunk.start, m.chunk.frames]);
+      me.player.add(m.chunk);
       stats.chunks += 1;
       stats.frames = me.player.end;
-    },
-    onReconnect: () => { stats.reconnects += 1; },
-  });
-  me.session = session;
-  me.player = new Player(session.header.fps);
-  me.scales = Float32Array.from(session.header.characters, (ch) => ch.scale);
-  me.perPoint = session.header.fps / POINTS_FPS; // output frames per point
-  // Points per message within the body limit; the first burst simulates ahead by the stream's
-  // latency (plus a second), so the first poses come at once instead of after ~4 s of points.
-  me.maxPoints = Math.max(1, Math.floor(limits.max_body_bytes / 2 / (count * 12)));
-  me.lead = Math.ceil(session.header.latency_frames / me.perPoint) + POINTS_FPS;
-  feed(me, me.lead);
-  me.timer = setInterval(() => {
-    const due = me.lead + Math.floor(((performance.now() - me.began) / 1000) * POINTS_FPS);
-    if (run === me && due > me.sent) feed(me, due - me.sent);
-  }, 100);
-  stats.animals = count;
-  const size = Math.sqrt(count) * 1.6 * height;
-  const centre = centroid(me.sim);
-  controls.target.set(centre[0], height * 0.5, centre[1]);
-  camera.position.set(centre[0] + size + 6 * height, size * 0.7 + 3 * height, centre[1] - size - 6 * height);
-}
-
-function feed(me, n) {
-  while (n > 0) {
-    const k = Math.min(n, me.maxPoints);
-    me.session.push(me.sim.step(k), k);
-    me.sent += k; n -= k;
-  }
-  stats.pointsSent = me.sent;
+    } else if (m.type === 'sent') {
+      me.sent = m.sent;
+      stats.pointsSent = m.sent;
+    } else if (m.type === 'reconnect') {
+      stats.reconnects += 1;
+    } else if (m.type === 'error') {
+      showError(m.message);
+    }
+  };
+  worker.onerror = (ev) => showError(ev.message ?? 'the stream worker failed');
+  worker.postMessage({ type: 'start', origin: location.origin, animal, count, gaits: skeleton.detail.gaits,
+    spacing: 1.6 * height, pointsFps: POINTS_FPS, maxBodyBytes: limits.max_body_bytes });
 }
 
 function stop() {
   if (!run) return;
-  clearInterval(run.timer);
-  run.session?.close();
+  shown = -1;
+  run.worker.postMessage({ type: 'stop' });
+  const { worker } = run;
+  setTimeout(() => worker.terminate(), 1000); // after its cancel went out
   run.herd.dispose();
   run = null;
   Object.assign(stats, { firstChunkMs: null, firstDrawMs: null, chunks: 0, frames: 0, stalls: 0, stalledS: 0, drawn: 0 });
 }
 
-function centroid(sim) {
-  let x = 0, z = 0;
-  for (let c = 0; c < sim.C; c++) { x += sim.pos[c * 2]; z += sim.pos[c * 2 + 1]; }
-  return [x / sim.C, z / sim.C];
-}
-
 /** Follow the herd: move the camera with the animals' mean root, keeping the user's view. */
-function follow(frame, count) {
+function follow(frame, count, dt) {
   let x = 0, z = 0;
   for (let c = 0; c < count; c++) { x += frame.root[frame.rootAt(c)]; z += frame.root[frame.rootAt(c) + 2]; }
   x /= count; z /= count;
-  const dx = (x - controls.target.x) * 0.05, dz = (z - controls.target.z) * 0.05;
+  const k = 1 - Math.exp(-2 * dt); // the same catch-up per second at any draw rate
+  const dx = (x - controls.target.x) * k, dz = (z - controls.target.z) * k;
   controls.target.x += dx; controls.target.z += dz;
   camera.position.x += dx; camera.position.z += dz;
 }
 
 const frameTimes = [];
-let last = performance.now(), fpsCount = 0, fpsSince = last;
+
+controls.addEventListener('change', () => { dirty = true; });
+addEventListener('resize', () => { dirty = true; });
+/** One display tick: advance the play-out clock; pose and draw only when the frame shown or the
+ * view changed (poses come at 30 fps, displays tick at 60 or more: drawing the same pose twice
+ * costs the GPU and, with software GL, the CPU the stream needs). */
 function tick(now) {
-  const dt = Math.min((now - last) / 1000, 0.25);
+  const dt = (now - last) / 1000; // a slow draw skips frames: playback keeps real time
   last = now;
   const me = run;
   if (me?.player) {
     const t0 = performance.now();
     const frame = me.player.advance(dt);
-    if (frame) {
+    if (frame && frame.frame !== shown) {
+      shown = frame.frame;
       me.herd.update(frame, me.scales, $('gaitColour').checked);
-      follow(frame, me.sim.C);
+      follow(frame, me.count, dt);
       stats.drawn += 1;
+      dirty = true;
       frameTimes.push(performance.now() - t0);
       if (frameTimes.length > 120) frameTimes.shift();
     }
@@ -159,9 +184,12 @@ function tick(now) {
     stats.latencyS = (me.sent - me.player.playhead / me.perPoint) / POINTS_FPS;
   }
   controls.update();
-  renderer.render(scene, camera);
-  if (me?.player?.started && stats.firstDrawMs === null) stats.firstDrawMs = performance.now();
-  fpsCount += 1;
+  if (dirty) {
+    renderer.render(scene, camera);
+    dirty = false;
+    fpsCount += 1;
+    if (me?.player?.started && stats.firstDrawMs === null) stats.firstDrawMs = performance.now();
+  }
   if (now - fpsSince >= 1000) {
     stats.renderFps = (fpsCount * 1000) / (now - fpsSince);
     fpsCount = 0; fpsSince = now;
@@ -177,7 +205,7 @@ function showStats() {
   const s = stats, f = (x, d = 1) => (x === null ? '-' : x.toFixed(d));
   $('stats').textContent = [
     `animals        ${s.animals} (${s.mode})`,
-    `render         ${f(s.renderFps)} frames/s`,
+    `drawn          ${f(s.renderFps)} frames/s (poses at ${run?.player?.fps ?? '-'} fps)`,
     `pose + upload  ${f(s.frameMs)} ms/frame (p95 ${f(s.frameMsP95)})`,
     `latency        ${f(s.latencyS)} s sim -> screen`,
     `buffered       ${f(s.aheadS)} s ahead`,
@@ -186,6 +214,25 @@ function showStats() {
     `first chunk    ${s.firstChunkMs === null ? '-' : f(s.firstChunkMs - s.loadMs, 0)} ms`,
   ].join('\n');
 }
+
+/** Pixels that differ between the scene drawn without the herd and with it (the browser test's
+ * "animals are drawn" check: an empty scene is the ground and its grid only). */
+stats.herdPixels = () => {
+  const gl = renderer.getContext(), w = gl.drawingBufferWidth, h = gl.drawingBufferHeight;
+  const read = () => { const px = new Uint8Array(w * h * 4); gl.readPixels(0, 0, w, h, gl.RGBA, gl.UNSIGNED_BYTE, px); return px; };
+  const meshes = scene.children.filter((o) => o !== ground && !o.isLight);
+  meshes.forEach((o) => { o.visible = false; });
+  renderer.render(scene, camera);
+  const empty = read();
+  meshes.forEach((o) => { o.visible = true; });
+  renderer.render(scene, camera);
+  const full = read();
+  let differ = 0;
+  for (let i = 0; i < full.length; i += 4) {
+    if (Math.abs(full[i] - empty[i]) + Math.abs(full[i + 1] - empty[i + 1]) + Math.abs(full[i + 2] - empty[i + 2]) > 24) differ += 1;
+  }
+  return { differ, total: w * h };
+};
 
 async function main() {
   const { libraries } = await client.libraries();
@@ -198,6 +245,7 @@ async function main() {
     start($('animal').value, Math.max(1, Math.min(10000, Number($('herd').value) || 1))).catch(showError);
   });
   requestAnimationFrame(tick);
+  if (params.get('auto') === '0') return;
   await start($('animal').value, Number($('herd').value));
 }
 
