@@ -185,7 +185,7 @@ export class QuadSynthClient {
    * Closed with 1001/1013, it reconnects and asks again: the batch is deterministic, so the
    * chunks already given are skipped and the rest continue. `onStart(start)` sees each `start`.
    */
-  async *stream(request, { chunkFrames = 30, onStart } = {}) {
+  async *stream(request, { chunkFrames = 30, onStart, onReconnect } = {}) {
     const message = { type: 'synthesize', chunk_frames: chunkFrames, ...requestBody(request) };
     let given = 0;
     for (let attempt = 0; ; attempt++) {
@@ -211,6 +211,7 @@ export class QuadSynthClient {
       } catch (error) {
         if (!(error instanceof ServiceError)) throw error;
         await this.reconnecting(attempt, error);
+        onReconnect?.({ code: error.code, error });
       } finally {
         sock?.close();
       }
@@ -230,13 +231,16 @@ export class QuadSynthClient {
   }
 }
 
+const WARM_UP_POINTS = 60;
+
 export class LiveSession {
   constructor(client, options, onChunk, onReconnect) {
     this.client = client; this.options = options; this.onChunk = onChunk; this.onReconnect = onReconnect;
     this.C = options.characters.length;
-    this.history = []; // recent points messages [{data, n}], enough to settle again what is not yet played
+    this.history = []; // points messages [{data, n}] from historyStart on: what settles the frames not yet given
+    this.historyStart = 0; // the first kept point's index (points per character, since the session began)
     this.historyPoints = 0;
-    this.pointsSent = 0; // points per character sent since the session began (all connections)
+    this.pointsSent = 0;
     this.offset = 0; // this connection's frame 0, in the session's output frames
     this.delivered = 0; // output frames given to onChunk
     this.finishing = false;
@@ -254,9 +258,8 @@ export class LiveSession {
     const start = await this.sock.next();
     this.header = start;
     this.ratio = start.fps / this.options.fps; // output frames per point
-    this.keep = Math.ceil(2 * start.latency_frames / this.ratio) + 120;
     if (again) {
-      this.offset = Math.round((this.pointsSent - this.historyPoints) * this.ratio);
+      this.offset = Math.round(this.historyStart * this.ratio);
       if (this.historyPoints) this.sock.send({ type: 'points', points: blob(this.joined(), [this.C, this.historyPoints, 3]) });
       if (this.finishing) this.sock.send({ type: 'finish' });
     }
@@ -274,10 +277,19 @@ export class LiveSession {
     this.history.push({ data, n });
     this.historyPoints += n;
     this.pointsSent += n;
-    while (this.history.length > 1 && this.historyPoints - this.history[0].n >= this.keep) {
-      this.historyPoints -= this.history.shift().n;
-    }
     this.sock.send({ type: 'points', points: blob(data, [this.C, n, 3]) });
+  }
+
+  /** Forget the points a reconnection would not need: those more than WARM_UP_POINTS before the
+   * first frame not yet given (a new session starts fresh at its first point, so it gets a
+   * couple of seconds of run-up before the frames that count). */
+  trim() {
+    const keepFrom = Math.floor(this.delivered / this.ratio) - WARM_UP_POINTS;
+    while (this.history.length && this.historyStart + this.history[0].n <= keepFrom) {
+      const { n } = this.history.shift();
+      this.historyStart += n;
+      this.historyPoints -= n;
+    }
   }
 
   /** The kept points as one (C, N, 3) array (messages are per character along the frame axis). */
@@ -313,6 +325,7 @@ export class LiveSession {
             await this.onChunk(fresh);
             this.delivered = fresh.start + fresh.frames;
             this.attempts = 0;
+            this.trim();
           }
           sock.send({ type: 'ack', chunk: m.chunk });
         } else if (m.type === 'end') {

