@@ -53,8 +53,10 @@ def reference_pose(url: str, path: Path) -> None:
     feet = [detail["joint_names"].index(detail["feet"][f]) for f in ("LF", "RF", "LH", "RH")]
     characters = []
     for ch in motion.characters:
-        world, _ = forward_kinematics(skeleton, ch.root, ch.rotations, skeleton.offsets * np.float32(ch.scale))
-        characters.append({"scale": ch.scale, "feet": world[:, feet].tolist(), "planted": ch.contacts.tolist()})
+        offsets = skeleton.offsets * np.float32(ch.scale)
+        world, _ = forward_kinematics(skeleton, ch.root, ch.rotations, offsets)
+        characters.append({"scale": ch.scale, "feet": world[:, feet].tolist(),
+                           "planted": ch.contacts.tolist()})
     request = {"animal": "horse", "seed": 4, "fps": 60,
                "characters": [{"id": str(c), "points": p.tolist()} for c, p in enumerate(positions)]}
     path.write_text(json.dumps({"request": request, "characters": characters}))
