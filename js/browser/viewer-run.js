@@ -38,7 +38,7 @@ try {
   while (Date.now() < end) {
     await page.waitForTimeout(1000);
     const s = await page.evaluate(() => ({ ...window.quadsynthViewer }));
-    result.samples.push({ chunks: s.chunks, frames: s.frames, aheadS: s.aheadS, stalls: s.stalls,
+    result.samples.push({ t: Date.now(), chunks: s.chunks, frames: s.frames, aheadS: s.aheadS, stalls: s.stalls,
       stalledS: s.stalledS, frameMs: s.frameMs, renderFps: s.renderFps, latencyS: s.latencyS });
   }
   const s = await page.evaluate(() => ({ ...window.quadsynthViewer, pixels: window.quadsynthViewer.herdPixels() }));
@@ -46,7 +46,7 @@ try {
     openMs: s.openMs, startMs: s.startMs, leadSentMs: s.leadSentMs, firstChunkMs: s.firstChunkMs, firstDrawMs: s.firstDrawMs, chunks: s.chunks, frames: s.frames,
     pixels: s.pixels, mode: s.mode, errors: s.errors, reconnects: s.reconnects, stalls: s.stalls,
     stalledS: s.stalledS, renderFps: s.renderFps, frameMs: s.frameMs, frameMsP95: s.frameMsP95,
-    latencyS: s.latencyS, aheadS: s.aheadS, drawn: s.drawn, arrivals: s.arrivals,
+    latencyS: s.latencyS, aheadS: s.aheadS, drawn: s.drawn, arrivals: s.arrivals, streamFps: s.streamFps,
   });
   if (opt.screenshot) await page.screenshot({ path: opt.screenshot });
 } finally {

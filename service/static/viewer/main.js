@@ -107,6 +107,7 @@ async function start(animal, count) {
     if (m.type === 'header') {
       stats.startMs = performance.now();
       me.player = new Player(m.header.fps);
+      stats.streamFps = m.header.fps;
       me.scales = Float32Array.from(m.header.characters, (ch) => ch.scale);
       me.perPoint = m.perPoint;
       const size = Math.sqrt(count) * 1.6 * height;
