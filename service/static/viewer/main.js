@@ -82,8 +82,13 @@ function showError(error) {
 let last = performance.now(), fpsCount = 0, fpsSince = last, shown = -1, dirty = true;
 let run = null; // the herd being streamed: {worker, player, herd, ...}
 
-async function meshFor(animal) {
-  const response = await fetch(`/v1/libraries/${encodeURIComponent(animal)}/mesh.glb`);
+/** The animal's skinned mesh, when the service has one: the library detail's `mesh_url` (null:
+ * none); a service older than that field is asked at the route the mesh API defines. */
+async function meshFor(skeleton) {
+  const url = 'mesh_url' in skeleton.detail ? skeleton.detail.mesh_url
+    : `/v1/libraries/${encodeURIComponent(skeleton.animal)}/mesh.glb`;
+  if (!url) return null;
+  const response = await fetch(url);
   if (response.status !== 200) return null; // no mesh on this service: instanced bones instead
   return new GLTFLoader().parseAsync(await response.arrayBuffer(), '');
 }
@@ -93,9 +98,17 @@ async function start(animal, count) {
   $('error').hidden = true;
   const [skeleton, limits] = await Promise.all([client.skeleton(animal), client.limits()]);
   const height = restHeight(skeleton);
-  const gltf = count <= SKINNED_MAX ? await meshFor(animal).catch(() => null) : null;
-  const herd = gltf ? new SkinnedHerd(scene, skeleton, count, gltf) : new BoneHerd(scene, skeleton, count);
-  stats.mode = gltf ? 'skinned mesh' : 'instanced bones';
+  let herd = null;
+  if (count <= SKINNED_MAX) {
+    try {
+      const gltf = await meshFor(skeleton);
+      if (gltf) herd = new SkinnedHerd(scene, skeleton, count, gltf);
+    } catch (error) {
+      console.warn('the animal\'s mesh is not usable here; drawing instanced bones:', error);
+    }
+  }
+  herd ??= new BoneHerd(scene, skeleton, count);
+  stats.mode = herd instanceof SkinnedHerd ? 'skinned mesh' : 'instanced bones';
   stats.animals = count;
   stats.openMs = performance.now();
   const worker = new Worker('/viewer/static/stream-worker.js', { type: 'module' });
