@@ -253,17 +253,21 @@ export class LiveSession {
     const characters = this.options.characters.map((ch, c) => ({
       ...ch, scale: this.header ? this.header.characters[c].scale : ch.scale,
     })).map((ch) => Object.fromEntries(Object.entries(ch).filter(([, v]) => v !== undefined)));
-    this.sock = await this.client.openSocket();
-    this.sock.send({ ...this.options, type: 'live', characters });
-    const start = await this.sock.next();
+    // Until the new connection has its history, points pushed meanwhile only join the history
+    // (the old socket is closed: its send does nothing), so they go out after it, in order.
+    const sock = await this.client.openSocket();
+    sock.send({ ...this.options, type: 'live', characters });
+    const start = await sock.next();
     this.header = start;
     this.ratio = start.fps / this.options.fps; // output frames per point
     if (again) {
       this.offset = Math.round(this.historyStart * this.ratio);
-      if (this.historyPoints) this.sock.send({ type: 'points', points: blob(this.joined(), [this.C, this.historyPoints, 3]) });
-      if (this.finishing) this.sock.send({ type: 'finish' });
+      // Message by message as they first went: each was within the service's body limit.
+      for (const { data, n } of this.history) sock.send({ type: 'points', points: blob(data, [this.C, n, 3]) });
+      if (this.finishing) sock.send({ type: 'finish' });
     }
-    this.pump(this.sock);
+    this.sock = sock;
+    this.pump(sock);
   }
 
   get latencyFrames() { return this.header.latency_frames; }
@@ -290,17 +294,6 @@ export class LiveSession {
       this.historyStart += n;
       this.historyPoints -= n;
     }
-  }
-
-  /** The kept points as one (C, N, 3) array (messages are per character along the frame axis). */
-  joined() {
-    const N = this.historyPoints, out = new Float32Array(this.C * N * 3);
-    let at = 0;
-    for (const { data, n } of this.history) {
-      for (let c = 0; c < this.C; c++) out.set(data.subarray(c * n * 3, (c + 1) * n * 3), (c * N + at) * 3);
-      at += n;
-    }
-    return out;
   }
 
   /** No more points: resolves once every remaining chunk was handled and the session ended. */
