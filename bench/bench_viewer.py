@@ -8,7 +8,9 @@ service (started on a free port unless ``--url``) and prints one JSON object:
 - ``live``: a 1,000-animal herd streamed live for ``--seconds``: frames received per second
   against the stream's fps (the stream keeping up), stalls (playback caught up with the newest
   frame), the buffer ahead, the client's pose-assembly + upload time per drawn frame, and the
-  draw rate (software GL here: headless Chromium has no GPU on this machine).
+  draw rate (software GL here: headless Chromium has no GPU on this machine);
+- ``pose_assembly_node``: the same world matrices for 1,000 animals of 40 joints under Node
+  (js/bench/pose.js): the pose work alone, without the page's buffers and drawing.
 
 The machine's load average is reported beside them: on a shared 2-core VM the draw rate and the
 frame time follow it. Not a test.
@@ -69,8 +71,11 @@ def run(url: str | None, repeats: int, seconds: float, screenshot: str | None) -
                 shot = str(Path(tmp) / "viewer.png")
                 view(base, 200, 6, shot)
                 Path(screenshot).write_bytes(Path(shot).read_bytes())
+    pose = subprocess.run([tool("ensure-node-deps"), "js/bench/pose.js"], cwd=REPO, capture_output=True,
+                          text=True, timeout=300, check=True)
     return {"first_pose_ms": {"herd": 50, "best": round(min(firsts)), "all": [round(f) for f in firsts]},
-            "live": live_figures(live), "load_average": os.getloadavg()}
+            "live": live_figures(live), "pose_assembly_node": json.loads(pose.stdout),
+            "load_average": os.getloadavg()}
 
 
 if __name__ == "__main__":

@@ -9,6 +9,7 @@ from __future__ import annotations
 import json
 import shutil
 import subprocess
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -39,11 +40,16 @@ def view(node: str, chromium: str, url: str, herd: int, seconds: float, screensh
     return result
 
 
+@pytest.fixture(scope="module")
+def url(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
+    with running(tmp_path_factory.mktemp("browser")) as (url, _):
+        yield url
+
+
 @pytest.mark.parametrize("animal", ["horse", "dog"])
-def test_the_viewer_streams_and_draws_a_live_herd_in_chromium(tmp_path: Path, animal: str) -> None:
+def test_the_viewer_streams_and_draws_a_live_herd_in_chromium(url: str, tmp_path: Path, animal: str) -> None:
     chromium, node = chromium_binary(), node_binary()
-    with running(tmp_path) as (url, _):
-        seen = view(node, chromium, url, 40, 5, tmp_path / "viewer.png", animal)
+    seen = view(node, chromium, url, 40, 5, tmp_path / "viewer.png", animal)
     print(json.dumps({k: v for k, v in seen.items() if k != "samples"}))
     # A service without a mesh for the animal answers its mesh.glb with 404: the viewer then
     # draws instanced bones. That one expected 404 aside, the console must stay clean.
