@@ -26,13 +26,14 @@ COPY pyproject.toml README.md /tmp/src/
 COPY synth_core /tmp/src/synth_core
 COPY api_schemas /tmp/src/api_schemas
 COPY service /tmp/src/service
+# The JS client the viewer runs on (its one home is js/, the npm package; service.web finds it here).
+COPY js/src /tmp/src/service/static/client
 COPY quadsynth /tmp/src/quadsynth
 RUN pip install --no-deps --no-build-isolation /tmp/src && rm -rf /tmp/src
 
 # The libraries (speed maps + motion graph) are built into the image, owned by root and readable by
-# all: the service reads them and cannot change them.
-RUN quadsynth build --animal horse --out "$QUADSYNTH_LIBRARY_DIR/horse.qslib.npz" \
-    && quadsynth build --animal dog --out "$QUADSYNTH_LIBRARY_DIR/dog.qslib.npz" \
+# all, each stamped with the code that built it: the service reads them and cannot change them.
+RUN python -c "from pathlib import Path; from service.libraries import ensure_builtin_libraries as e; e(Path('$QUADSYNTH_LIBRARY_DIR'))" \
     && mkdir -p "$NUMBA_CACHE_DIR" && chown quadsynth: "$NUMBA_CACHE_DIR"
 
 # The kernels compiled into numba's cache by the service user, for the installed package: a start

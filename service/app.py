@@ -39,7 +39,7 @@ from api_schemas import (
     SynthesizeResponse,
 )
 from api_schemas.wire import MSGPACK
-from service import answer, body, jobs, memory, stream
+from service import answer, body, jobs, memory, stream, web
 from service.admission import Admission
 from service.body import PiecesResponse
 from service.errors import ApiError, handle_api_error, handle_http_error, handle_validation_error
@@ -334,13 +334,16 @@ def create_app(directory: Path | None = None, settings: Settings | None = None) 
         state.draining = True
         state.pool.shutdown(wait=False, cancel_futures=True)
 
-    app = FastAPI(title="QuadSynth", version="0.1.0", lifespan=lifespan,
+    # docs_url/redoc_url None: FastAPI's pages load Swagger UI and ReDoc from a CDN; service.web
+    # serves them on vendored copies instead (offline).
+    app = FastAPI(title="QuadSynth", version="0.1.0", lifespan=lifespan, docs_url=None, redoc_url=None,
                   description="Fast motion synthesis for massive herds of quadrupeds (Sung 2011). "
                               "Bodies are msgpack (application/vnd.msgpack) or JSON; arrays travel "
                               "as binary blobs -- see docs/wire-format.md. WebSocket /v1/stream (not "
                               "listed below: OpenAPI has no WebSockets) streams a batch in chunks "
                               "as it is made -- see docs/streaming.md.")
     app.state.quadsynth = state
+    web.mount(app)
     _with_body_schemas(app)
     app.add_middleware(MetricsMiddleware, metrics=state.metrics)
     app.add_exception_handler(ApiError, handle_api_error)
