@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import functools
 import threading
-import time
 from collections.abc import Iterable
 from dataclasses import dataclass
 from typing import Any, TypeVar
@@ -20,8 +19,8 @@ from service.errors import ApiError, from_validation
 from service.settings import Settings
 from synth_core.bank import Bank
 from synth_core.streaming import BatchStream
-from synth_core.synthesis import Options, Result, synthesize
-from synth_core.trajectory import TrajectoryError
+from synth_core.synthesis import Options, Result
+from synth_core.trajectory import FrameLimitError, TrajectoryError, resampled_frames
 
 
 class Cancelled(Exception):
@@ -34,6 +33,8 @@ class Job:
     positions: NDArray[np.floating]  # (C, F_max, 3): shorter paths held at their last point
     lengths: list[int]  # each character's own point count
     cancel: threading.Event
+    max_character_frames: int | None = None  # checked again once the resampling is known
+    out_frames: int = 0  # frames each character comes back with at least (the longest's)
 
     @functools.cached_property
     def ids(self) -> list[str]:
@@ -93,14 +94,18 @@ def parse(body: Any, settings: Settings, banks: dict[str, Bank]) -> Job:
         paths.append(points)
     lengths = [len(p) for p in paths]
     bank = banks[req.animal]
-    # Counted at the library's frame rate: that is how many frames come back (before any
-    # resampling of a too-fast herd, which can add up to 8x; see trajectory.MAX_RESAMPLE).
-    out_frames = int(round((max(lengths) - 1) * bank.fps / req.fps)) + 1
+    # Counted at the library's frame rate and resampled at least min_resample_rate: that many
+    # frames come back at least. A too-fast herd may be resampled more (up to 8x, see
+    # trajectory.MAX_RESAMPLE): checked again once that is known, before it is made.
+    out_frames = resampled_frames(int(round((max(lengths) - 1) * bank.fps / req.fps)) + 1,
+                                  req.min_resample_rate)
     total = out_frames * len(paths)
     if total > settings.max_character_frames:
-        raise ApiError(422, "characters", f"{len(paths)} characters x {out_frames} frames at "
-                                          f"{bank.fps:g} fps = {total} character-frames is over the limit "
-                                          f"of {settings.max_character_frames} (max_character_frames)")
+        by = f" resampled {req.min_resample_rate:g}x (min_resample_rate)" if req.min_resample_rate > 1 else ""
+        raise ApiError(422, "min_resample_rate" if by else "characters",
+                       f"{len(paths)} characters x {out_frames} frames at {bank.fps:g} fps{by} = {total} "
+                       f"character-frames is over the limit of {settings.max_character_frames} "
+                       f"(max_character_frames)")
     # float32 points stay float32 (the synthesis widens them a few characters at a time, exactly):
     # half the fresh memory of a float64 copy of the batch.
     dtype = np.float32 if all(p.dtype == np.float32 for p in paths) else np.float64
@@ -112,7 +117,7 @@ def parse(body: Any, settings: Settings, banks: dict[str, Bank]) -> Job:
         for c, p in enumerate(paths):
             positions[c, :len(p)] = p
             positions[c, len(p):] = p[-1]  # a shorter path: it stands at its end
-    return Job(req, positions, lengths, threading.Event())
+    return Job(req, positions, lengths, threading.Event(), settings.max_character_frames, out_frames)
 
 
 def character_scales_and_seeds(req: SynthesizeRequest) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
@@ -122,31 +127,17 @@ def character_scales_and_seeds(req: SynthesizeRequest) -> tuple[NDArray[np.float
     return scales, seeds
 
 
-def options(req: SynthesizeRequest) -> Options:
+def options(req: SynthesizeRequest, max_character_frames: int | None = None) -> Options:
     return Options(sigma=req.sigma, seed=req.seed, scale_range=(req.scale_min, req.scale_max),
                    skip_invalid=req.skip_invalid, foot_lock=req.foot_lock, first_index=req.first_index,
-                   min_resample_rate=req.min_resample_rate)
-
-
-def run(job: Job, bank: Bank) -> tuple[Result, float]:
-    """Synthesize (in a worker thread); raises :class:`ApiError` 422 for a bad trajectory."""
-    req = job.request
-    scales, seeds = character_scales_and_seeds(req)
-
-    def check_cancel(done: int, total: int) -> None:
-        if job.cancel.is_set():
-            raise Cancelled
-
-    t0 = time.perf_counter()
-    try:
-        result = synthesize(bank, job.positions, req.fps, scales, options(req), ids=job.ids,
-                            progress=check_cancel, seeds=seeds)
-    except TrajectoryError as exc:
-        raise trajectory_error(exc, job) from None
-    return result, time.perf_counter() - t0
+                   min_resample_rate=req.min_resample_rate, max_character_frames=max_character_frames)
 
 
 def trajectory_error(exc: TrajectoryError, job: Job) -> ApiError:
+    if isinstance(exc, FrameLimitError):
+        return ApiError(422, "characters", f"{exc} (max_character_frames): the paths need resampling "
+                                           f"(a character faster than the library, or min_resample_rate); "
+                                           f"send fewer characters or frames per request")
     message = str(exc.args[0]) if exc.args else str(exc)
     if exc.character is None:
         return ApiError(422, "characters", message)
@@ -161,7 +152,8 @@ def open_stream(job: Job, bank: Bank, chunk_frames: int) -> BatchStream:
     req = job.request
     scales, seeds = character_scales_and_seeds(req)
     try:
-        return BatchStream(bank, job.positions, req.fps, scales, options(req), job.ids, seeds, chunk_frames)
+        return BatchStream(bank, job.positions, req.fps, scales, options(req, job.max_character_frames),
+                           job.ids, seeds, chunk_frames)
     except TrajectoryError as exc:
         raise trajectory_error(exc, job) from None
 

@@ -9,7 +9,9 @@ from __future__ import annotations
 import gc
 import os
 from collections import Counter
+from collections.abc import Collection
 from dataclasses import dataclass, field
+from typing import Any
 
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
@@ -25,6 +27,9 @@ class Metrics:
     in_flight: int = 0
     ws_sessions: int = 0
     memory_tuning: dict[str, bool] = field(default_factory=dict)  # service.memory.tune()'s, if run
+    memory_reserved: int = 0  # bytes of the memory budget answers in flight hold (service.budget)
+    pipes: Collection[Any] = ()  # answers going out (service.pipe.Pipe): produced, waiting, blocked
+    answer_bytes: int = 0  # bytes of answers made, of the pipes gone
 
     def render(self) -> str:
         pid = os.getpid()
@@ -56,6 +61,19 @@ class Metrics:
             "# HELP quadsynth_websocket_sessions Open WebSocket sessions.",
             "# TYPE quadsynth_websocket_sessions gauge",
             f'quadsynth_websocket_sessions{{pid="{pid}"}} {self.ws_sessions}',
+            "# HELP quadsynth_memory_reserved_bytes Memory budget held by answers in flight (estimated).",
+            "# TYPE quadsynth_memory_reserved_bytes gauge",
+            f'quadsynth_memory_reserved_bytes{{pid="{pid}"}} {self.memory_reserved}',
+            "# HELP quadsynth_answer_bytes_produced_total Bytes of answers made (handed to their sockets).",
+            "# TYPE quadsynth_answer_bytes_produced_total counter",
+            f'quadsynth_answer_bytes_produced_total{{pid="{pid}"}} '
+            f'{self.answer_bytes + sum(p.produced for p in self.pipes)}',
+            "# HELP quadsynth_answer_bytes_waiting Bytes of answers made and not yet sent.",
+            "# TYPE quadsynth_answer_bytes_waiting gauge",
+            f'quadsynth_answer_bytes_waiting{{pid="{pid}"}} {sum(p.pending for p in self.pipes)}',
+            "# HELP quadsynth_answers_blocked Answers whose making waits for a client to read.",
+            "# TYPE quadsynth_answers_blocked gauge",
+            f'quadsynth_answers_blocked{{pid="{pid}"}} {sum(p.blocked for p in self.pipes)}',
             "# HELP python_gc_collections_total Runs of the cyclic garbage collector, by generation "
             "(a full one, 2, pauses the process).",
             "# TYPE python_gc_collections_total counter",

@@ -67,6 +67,7 @@ class Options:
     first_index: int = 0  # the batch's first character's index in the herd (its draws' counter)
     min_resample_rate: float = 1.0  # resample at least this much (a herd split into batches: the
     # rate of the batch with the fastest character, so every batch keeps the same frames)
+    max_character_frames: int | None = None  # refuse (FrameLimitError) a batch that would make more
 
 
 @dataclass(frozen=True, eq=False)
@@ -559,7 +560,8 @@ def prepare_batch(bank: Bank, positions: ArrayLike, fps: float | None, scales: A
     if options.backend not in BACKENDS:
         raise TrajectoryError(f"backend: must be one of {BACKENDS}, got {options.backend!r}")
     prep = prepare(positions, fps, bank.fps, bank.top_speed, bank.mean_cycle, all_scales,
-                   options.sigma, options.skip_invalid, ids, options.min_resample_rate)
+                   options.sigma, options.skip_invalid, ids, options.min_resample_rate,
+                   options.max_character_frames)
     return prep, all_scales[prep.kept], keys[prep.kept]
 
 
