@@ -26,18 +26,25 @@ def media_type(header: str | None) -> str:
     return (header or "").split(";")[0].strip().lower()
 
 
-async def read_body(request: Request, limit: int) -> bytes:
+async def read_body(request: Request, limit: int, timeout_s: float) -> bytes:
     """The whole body, refused with 413 as soon as it passes ``limit`` -- by its Content-Length,
-    or while reading (a chunked body has none), so an oversized upload is never held whole."""
+    or while reading (a chunked body has none), so an oversized upload is never held whole --
+    and with 408 when it has not arrived whole within ``timeout_s`` (a stalled upload holds a
+    connection and its part of the body; nginx has its own timeout, a bare replica has this)."""
     declared = request.headers.get("content-length")
     if declared is not None and declared.isdigit() and int(declared) > limit:
         raise ApiError(413, "body", f"{declared} bytes is over the limit of {limit} bytes (max_body_bytes)")
     parts, size = [], 0
-    async for chunk in request.stream():
-        size += len(chunk)
-        if size > limit:
-            raise ApiError(413, "body", f"more than the limit of {limit} bytes (max_body_bytes)")
-        parts.append(chunk)
+    try:
+        async with asyncio.timeout(timeout_s):
+            async for chunk in request.stream():
+                size += len(chunk)
+                if size > limit:
+                    raise ApiError(413, "body", f"more than the limit of {limit} bytes (max_body_bytes)")
+                parts.append(chunk)
+    except TimeoutError:
+        raise ApiError(408, "body", f"not received whole within {timeout_s:g} s (body_timeout_s): "
+                                    f"{size} bytes came", headers={"Connection": "close"}) from None
     return b"".join(parts)
 
 
