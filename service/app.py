@@ -253,6 +253,8 @@ def _install_drain(state: State) -> None:
             previous(signum, frame)
 
     def on_term(signum: int, frame: Any) -> None:
+        if state.draining:  # the supervisor's SIGTERM after its fast one (service.supervisor)
+            return
         state.draining = True
         log.info("SIGTERM: draining")
         if state.settings.test_hooks:  # a test holding the workers cannot reach /_test/release now
