@@ -24,7 +24,7 @@ class Settings:
     drain_grace_s: float = 20.0
     memory_budget_mb: int = 1024  # answers in flight x their estimated size, per worker (service.budget)
     answer_buffer_bytes: int = 16 * 1024 * 1024  # made and not yet sent, per answer (service.pipe)
-    send_timeout_s: float = 30.0  # a client taking nothing for this long: its answer is cut short
+    send_timeout_s: float = 10.0  # a client taking nothing for this long: its answer is cut short
     body_timeout_s: float = 30.0  # a request body not arriving whole within this: 408
     test_hooks: bool = False  # routes that hold the workers on an event (tests only)
     memory_tuning: bool = True  # freed memory kept, no huge pages for numpy: see service.memory
