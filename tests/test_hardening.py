@@ -225,3 +225,20 @@ def test_metrics_label_invented_methods_as_other_and_docs_by_route(server: str) 
     assert 'method="other",route="/livez"' in text
     assert 'method="GET",route="/docs",status="200"' in text
     assert 'method="GET",route="/openapi.json",status="200"' in text
+
+
+def test_many_characters_are_validated_in_slices_naming_the_right_one() -> None:
+    from api_schemas import SynthesizeRequest
+    from service import jobs
+    from service.errors import ApiError
+    from service.settings import Settings
+
+    points = blob(np.zeros((4, 3), np.float32))
+    body: dict[str, Any] = {"characters": [{"id": f"c{c}", "points": dict(points)} for c in range(1000)]}
+    req = jobs.validate(SynthesizeRequest, body, Settings(), {"horse": None})  # type: ignore[dict-item]
+    assert req == SynthesizeRequest.model_validate(body)  # the same as in one piece
+    body["characters"][700]["points"]["shape"] = "x"
+    body["characters"][900]["extra"] = 1
+    with pytest.raises(ApiError) as refused:
+        jobs.validate(SynthesizeRequest, body, Settings(), {"horse": None})  # type: ignore[dict-item]
+    assert (refused.value.status, refused.value.field) == (422, "characters[700].points.shape")
