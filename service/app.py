@@ -116,6 +116,14 @@ class State:
         return ApiError(504, "", f"synthesis took longer than the deadline of {limit:g} s (deadline_s); "
                                  "send fewer characters or frames per request")
 
+    def keep_within_budget(self, loop: asyncio.AbstractEventLoop) -> None:
+        """Memory freed and kept for reuse counts against the budget too: past the part the
+        answers in flight leave free, it goes back to the OS (in a thread: trimming hundreds of
+        MB takes a while)."""
+        held = memory.kept()
+        if held is not None and held > self.memory.limit - self.memory.used:
+            loop.run_in_executor(None, memory.give_back)
+
     def count_cancelled(self, loop: asyncio.AbstractEventLoop) -> None:
         """From a pool thread: one more synthesis stopped early (counted on the event loop, which
         owns the metrics)."""
@@ -169,6 +177,7 @@ class State:
             if left == 0:
                 release()
                 reservation.release()
+                self.keep_within_budget(loop)
                 if pipe in self.pipes:
                     self.pipes.discard(pipe)
                     self.metrics.answer_bytes += pipe.produced
