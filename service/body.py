@@ -74,7 +74,7 @@ def wants_msgpack(request: Request) -> bool:
     return media_type(request.headers.get("content-type")) in MSGPACK_TYPES
 
 
-SEND_SLICE = 256 * 1024  # bytes handed to the server per send: what a stalled socket can pin
+SEND_SLICE = 1024 * 1024  # bytes handed to the server per send: what a stalled socket can pin
 
 
 class PiecesResponse(StreamingResponse):
