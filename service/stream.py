@@ -348,7 +348,8 @@ class Session:
         try:
             while True:
                 message = await self.next_live()
-                if message is None:
+                if message is None:  # before its finish: the client cancelled or left
+                    self.state.metrics.cancelled += 1
                     break
                 finishing = message.get("type") == "finish"
                 advance = (functools.partial(synth.finish, W) if finishing else

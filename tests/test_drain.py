@@ -97,7 +97,7 @@ def test_a_websocket_session_waiting_for_the_pool_is_told_1001_on_sigterm(tmp_pa
         assert held == [200]  # the request in flight finished
 
 
-def test_a_websocket_client_leaving_mid_batch_counts_as_cancelled(tmp_path: Path) -> None:
+def test_a_websocket_client_leaving_mid_batch_or_live_counts_as_cancelled(tmp_path: Path) -> None:
     from websockets.sync.client import connect
 
     herd = crowd.simulate(40, 2000, seed=2).astype(np.float32)
@@ -110,3 +110,10 @@ def test_a_websocket_client_leaving_mid_batch_counts_as_cancelled(tmp_path: Path
             assert msgpack.unpackb(ws.recv(timeout=60))["type"] == "chunk"  # then gone, no ack
         wait_for(url, "quadsynth_cancelled_total", 1)
         wait_for(url, "quadsynth_in_flight", 0)
+        # A live session whose client leaves before its finish counts too.
+        with connect(ws_url(url), compression=None, max_size=None) as ws:
+            live = {"type": "live", "characters": [{"id": "a"}, {"id": "b"}]}
+            ws.send(msgpack.packb(live, use_bin_type=True))
+            assert msgpack.unpackb(ws.recv(timeout=60))["type"] == "start"
+            ws.send(msgpack.packb({"type": "points", "points": blob(herd[:2, :30])}, use_bin_type=True))
+        wait_for(url, "quadsynth_cancelled_total", 2)
