@@ -3,9 +3,10 @@ admitted, and gives it back when its last byte has left; one that does not fit n
 with 503 + Retry-After (another replica, or this one a moment later), one that could never fit
 with 422 naming ``memory_budget_mb``.
 
-The estimate (:func:`answer_bytes`) counts what an answer holds at its peak while it streams:
-its prepared paths, the pieces being rendered and waiting in :mod:`synth_core.render_pool`,
-the bounded hand-over to the socket (:mod:`service.pipe`) and the piece the socket is sending.
+The estimate (:func:`answer_bytes`) counts what an answer holds at its peak: its prepared paths,
+and the larger of what preparing them takes and what streaming holds -- the pieces being rendered
+and waiting in :mod:`synth_core.render_pool`, the bounded hand-over to the socket
+(:mod:`service.pipe`) and the piece the socket is sending.
 """
 
 from __future__ import annotations
@@ -16,10 +17,15 @@ from service.answer import characters_per_piece
 from service.errors import ApiError
 from service.metrics import Metrics
 from synth_core import render_pool
+from synth_core.trajectory import ROWS
 
 RETRY_AFTER_S = 1
 MB = 1 << 20
 PREPARED_BYTES = 24 + 24  # per character-frame: the smoothed float64 path, and the plan's columns
+# Preparing the paths (retimed, smoothed: synth_core.trajectory, ROWS characters at a time) makes
+# about four float64 copies of a row block's paths at once: traced, 229 MB at the peak of a
+# 250 x 8,000 answer (its 48 MB of paths included), before any piece is made.
+PREPARING_COPIES = 4
 BYTES_PER_FRAME_BESIDE_ROTATIONS = 12 + 1 + 1  # root float32 xyz, gait, contact bits
 
 
@@ -37,7 +43,8 @@ def answer_bytes(characters: int, frames: int, joints: int, bytes_per_joint_fram
     held = (threads * (rendered + piece)  # being rendered and packed, one per render thread
             + 2 * threads * piece  # done, waiting their turn (render_pool.ordered runs ahead)
             + max(buffer_bytes, piece) + piece)  # handed over, and being sent
-    return input_bytes + characters * frames * PREPARED_BYTES + held
+    preparing = PREPARING_COPIES * 24 * min(characters, ROWS) * frames  # before any piece
+    return input_bytes + characters * frames * PREPARED_BYTES + max(held, preparing)
 
 
 class MemoryBudget:

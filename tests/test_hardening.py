@@ -133,11 +133,11 @@ def test_a_client_that_does_not_read_holds_a_bounded_amount_then_is_cut_off(serv
 
 
 def test_an_answer_that_could_never_fit_the_budget_is_refused_naming_it(server: str) -> None:
-    # One character of 20,000 frames, f32: its pieces alone are over the budget.
+    # One character of 20,000 points resampled 2x, f32: its pieces alone are over the budget.
     path = crowd.simulate(1, 20_000, seed=1).astype(np.float32)
-    assert budget.answer_bytes(1, 20_000, HORSE_JOINTS, 16, False, BUFFER) > BUDGET_MB * MB
-    refused(post(server, batch(path, encoding="f32")), 422, "characters", "memory_budget_mb",
-            f"budget of {BUDGET_MB} MB")
+    assert budget.answer_bytes(1, 39_999, HORSE_JOINTS, 16, False, BUFFER) > BUDGET_MB * MB
+    refused(post(server, batch(path, encoding="f32", min_resample_rate=2)), 422, "characters",
+            "memory_budget_mb", f"budget of {BUDGET_MB} MB")
 
 
 def test_the_frame_limit_holds_after_resampling(server: str) -> None:
