@@ -7,6 +7,7 @@ from api_schemas.models import (
     Blob,
     CharacterIn,
     CharacterOut,
+    CharacterWarning,
     ErrorDetail,
     ErrorResponse,
     GaitRange,
@@ -24,7 +25,8 @@ from api_schemas.models import (
     SynthesizeResponse,
 )
 
-__all__ = ["Blob", "CharacterIn", "CharacterOut", "ErrorDetail", "ErrorResponse", "GaitRange", "Health",
+__all__ = ["Blob", "CharacterIn", "CharacterOut", "CharacterWarning", "ErrorDetail", "ErrorResponse",
+           "GaitRange", "Health",
            "LibrariesResponse", "LibraryDetail", "LibrarySummary", "Limits", "LiveCharacter",
            "LiveRequest", "PackedRotations", "Readiness",
            "Skipped", "SynthesizeRequest", "SynthesizeResponse"]

@@ -54,6 +54,7 @@ class Motion:
     resample_rate: float
     characters: list[CharacterMotion]
     skipped: list[dict[str, Any]] = field(default_factory=list)
+    warnings: list[dict[str, Any]] = field(default_factory=list)  # made, but could not keep their path
 
 
 @dataclass(frozen=True)
@@ -105,7 +106,7 @@ def decode_response(content: bytes | bytearray) -> Motion:
             rotations=decode_rotations(unblob(rot["dtype"], rot["shape"], rot["data"]), encoding),
             gait=unblob(**ch["gait"]), contacts=(bits[:, None] >> np.arange(4)) & 1 == 1))
     return Motion(body["animal"], body["skeleton_id"], body["fps"], body["resample_rate"], characters,
-                  body.get("skipped", []))
+                  body.get("skipped", []), body.get("warnings", []))
 
 
 class _Body:

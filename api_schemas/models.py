@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import base64
 import binascii
-from typing import Any
+from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, field_serializer, field_validator
 
@@ -67,6 +67,15 @@ class PackedRotations(Blob):
     encoding: Encoding = Field(description="f32, i16 or s48 (docs/wire-format.md)")
 
 
+SizeMatching = Literal["froude", "geometric"]
+SIZE_MATCHING_DOC = ("how a character of scale h uses the library: 'froude' (dynamic similarity: the "
+                     "gait of the same Froude number v^2/(g h), stride frequency ~ 1/sqrt(h)) or "
+                     "'geometric' (the paper's s/h matching: every size steps at the library's "
+                     "frequency)")
+TEMPO_SPREAD_DOC = ("each character's own stride frequency varies by up to this share (seeded), so "
+                    "equal animals started together do not step as one")
+
+
 class CharacterIn(BaseModel):
     model_config = _STRICT
     id: str = Field(min_length=1, max_length=128, description="the caller's name for this character")
@@ -100,6 +109,14 @@ class SynthesizeRequest(BaseModel):
                                      description="resample the paths at least this much: send the "
                                                  "highest resample_rate of a herd's requests so all "
                                                  "keep the same frames (the formation)")
+    resample: bool = Field(default=False,
+                           description="the paper's global resampling: where a character is faster than "
+                                       "the library, every path is resampled (more frames, the herd's "
+                                       "clock slowed). Default: the clock is kept (output frames = input "
+                                       "frames at the library's fps) and a character too fast even at its "
+                                       "fastest stride rate is listed in 'warnings'")
+    size_matching: SizeMatching = Field(default="froude", description=SIZE_MATCHING_DOC)
+    tempo_spread: float = Field(default=0.06, ge=0, le=0.25, description=TEMPO_SPREAD_DOC)
     characters: list[CharacterIn] = Field(min_length=1)
 
 
@@ -129,6 +146,8 @@ class LiveRequest(BaseModel):
     heading: float = Field(default=0.0, ge=-7, le=7, description="radians about +Y (0 = +Z) a character "
                                                                  "faces while it stands before its first "
                                                                  "move is known")
+    size_matching: SizeMatching = Field(default="froude", description=SIZE_MATCHING_DOC)
+    tempo_spread: float = Field(default=0.06, ge=0, le=0.25, description=TEMPO_SPREAD_DOC)
     characters: list[LiveCharacter] = Field(min_length=1)
 
 
@@ -148,15 +167,24 @@ class Skipped(BaseModel):
     reason: str
 
 
+class CharacterWarning(BaseModel):
+    id: str
+    index: int = Field(description="position in the request's characters")
+    reason: str = Field(description="what its motion could not keep, where, and why")
+
+
 class SynthesizeResponse(BaseModel):
     animal: str
     skeleton_id: str = Field(description="identifies the joint layout; GET /v1/libraries/{animal}")
     fps: float = Field(description="frame rate of the output (the library's)")
     encoding: Encoding
     resample_rate: float = Field(description="r >= 1: every path was resampled to r times its frames "
-                                             "because some character was faster than the library")
+                                             "('resample', or min_resample_rate, asked for it)")
     characters: list[CharacterOut]
     skipped: list[Skipped] = Field(default_factory=list)
+    warnings: list[CharacterWarning] = Field(default_factory=list,
+                                             description="characters made, but whose motion could not "
+                                                         "keep up (e.g. too fast: feet slide)")
 
 
 class LibrarySummary(BaseModel):

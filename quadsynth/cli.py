@@ -14,6 +14,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from synth_core import SIZE_MATCHING, TEMPO_SPREAD
+
 if TYPE_CHECKING:
     from synth_core.skeleton import Skeleton
     from synth_core.synthesis import Result
@@ -156,7 +158,8 @@ def _synth(args: argparse.Namespace, extra: list[str]) -> int:
     library = _load_library(args.animal, args.library)
     bank = build_bank(library)
     options = Options(sigma=args.sigma, seed=args.seed, scale_range=(args.scale_min, args.scale_max),
-                      skip_invalid=args.skip_invalid)
+                      skip_invalid=args.skip_invalid, resample=args.resample,
+                      size_matching=args.size_matching, tempo_spread=args.tempo_spread)
     result = synthesize(bank, traj.positions, traj.fps, options=options, ids=traj.ids,
                         progress=_progress("synthesizing"))
     ids = [traj.ids[c] for c in result.kept]
@@ -175,7 +178,9 @@ def _client_synth(args: argparse.Namespace, extra: list[str]) -> int:
         herd = remote.synthesize(args.url, traj.positions, traj.fps, traj.ids, animal=args.animal,
                                  progress=_progress("requests"), seed=args.seed, sigma=args.sigma,
                                  scale_min=args.scale_min, scale_max=args.scale_max,
-                                 skip_invalid=args.skip_invalid, encoding=args.encoding)
+                                 skip_invalid=args.skip_invalid, encoding=args.encoding,
+                                 resample=args.resample, size_matching=args.size_matching,
+                                 tempo_spread=args.tempo_spread)
     except ServiceError as exc:
         raise ValueError(f"the service refused: {exc}") from None
     except httpx.HTTPError as exc:
@@ -191,11 +196,14 @@ def _write_herd(args: argparse.Namespace, skeleton: Skeleton, result: Result, id
 
     for c, why in sorted(result.rejected.items()):
         print(f"skipped character {all_ids[c]}: {why}", file=sys.stderr)
+    for c, why in sorted(result.warnings.items()):
+        print(f"warning: character {all_ids[c]}: {why}", file=sys.stderr)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     summary = {"characters": len(ids), "frames": int(result.root_pos.shape[1]), "fps": fps,
                "resample_rate": result.resample_rate, "animal": animal,
-               "skipped": {all_ids[c]: why for c, why in result.rejected.items()}}
+               "skipped": {all_ids[c]: why for c, why in result.rejected.items()},
+               "warnings": {all_ids[c]: why for c, why in result.warnings.items()}}
     np.savez_compressed(out / "motion.npz", root_pos=result.root_pos, rotations=result.rotations,
                         gait=result.gait, contacts=result.contacts, scales=result.scales, ids=np.array(ids))
     if args.bvh:
@@ -257,6 +265,16 @@ def _herd_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--scale-min", type=float, default=0.8)
     parser.add_argument("--scale-max", type=float, default=1.2)
     parser.add_argument("--skip-invalid", action="store_true", help="skip bad characters instead of failing")
+    parser.add_argument("--resample", action="store_true",
+                        help="the paper's global resampling: a character too fast for the library slows "
+                             "the whole herd's clock (default: the clock is kept; a character too fast "
+                             "even at its fastest stride rate is reported on stderr)")
+    parser.add_argument("--size-matching", choices=SIZE_MATCHING, default="froude",
+                        help="froude (default): a character of scale h takes the gait of the same Froude "
+                             "number and steps at 1/sqrt(h) the frequency; geometric: the paper's s/h")
+    parser.add_argument("--tempo-spread", type=float, default=TEMPO_SPREAD,
+                        help=f"each character's stride frequency varies by up to this share (default "
+                             f"{TEMPO_SPREAD}; 0: none)")
     parser.add_argument("--out", required=True, help="output directory: motion.npz, summary.json, BVH files")
     parser.add_argument("--bvh", action="store_true", help="write DIR/<id>.bvh per character (centimetres)")
     parser.add_argument("--glb", help="write the herd as one glTF 2.0 binary FILE.glb")

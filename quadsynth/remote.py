@@ -102,9 +102,11 @@ def synthesize(url: str, positions: NDArray[np.floating], fps: float, ids: list[
     kept: list[int] = []
     characters: list[CharacterMotion] = []
     rejected: dict[int, str] = {}
+    warnings: dict[int, str] = {}
     for (a, b), motion in sorted(done.items()):
         skipped = {int(s["index"]): str(s["reason"]) for s in motion.skipped}
         rejected.update({a + i: why for i, why in skipped.items()})
+        warnings.update({a + int(w["index"]): str(w["reason"]) for w in motion.warnings})
         kept += [a + i for i in range(b - a) if i not in skipped]
         characters += motion.characters
     lengths = {len(ch.root) for ch in characters}
@@ -121,6 +123,6 @@ def synthesize(url: str, positions: NDArray[np.floating], fps: float, ids: list[
         stitches=np.zeros((len(characters), T), bool),
         scales=np.array([ch.scale for ch in characters]),
         path=resample(np.asarray(positions[kept_idx], np.float64), T),  # the ground under each root
-        resample_rate=rate, kept=kept_idx, rejected=rejected)
+        resample_rate=rate, kept=kept_idx, rejected=rejected, warnings=warnings)
     return Remote(result, skeleton_of(detail), tuple(HUBS), float(detail["fps"]),
                   [ch.id for ch in characters], requests)

@@ -236,8 +236,8 @@ def produce(job: jobs.Job, bank: Bank, meta: dict[str, Any], emit: Callable[[Any
     packer = None if as_json else msgpack.Packer(use_bin_type=True)
     characters = [character(packer, job.ids[c], float(h[i]), n, J, encoding)
                   for i, (c, n) in enumerate(zip(prep.kept, frames, strict=True))]
-    skipped = [{"id": job.ids[c], "index": c, "reason": why} for c, why in sorted(prep.rejected.items())]
-    whole = {**meta, "resample_rate": prep.resample_rate, "characters": characters, "skipped": skipped}
+    whole = {**meta, "resample_rate": prep.resample_rate, "characters": characters,
+             "skipped": jobs.skipped(job, prep), "warnings": jobs.warned(job, prep)}
     parts = json_template(whole) if as_json else template(whole)
     emit(sum(p.size if isinstance(p, Hole) else len(p) for p in parts))
     holes = [i for i, p in enumerate(parts) if isinstance(p, Hole)]  # four per character, in order

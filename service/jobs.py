@@ -20,7 +20,7 @@ from service.settings import Settings
 from synth_core.bank import Bank
 from synth_core.streaming import BatchStream
 from synth_core.synthesis import Options, Result
-from synth_core.trajectory import FrameLimitError, TrajectoryError, resampled_frames
+from synth_core.trajectory import FrameLimitError, Prepared, TrajectoryError, resampled_frames
 
 
 class Cancelled(Exception):
@@ -124,8 +124,8 @@ def parse(body: Any, settings: Settings, banks: dict[str, Bank]) -> Job:
     lengths = [len(p) for p in paths]
     bank = banks[req.animal]
     # Counted at the library's frame rate and resampled at least min_resample_rate: that many
-    # frames come back at least. A too-fast herd may be resampled more (up to 8x, see
-    # trajectory.MAX_RESAMPLE): checked again once that is known, before it is made.
+    # frames come back at least. A too-fast herd that asks for 'resample' may be resampled more
+    # (up to 8x, see trajectory.MAX_RESAMPLE): checked again once that is known, before it is made.
     out_frames = resampled_frames(int(round((max(lengths) - 1) * bank.fps / req.fps)) + 1,
                                   req.min_resample_rate)
     total = out_frames * len(paths)
@@ -159,13 +159,16 @@ def character_scales_and_seeds(req: SynthesizeRequest) -> tuple[NDArray[np.float
 def options(req: SynthesizeRequest, max_character_frames: int | None = None) -> Options:
     return Options(sigma=req.sigma, seed=req.seed, scale_range=(req.scale_min, req.scale_max),
                    skip_invalid=req.skip_invalid, foot_lock=req.foot_lock, first_index=req.first_index,
-                   min_resample_rate=req.min_resample_rate, max_character_frames=max_character_frames)
+                   min_resample_rate=req.min_resample_rate, resample=req.resample,
+                   size_matching=req.size_matching, tempo_spread=req.tempo_spread,
+                   max_character_frames=max_character_frames)
 
 
 def trajectory_error(exc: TrajectoryError, job: Job) -> ApiError:
     if isinstance(exc, FrameLimitError):
         return ApiError(422, "characters", f"{exc} (max_character_frames): the paths need resampling "
-                                           f"(a character faster than the library, or min_resample_rate); "
+                                           f"('resample' of a character faster than the library, or "
+                                           f"min_resample_rate); "
                                            f"send fewer characters or frames per request")
     message = str(exc.args[0]) if exc.args else str(exc)
     if exc.character is None:
@@ -193,5 +196,15 @@ def output_frames(job: Job, frames: int, kept: Iterable[int]) -> list[int]:
     return [int(round((job.lengths[c] - 1) / (longest - 1) * (frames - 1))) + 1 for c in kept]
 
 
-def skipped(job: Job, result: Result | BatchStream) -> list[dict[str, Any]]:
-    return [{"id": job.ids[c], "index": c, "reason": why} for c, why in sorted(result.rejected.items())]
+def skipped(job: Job, result: Result | BatchStream | Prepared) -> list[dict[str, Any]]:
+    """The characters dropped (``skip_invalid``), as the answer lists them."""
+    return notes(job, result.rejected)
+
+
+def warned(job: Job, result: Result | BatchStream | Prepared) -> list[dict[str, Any]]:
+    """The characters made whose motion could not keep their path, as the answer lists them."""
+    return notes(job, result.warnings)
+
+
+def notes(job: Job, found: dict[int, str]) -> list[dict[str, Any]]:
+    return [{"id": job.ids[c], "index": c, "reason": why} for c, why in sorted(found.items())]

@@ -31,7 +31,8 @@ def open_live(body: Any, settings: Settings, banks: dict[str, Bank]) -> tuple[Li
     try:
         live = LiveShards(bank, len(req.characters), req.fps, scales=scales, seed=req.seed, seeds=seeds,
                           scale_range=(req.scale_min, req.scale_max), sigma=req.sigma,
-                          foot_lock=req.foot_lock, heading=req.heading,
+                          foot_lock=req.foot_lock, heading=req.heading, size_matching=req.size_matching,
+                          tempo_spread=req.tempo_spread,
                           reuse_windows=True)  # a window is packed before the next is made
     except TrajectoryError as exc:
         raise live_error(exc, "characters") from None

@@ -256,7 +256,7 @@ class Session:
                 "frames": stream.frames, "chunk_frames": chunk_frames, "chunks": count,
                 "characters": [{"id": i, "scale": float(h), "frames": n}
                                for i, h, n in zip(ids, stream.character_scales, frames, strict=True)],
-                "skipped": jobs.skipped(job, stream)})
+                "skipped": jobs.skipped(job, stream), "warnings": jobs.warned(job, stream)})
             while sent < count:
                 if making is None:  # chunks after the first: made when the window has room
                     await self.wait_for_room(sent)

@@ -28,3 +28,11 @@ FOOT_NAMES: tuple[str, str, str, str] = ("LF", "RF", "LH", "RH")
 
 UP_AXIS = 1
 """Index of the vertical axis (Y up)."""
+
+SIZE_MATCHING: tuple[str, str] = ("froude", "geometric")
+"""How a character of scale h uses the library (synth_core.synthesis.character_tempo)."""
+
+TEMPO_SPREAD = 0.06
+"""Each character's own stride frequency, uniform within +- this share of its size's (seeded).
+Individuals of one size at one speed differ by a few per cent; without it a herd of equal sizes
+started together stepped as one (issue 28: 58% of frames with the same 4-foot pattern)."""

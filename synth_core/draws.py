@@ -19,6 +19,7 @@ _M1 = np.uint64(0xBF58476D1CE4E5B9)
 _M2 = np.uint64(0x94D049BB133111EB)
 SCALE_STREAM = 0  # the scale drawn for a character given none
 SCHEDULE_STREAM = 1  # + the decision step: the gait picked where several cover the speed
+TEMPO_STREAM = 1 << 40  # a character's own stride tempo (far past any decision step's stream)
 LANES = 8  # draws per stream and character, at most
 
 

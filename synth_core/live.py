@@ -38,7 +38,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from synth_core import gaussian, kernels, plan_kernels, render_pool
+from synth_core import TEMPO_SPREAD, gaussian, kernels, plan_kernels, render_pool
 from synth_core.bank import Bank
 from synth_core.draws import SCHEDULE_STREAM, character_keys, uniform
 from synth_core.footlock import EASE_FRAMES, PAD
@@ -56,6 +56,7 @@ from synth_core.synthesis import (
     _plan_tables,
     blend_rows,
     character_scales,
+    character_tempo,
     decision_step,
     distance_since,
     entry_frame,
@@ -186,7 +187,8 @@ class LiveSynth:
                  scale_range: tuple[float, float] = (1.0, 1.0), sigma: float = DEFAULT_SIGMA,
                  margin: int = MARGIN, foot_lock: bool = True, backend: str = "auto",
                  heading: float = 0.0, lock_lag: int = LOCK_LAG, first: int = 0,
-                 reuse_windows: bool = False, share_render: bool = False) -> None:
+                 reuse_windows: bool = False, share_render: bool = False, size_matching: str = "froude",
+                 tempo_spread: float = TEMPO_SPREAD) -> None:
         if not (isinstance(n_characters, int) and n_characters >= 1):
             raise TrajectoryError(f"characters: need at least one, got {n_characters}")
         fps = bank.fps if fps is None else float(fps)
@@ -213,6 +215,8 @@ class LiveSynth:
         if not (np.isfinite(self.scales) & (self.scales > 0)).all():
             bad = int(np.flatnonzero(~(np.isfinite(self.scales) & (self.scales > 0)))[0])
             raise TrajectoryError(f"scale: must be a positive number, got {self.scales[bad]}", bad)
+        self.tempo = character_tempo(self.keys, self.scales, size_matching, tempo_spread)
+        self.pace = self.scales * self.tempo  # path speed over this: the library's (synthesis.plan)
         ratio = bank.fps / fps
         self.out_step = int(round(ratio)) if abs(ratio - round(ratio)) < 1e-9 else 1
         self.kinds = _kinds(bank)
@@ -239,7 +243,7 @@ class LiveSynth:
         # fresh memory, 20-30 ms of a 2,000-horse session's finish (page faults).
         self.path = _Columns(C, [((3,), np.float64)], 2 * self.latency_frames + self._end_frames)
         self.n_path = 0
-        self.seg = np.zeros((C, 0))  # segment speeds / scale
+        self.seg = np.zeros((C, 0))  # segment speeds / (scale x tempo): the library's speeds
         self.seg_start = 0
         self.n_seg = 0
         self.walked = np.zeros(C)  # unscaled distance along the path up to the next frame planned
@@ -436,7 +440,7 @@ class LiveSynth:
             step = np.linalg.norm(np.diff(pts[..., _GROUND], axis=1), axis=-1)
             counts = np.full(whole - self.n_seg, m)  # as segment_speeds divides, for the same bits
             speeds = step.reshape(len(step), -1, m).sum(axis=2) / counts * self.bank.fps
-            self.seg = np.concatenate([self.seg, speeds / self.scales[:, None]], axis=1)
+            self.seg = np.concatenate([self.seg, speeds / self.pace[:, None]], axis=1)
             self.n_seg = whole
 
     def _path(self, a: int, b: int) -> Floats:
@@ -513,7 +517,7 @@ class LiveSynth:
         n = np.arange(len(go))
         # The gait's stride clock on to its entry phase (these characters only: a stride ahead).
         v = self._speeds(np.arange(a, a + self.horizon + 1), go)
-        clock = hub_clocks(self.bank, cur, v, a, self.clock[:, go])
+        clock = hub_clocks(self.bank, cur, v, a, self.clock[:, go], self.tempo[go])
         wait, tr, resume = switch(self.kinds, cur, new, P.first[go, j], clock[n, d - a] - P.clock0[go, j])
         begin = entry_frame(clock, d - a, wait) + a
         assert (begin <= a + self.horizon).all(), "the horizon covers a stride from the decision on"
@@ -528,7 +532,7 @@ class LiveSynth:
         frames t0 .. t0 + n from the carried ones, and the pieces' starts and ends there
         (the numpy reference of :func:`plan_kernels.live_block`'s scan)."""
         n = v.shape[1]
-        clocks = stride_clocks(self.bank, self.kinds, v, t0, self.clock)
+        clocks = stride_clocks(self.bank, self.kinds, v, t0, self.clock, self.tempo)
         step = np.linalg.norm(np.diff(pts[..., _GROUND], axis=1), axis=-1)
         walked = np.cumsum(np.concatenate([self.walked[:, None], step], axis=1), axis=1)  # (C, n+1)
         self._start_distances(t0, n, walked)
@@ -603,6 +607,7 @@ class LiveSynth:
         P = self.pieces
         walked = plan_kernels.live_block(
             self.tables, self.bank.contacts, MAX_RATE, self.margin, self.bank.creep, t0, v, pts, self.scales,
+            self.tempo,
             self.clock, self.walked, (P.start, P.kind, P.first, P.clock0, P.trav0), P.before, self.busy, out,
             self.out_step)
         if out is not None:

@@ -99,6 +99,40 @@ def touchdown_groups(contacts: NDArray[np.bool_], sync_frames: int) -> list[tupl
     return groups
 
 
+def footfall_phases(contacts: NDArray[np.bool_]) -> dict[str, float]:
+    """Each foot's touchdown in one stride of a cyclic clip ``contacts (F, 4)``, as a share of the
+    stride after LH's (LH: 0). Raises when a foot does not touch down exactly once a stride."""
+    contacts = np.asarray(contacts, bool)
+    F = len(contacts)
+    down = {FOOT_NAMES[k]: frames.tolist() for k, frames in enumerate(touchdowns(contacts, cyclic=True))}
+    if any(len(f) != 1 for f in down.values()):
+        raise ValueError(f"contacts: each foot must touch down once a stride, got {down}")
+    lh = down["LH"][0]
+    return {foot: ((f[0] - lh) % F) / F for foot, f in down.items()}
+
+
+def stride_in_order(down: Sequence[NDArray[np.int64]], t0: int, t1: int, phases: dict[str, float],
+                    tolerance: float) -> bool:
+    """Whether the stride from LH's touchdown at ``t0`` to its next at ``t1`` steps as ``phases``
+    (:func:`footfall_phases`): each foot touches down once in the stride-long window centred where
+    its phase puts it, within ``tolerance`` frames of there. ``down``: each foot's touchdown
+    frames (:func:`touchdowns`), feet in FOOT_NAMES order.
+
+    In phase, not in frames or touchdown groups: a character stepping a few per cent faster or
+    slower than the clip (its size's tempo, a sprint) shifts each touchdown by a fraction of a
+    frame, which moves a pair a frame apart in or out of a fixed frame window, while its order
+    and timing within the stride stay the clip's."""
+    length = t1 - t0
+    for k, foot in enumerate(FOOT_NAMES):
+        if foot == "LH":
+            continue
+        expected = t0 + phases[foot] * length
+        frames = down[k][(down[k] >= expected - 0.5 * length) & (down[k] < expected + 0.5 * length)]
+        if len(frames) != 1 or abs(frames[0] - expected) > tolerance:
+            return False
+    return True
+
+
 def footfall_template(contacts: NDArray[np.bool_], sync_frames: int) -> list[list[str]]:
     """The touchdown groups of one stride of a cyclic clip, starting with LH's group.
 

@@ -90,4 +90,4 @@ def synthesize_onthefly(bank: Bank, library: Library, positions: ArrayLike, fps:
     draw = kernels.render if compiled_backend(options) else render
     root, rotations = draw(extended, p, options.foot_lock)
     return Result(root, rotations, p.gait, p.contacts, p.stitches, h, p.path,
-                  prep.resample_rate, prep.kept, prep.rejected)
+                  prep.resample_rate, prep.kept, prep.rejected, prep.warnings)

@@ -104,7 +104,7 @@ def _interp(x: float, xp: Any) -> float:
 
 
 @_jit()
-def _clocks(v: Any, high: Any, max_rate: float, out: Any) -> None:
+def _clocks(v: Any, high: Any, max_rate: float, tempo: float, out: Any) -> None:
     """stride_clocks for one character: ``out (N_HUBS + 1, T + 1)`` (``high``: each hub's
     fastest clip, -inf for none; the last row is every transition's: plain time)."""
     T = v.shape[0]
@@ -114,7 +114,7 @@ def _clocks(v: Any, high: Any, max_rate: float, out: Any) -> None:
         out[hub, 0] = 0.0
         for t in range(T):
             if has:
-                acc += min(max(v[t] / high[hub], 1.0), max_rate)
+                acc += min(max(v[t] / high[hub], 1.0), max_rate) * tempo
             else:
                 acc = float(t + 1)
             out[hub, t + 1] = acc
@@ -266,8 +266,9 @@ def _frames(offset: Any, frames_of: Any, clips: Any, cyclic: Any, source: Any, t
 def _plan_all(offset: Any, frames_of: Any, clips: Any, cyclic: Any, source: Any, target: Any, tr_kind: Any,
               entry: Any, exit_: Any, total: Any, low: Any, high: Any, curve_at: Any, curves: Any,
               contacts_of: Any, slowest: int, fastest: int, max_rate: float, margin: int,
-              n_hubs: int, step: int, ahead: int, creep: float, v: Any, path: Any, h: Any, draws: Any,
-              workers: int, rows: Any, weights: Any, gait: Any, contacts: Any, stitches: Any) -> None:
+              n_hubs: int, step: int, ahead: int, creep: float, v: Any, path: Any, h: Any, tempo: Any,
+              draws: Any, workers: int, rows: Any, weights: Any, gait: Any, contacts: Any,
+              stitches: Any) -> None:
     C, T = v.shape
     E = 1 + 2 * draws.shape[1]
     workers = min(C, workers)
@@ -278,7 +279,7 @@ def _plan_all(offset: Any, frames_of: Any, clips: Any, cyclic: Any, source: Any,
         kind = np.empty(E, np.int64)
         first = np.empty(E, np.int64)
         for c in range(worker, C, workers):
-            _clocks(v[c], high, max_rate, clocks)
+            _clocks(v[c], high, max_rate, tempo[c], clocks)
             acc = 0.0
             travelled[0] = 0.0
             for t in range(1, T):
@@ -295,13 +296,14 @@ def _plan_all(offset: Any, frames_of: Any, clips: Any, cyclic: Any, source: Any,
 
 def plan_frames(tb: Tables, contacts_of: NDArray[np.bool_], slowest: int, fastest: int, max_rate: float,
                 margin: int, step: int, ahead: int, creep: float, v: NDArray[np.float64],
-                path: NDArray[np.float64], h: NDArray[np.float64], draws: NDArray[np.float64],
-                frames: int | None = None
+                path: NDArray[np.float64], h: NDArray[np.float64], tempo: NDArray[np.float64],
+                draws: NDArray[np.float64], frames: int | None = None
                 ) -> tuple[NDArray[np.int32], NDArray[np.float32], NDArray[np.int8], NDArray[np.bool_],
                            NDArray[np.bool_]]:
     """A plan's ``rows, weights, gait, contacts, stitches`` (see ``synthesis.Plan``) for speeds
-    ``v (C, T)`` (the library's unit), smoothed ``path (C, T, 3)``, scales ``h (C,)`` and each
-    decision's draws ``(C, decisions, hubs)``; of the first ``frames`` frames (default: all T),
+    ``v (C, T)`` (the library's unit), smoothed ``path (C, T, 3)``, scales ``h (C,)``, stride
+    tempos ``tempo (C,)`` (synthesis.character_tempo) and each decision's draws ``(C, decisions,
+    hubs)``; of the first ``frames`` frames (default: all T),
     the schedule made from all T."""
     if not AVAILABLE:
         raise RuntimeError("synth_core.plan_kernels needs numba; use the numpy backend")
@@ -316,7 +318,8 @@ def plan_frames(tb: Tables, contacts_of: NDArray[np.bool_], slowest: int, fastes
     _plan_all(k.offset, k.frames, k.clips, k.cyclic, k.source, k.target, k.tr_kind, k.entry, k.exit, tb.total,
               tb.low, tb.high, tb.curve_at, tb.curves, contacts_of, slowest, fastest, max_rate,
               margin, len(tb.low), step, ahead, creep, c(v, np.float64), c(path, np.float64),
-              c(h, np.float64), c(draws), numba.get_num_threads(), rows, weights, gait, contacts, stitches)
+              c(h, np.float64), c(tempo, np.float64), c(draws), numba.get_num_threads(), rows, weights, gait,
+              contacts, stitches)
     return rows, weights, gait, contacts, stitches
 
 
@@ -328,7 +331,7 @@ def plan_frames(tb: Tables, contacts_of: NDArray[np.bool_], slowest: int, fastes
 # time in parallel, in the reference's operations and order: the plans are equal bit for bit.
 
 @_jit()
-def _live_scan(c: int, t0: int, n: int, v: Any, pts: Any, h: float, high: Any, max_rate: float,
+def _live_scan(c: int, t0: int, n: int, v: Any, pts: Any, h: float, tempo: float, high: Any, max_rate: float,
                n_hubs: int, creep: float, total: Any, clock_in: Any, walked_in: Any, start: Any, kind: Any,
                clock0: Any, trav0: Any, busy: Any, clocks: Any, walked: Any) -> None:
     """Frames [t0, t0 + n) of character c: its clocks ``(n_hubs + 1, n + 1)`` and distance
@@ -341,7 +344,7 @@ def _live_scan(c: int, t0: int, n: int, v: Any, pts: Any, h: float, high: Any, m
             acc = clock_in[hub, c]
             clocks[hub, 0] = acc
             for t in range(n):
-                acc += min(max(v[t] / high[hub], 1.0), max_rate)
+                acc += min(max(v[t] / high[hub], 1.0), max_rate) * tempo
                 clocks[hub, t + 1] = acc
         else:  # plain time
             for t in range(n + 1):
@@ -381,7 +384,8 @@ def _live_scan(c: int, t0: int, n: int, v: Any, pts: Any, h: float, high: Any, m
 @_jit(parallel=True)
 def _live_block(offset: Any, frames_of: Any, clips: Any, cyclic: Any, source: Any, target: Any, total: Any,
                 high: Any, curve_at: Any, curves: Any, contacts_of: Any, max_rate: float, margin: int,
-                n_hubs: int, creep: float, t0: int, v: Any, pts: Any, h: Any, clock: Any, walked_in: Any,
+                n_hubs: int, creep: float, t0: int, v: Any, pts: Any, h: Any, tempo: Any, clock: Any,
+                walked_in: Any,
                 start: Any, kind: Any, first: Any, clock0: Any, trav0: Any, before: Any, busy: Any,
                 with_rows: bool, out_step: int, workers: int, rows: Any, weights: Any, gait: Any,
                 contacts: Any, stitches: Any, walked_out: Any) -> None:
@@ -393,8 +397,8 @@ def _live_block(offset: Any, frames_of: Any, clips: Any, cyclic: Any, source: An
         walked = np.empty(n + 1)
         for c in range(worker, C, workers):
             hc = h[c]
-            _live_scan(c, t0, n, v[c], pts[c], hc, high, max_rate, n_hubs, creep, total, clock, walked_in,
-                       start, kind, clock0, trav0, busy, clocks, walked)
+            _live_scan(c, t0, n, v[c], pts[c], hc, tempo[c], high, max_rate, n_hubs, creep, total, clock,
+                       walked_in, start, kind, clock0, trav0, busy, clocks, walked)
             walked_out[c] = walked[n]
             if not with_rows:
                 continue
@@ -443,8 +447,8 @@ def _live_block(offset: Any, frames_of: Any, clips: Any, cyclic: Any, source: An
 
 def live_block(tb: Tables, contacts_of: NDArray[np.bool_], max_rate: float, margin: int, creep: float,
                t0: int, v: NDArray[np.float64], pts: NDArray[np.float64], h: NDArray[np.float64],
-               clock: NDArray[np.float64], walked: NDArray[np.float64], slots: tuple[NDArray[Any], ...],
-               before: NDArray[np.bool_], busy: NDArray[np.int64],
+               tempo: NDArray[np.float64], clock: NDArray[np.float64], walked: NDArray[np.float64],
+               slots: tuple[NDArray[Any], ...], before: NDArray[np.bool_], busy: NDArray[np.int64],
                out: tuple[NDArray[Any], ...] | None, out_step: int = 1) -> NDArray[np.float64]:
     """Frames ``[t0, t0 + n)`` of a live plan (``v (C, n)`` speeds, ``pts (C, n + 1, 3)`` path):
     the pieces' ``slots`` (start, kind, first, clock0, trav0, each ``(C, SLOTS)``) and ``busy``
@@ -467,9 +471,9 @@ def live_block(tb: Tables, contacts_of: NDArray[np.bool_], max_rate: float, marg
     sent = -(-(t0 + n) // out_step) - -(-t0 // out_step)
     assert not with_rows or all(a.shape[:2] == (C, sent) for a in out), "out: a row per frame sent"
     _live_block(k.offset, k.frames, k.clips, k.cyclic, k.source, k.target, tb.total, tb.high, tb.curve_at,
-                tb.curves, contacts_of, max_rate, margin, len(tb.low), creep, t0, v, pts, h, clock, walked,
-                start, kind, first, clock0, trav0, before, busy, with_rows, out_step, numba.get_num_threads(),
-                rows, weights, gait, contacts, stitches, walked_out)
+                tb.curves, contacts_of, max_rate, margin, len(tb.low), creep, t0, v, pts, h, tempo, clock,
+                walked, start, kind, first, clock0, trav0, before, busy, with_rows, out_step,
+                numba.get_num_threads(), rows, weights, gait, contacts, stitches, walked_out)
     return walked_out
 
 

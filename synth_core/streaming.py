@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import functools
 from collections.abc import Iterator
-from dataclasses import dataclass, field, fields, replace
+from dataclasses import dataclass, field, fields
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -124,6 +124,10 @@ class BatchStream:
         return self.prep.rejected
 
     @property
+    def warnings(self) -> dict[int, str]:
+        return self.prep.warnings
+
+    @property
     def resample_rate(self) -> float:
         return self.prep.resample_rate
 
@@ -166,8 +170,7 @@ class BatchStream:
         their lock context's if that is enough; and the part's whole plan if it took it.
         ``shared``: one of parts side by side on the pool, whose renders the part done first
         helps finish (the parts' plans and contexts differ: one ended up to 5 ms after the other)."""
-        prep = replace(self.prep, positions=self.prep.positions[rows],
-                       segment_speeds=self.prep.segment_speeds[rows])
+        prep = self.prep.rows(rows)
         h, keys = self.character_scales[rows], self.keys[rows]
         compiled, T = compiled_backend(self.options), self.frames
         margin, lock = self.options.margin, self.options.foot_lock

@@ -31,14 +31,21 @@ from __future__ import annotations
 
 import functools
 from collections.abc import Callable, Iterator
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from synth_core import UP_AXIS, kernels, plan_kernels, quat
+from synth_core import SIZE_MATCHING, TEMPO_SPREAD, UP_AXIS, kernels, plan_kernels, quat
 from synth_core.bank import STATIC, Bank
-from synth_core.draws import SCALE_STREAM, SCHEDULE_STREAM, character_keys, uniform, uniform_streams
+from synth_core.draws import (
+    SCALE_STREAM,
+    SCHEDULE_STREAM,
+    TEMPO_STREAM,
+    character_keys,
+    uniform,
+    uniform_streams,
+)
 from synth_core.footlock import lock_feet
 from synth_core.scratch import Scratch
 from synth_core.trajectory import DEFAULT_SIGMA, Prepared, TrajectoryError, prepare
@@ -67,6 +74,10 @@ class Options:
     first_index: int = 0  # the batch's first character's index in the herd (its draws' counter)
     min_resample_rate: float = 1.0  # resample at least this much (a herd split into batches: the
     # rate of the batch with the fastest character, so every batch keeps the same frames)
+    resample: bool = False  # the paper's global resampling where a character is too fast (default:
+    # the caller's clock is kept, and a character too fast even at MAX_RATE gets a warning)
+    size_matching: str = "froude"  # how a character of scale h uses the library (character_tempo)
+    tempo_spread: float = TEMPO_SPREAD  # each character's own stride tempo, +- this share
     max_character_frames: int | None = None  # refuse (FrameLimitError) a batch that would make more
 
 
@@ -83,6 +94,7 @@ class Result:
     resample_rate: float
     kept: NDArray[np.int64]  # input characters synthesized
     rejected: dict[int, str] = field(default_factory=dict)
+    warnings: dict[int, str] = field(default_factory=dict)  # input index -> what its motion could not keep
 
 
 @dataclass(frozen=True)
@@ -173,23 +185,25 @@ def transition_distances(bank: Bank, kinds: _Kinds) -> Floats:
 
 
 def stride_clocks(bank: Bank, kinds: _Kinds, speed: Floats, t0: int = 0,
-                  at: Floats | None = None) -> Floats:
+                  at: Floats | None = None, tempo: Floats | None = None) -> Floats:
     """(N_HUBS + 1, C, T+1): per hub, the stride frames played before each frame; the last row
     (every transition's) is plain time. ``speed`` holds frames ``t0 ...``, and ``at (N_HUBS + 1,
     C)`` the clocks at frame t0 (default 0: the clocks start there).
 
-    One clip frame per output frame -- unless the character is asked for more speed than the
-    gait's fastest clip has (a transition still under way, a sprint): then the stride plays up to
-    MAX_RATE times faster, so the feet keep pace instead of sliding.
+    ``tempo (C,)`` clip frames per output frame (:func:`character_tempo`; default 1) -- times up
+    to MAX_RATE where the character is asked for more speed than the gait's fastest clip has (a
+    transition still under way, a sprint), so the feet keep pace instead of sliding.
     """
     C, T = speed.shape
     clocks = np.broadcast_to(np.arange(t0, t0 + T + 1, dtype=np.float64), (N_HUBS + 1, C, T + 1)).copy()
+    k = np.ones(C) if tempo is None else tempo
     for hub, s in bank.speeds.items():
-        clocks[hub] = _stride_clock(speed, s[-1], np.zeros(C) if at is None else at[hub])
+        clocks[hub] = _stride_clock(speed, s[-1], np.zeros(C) if at is None else at[hub], k)
     return clocks
 
 
-def hub_clocks(bank: Bank, hubs: NDArray[np.int64], speed: Floats, t0: int, at: Floats) -> Floats:
+def hub_clocks(bank: Bank, hubs: NDArray[np.int64], speed: Floats, t0: int, at: Floats,
+               tempo: Floats) -> Floats:
     """(C, T+1): :func:`stride_clocks`' row of each character's own hub ``hubs (C,)`` only (the
     same numbers; a live decision reads no other: a fifth of the work)."""
     C, T = speed.shape
@@ -197,14 +211,39 @@ def hub_clocks(bank: Bank, hubs: NDArray[np.int64], speed: Floats, t0: int, at: 
     for hub, s in bank.speeds.items():
         who = np.flatnonzero(hubs == hub)
         if len(who):
-            clocks[who] = _stride_clock(speed[who], s[-1], at[hub, who])
+            clocks[who] = _stride_clock(speed[who], s[-1], at[hub, who], tempo[who])
     return clocks
 
 
-def _stride_clock(speed: Floats, fastest: float, begin: Floats) -> Floats:
-    """One hub's clock from ``begin (C,)``: a clip frame per frame, up to MAX_RATE faster."""
-    rate = np.clip(speed / fastest, 1.0, MAX_RATE)
+def _stride_clock(speed: Floats, fastest: float, begin: Floats, tempo: Floats) -> Floats:
+    """One hub's clock from ``begin (C,)``: ``tempo`` clip frames per frame, up to MAX_RATE faster."""
+    rate = np.clip(speed / fastest, 1.0, MAX_RATE) * tempo[:, None]
     return np.asarray(np.cumsum(np.concatenate([begin[:, None], rate], axis=1), axis=1))
+
+
+def character_tempo(keys: NDArray[np.uint64], h: Floats, matching: str = "froude",
+                    spread: float = TEMPO_SPREAD) -> Floats:
+    """Each character's stride tempo k: clip frames per output frame. A character of scale h
+    (its lengths h times the library's) at speed s plays the library's motion of speed
+    ``s / (h k)`` -- stride length h times the clip's, frequency k times -- so its feet keep pace.
+
+    ``froude`` (dynamic similarity, the default): k = 1 / sqrt(h), so a character asks for the
+    library's motion at the same Froude number v^2 / (g h) -- the same gait, duty factor and
+    relative stride -- and steps with frequency ~ 1 / sqrt(h) (Alexander & Jayes 1983;
+    Pennycuick 1975: stepping frequency ~ size^-0.5 in walk, trot and canter). ``geometric``
+    (the paper's s / h matching): k = 1, every size steps at the library's frequency. Either
+    way times ``1 + spread u``, u uniform in [-1, 1) from the character's key."""
+    if matching not in SIZE_MATCHING:
+        raise TrajectoryError(f"size_matching: must be one of {SIZE_MATCHING}, got {matching!r}")
+    if not (np.isfinite(spread) and 0 <= spread <= 0.25):
+        raise TrajectoryError(f"tempo_spread: must be within [0, 0.25], got {spread}")
+    fine = np.isfinite(h) & (h > 0)  # others are refused with the trajectory checks
+    froude = np.where(fine, 1 / np.sqrt(np.where(fine, h, 1.0)), 1.0)
+    base = froude if matching == "froude" else np.ones(len(h))
+    if spread == 0:
+        return np.asarray(base, np.float64)
+    u = 2 * uniform(keys, TEMPO_STREAM)[:, 0] - 1
+    return np.asarray(base * (1 + spread * u), np.float64)
 
 
 def switch(kinds: _Kinds, cur: NDArray[np.int64], new: NDArray[np.int64], first: NDArray[np.int64],
@@ -441,7 +480,11 @@ def plan(bank: Bank, prep: Prepared, h: Floats, keys: NDArray[np.uint64], margin
     C, T = path.shape[:2]
     kinds = _kinds(bank)
     m = prep.segment
-    speeds = prep.segment_speeds / h[:, None]  # the library motion's speed for each character
+    tempo = np.ones(C) if prep.tempo is None else prep.tempo
+    # The library motion's speed for each character: at its scale and tempo (character_tempo).
+    # Distances stay over h alone: a transition plays by distance, and its clip's planted feet
+    # stay planted only if it plays at the path's distance at the character's size.
+    speeds = prep.segment_speeds / (h * tempo)[:, None]
     keep = T
     if frames is not None and frames + lookahead(m) + 1 < T:
         keep = max(frames, 1)
@@ -456,9 +499,9 @@ def plan(bank: Bank, prep: Prepared, h: Floats, keys: NDArray[np.uint64], margin
         # Rows of the frames kept only (the schedule reads T: a first window's took twice as long).
         rows, weights, gait, contacts, stitches = plan_kernels.plan_frames(
             tb, bank.contacts, min(bank.speeds), max(bank.speeds), MAX_RATE, margin, step, lookahead(m),
-            bank.creep, v, path, h, draws, keep)
+            bank.creep, v, path, h, tempo, draws, keep)
         return Plan(rows, weights, yaw, path[:, :keep], h, contacts, stitches, gait)
-    clocks = stride_clocks(bank, kinds, v)
+    clocks = stride_clocks(bank, kinds, v, tempo=tempo)
     step = np.linalg.norm(np.diff(path[..., [0, 2]], axis=1), axis=-1)
     travelled = np.concatenate([np.zeros((C, 1)), np.cumsum(step, axis=1)], axis=1) / h[:, None]
     start, kind_e, first_e = schedule(bank, kinds, v, m, travelled, clocks, keys)
@@ -559,9 +602,10 @@ def prepare_batch(bank: Bank, positions: ArrayLike, fps: float | None, scales: A
         raise TrajectoryError(f"margin: must be an integer within [0, 60] frames, got {options.margin}")
     if options.backend not in BACKENDS:
         raise TrajectoryError(f"backend: must be one of {BACKENDS}, got {options.backend!r}")
+    tempo = character_tempo(keys, all_scales, options.size_matching, options.tempo_spread)
     prep = prepare(positions, fps, bank.fps, bank.top_speed, bank.mean_cycle, all_scales,
-                   options.sigma, options.skip_invalid, ids, options.min_resample_rate,
-                   options.max_character_frames)
+                   options.sigma, options.skip_invalid, ids, options.min_resample_rate, options.resample,
+                   MAX_RATE, tempo, options.max_character_frames)
     return prep, all_scales[prep.kept], keys[prep.kept]
 
 
@@ -588,7 +632,7 @@ def render_chunk(bank: Bank, prep: Prepared, h: Floats, keys: NDArray[np.uint64]
     rotations go into ``out`` (those characters' rows) or else ``scratch``'s arrays, which then
     hold until it renders again; the render kernel's working sets are kept in ``scratch``."""
     sl = characters
-    part = replace(prep, positions=prep.positions[sl], segment_speeds=prep.segment_speeds[sl])
+    part = prep.rows(sl)
     compiled = compiled_backend(options)
     p = plan(bank, part, h[sl], keys[sl], options.margin, compiled=compiled)
     if out is None:
@@ -640,7 +684,8 @@ def synthesize(bank: Bank, positions: ArrayLike, fps: float | None = None,
 
     ``seeds (C,)``: a character's own seed (``-1``: none, it draws from ``options.seed`` and its
     index); a character's motion depends on its seed, not on the rest of the batch (save for the
-    batch's resampling rate, when some character is too fast for the library).
+    batch's resampling rate, when ``options.resample`` and some character is too fast for the
+    library).
 
     The batch is checked and resampled as a whole, then planned and rendered ``CHUNK`` characters
     at a time (:func:`render_chunks`); ``progress(done, total)`` is called after each chunk.
@@ -672,4 +717,4 @@ def synthesize(bank: Bank, positions: ArrayLike, fps: float | None = None,
         if progress:
             progress(sl.stop, C)
     return Result(out[0], out[1], gait, contacts, stitches, h, prep.positions,
-                  prep.resample_rate, prep.kept, prep.rejected)
+                  prep.resample_rate, prep.kept, prep.rejected, prep.warnings)

@@ -7,12 +7,16 @@ the same frame count at one frame rate. Steps, in the paper's order:
    not become stride-by-stride speed changes.
 2. **Segment** into ``m``-frame pieces (``m``: the library's mean gait cycle) and measure each
    piece's speed ``s = l / n`` (ground length over frames; reported in m/s).
-3. **Resample.** If any character (at its scale ``h``: a character of scale h runs the library's
-   motion at ``s / h``) is faster than the library's fastest clip, *every* trajectory is
-   resampled by ``r = s_max / top`` -- time-uniformly, so each path keeps its shape and length,
-   its point count grows by r, and the herd's formation is kept. Speeds beyond
-   ``MAX_RESAMPLE`` times the top speed are refused rather than resampled: they are teleports or
-   unit mistakes, not animals, and would multiply the output's length.
+3. **Clock.** By default the simulator's clock is kept: one output frame per input frame (at the
+   library's rate), whatever the speeds. A character (at its scale ``h``: it runs the library's
+   motion at ``s / h``) faster than the library's fastest clip plays its fastest gait's stride
+   faster, up to ``stride_rate`` times (synthesis' MAX_RATE); beyond that its feet cannot keep
+   pace, and it gets a *warning* naming it, the frame and the speeds (its motion is still made).
+   The paper's **resampling** is an option (``resample``): then, if any character is too fast,
+   *every* trajectory is resampled by ``r = s_max / top`` -- time-uniformly, so each path keeps
+   its shape and length, its point count grows by r, and the herd's formation is kept. Either
+   way, a character faster than ``MAX_RESAMPLE`` times the top speed is refused (or, with
+   ``skip_invalid``, dropped): a teleport or a unit mistake, not an animal.
 
 Bad input raises :class:`TrajectoryError` naming the character and the problem, or, with
 ``skip_invalid``, drops that character and reports why (nobody else's work is lost).
@@ -24,7 +28,7 @@ import functools
 import os
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import TypeVar
 
 import numpy as np
@@ -89,6 +93,13 @@ class Prepared:
     resample_rate: float  # r >= 1 (1: not resampled)
     kept: NDArray[np.int64]  # indices of the input characters kept
     rejected: dict[int, str] = field(default_factory=dict)  # input index -> why it was skipped
+    warnings: dict[int, str] = field(default_factory=dict)  # input index -> what could not be kept
+    tempo: Floats | None = None  # (C,) each character's stride-frequency factor (None: all 1)
+
+    def rows(self, rows: slice) -> Prepared:
+        """The characters ``rows`` alone (a chunk or part of the batch)."""
+        return replace(self, positions=self.positions[rows], segment_speeds=self.segment_speeds[rows],
+                       tempo=None if self.tempo is None else self.tempo[rows])
 
 
 def check(positions: ArrayLike, fps: float, ids: list[str] | None = None) -> NDArray[np.floating]:
@@ -221,10 +232,15 @@ def resample_and_measure(smoothed: Floats, frames: int, segment: int, fps: float
 def prepare(positions: ArrayLike, fps: float, library_fps: float, top_speed: float, segment: int,
             scales: NDArray[np.floating], sigma: float = DEFAULT_SIGMA,
             skip_invalid: bool = False, ids: list[str] | None = None,
-            min_rate: float = 1.0, max_character_frames: int | None = None) -> Prepared:
-    """Validate, bring to the library's frame rate, smooth, resample if needed (at least by
-    ``min_rate``), segment. :class:`FrameLimitError` before resampling when the kept characters
-    would come out with more than ``max_character_frames`` frames in all."""
+            min_rate: float = 1.0, resample: bool = False, stride_rate: float = 1.0,
+            tempo: NDArray[np.floating] | None = None, max_character_frames: int | None = None) -> Prepared:
+    """Validate, bring to the library's frame rate, smooth, resample if asked (``resample``: where
+    a character is too fast; and at least by ``min_rate``), segment. ``stride_rate``: how much
+    faster than its fastest clip a gait's stride may play (a character faster than that at its
+    scale gets a warning when the clock is kept). ``tempo (C,)``: each character's stride
+    frequency factor k (it asks the library for ``s / (h k)``; default 1). :class:`FrameLimitError`
+    before resampling when the kept characters would come out with more than
+    ``max_character_frames`` frames in all."""
     arr = check(positions, fps, ids)
     if not (np.isfinite(sigma) and 0 <= sigma <= 100):
         raise TrajectoryError(f"sigma: must be within [0, 100] frames, got {sigma}")
@@ -243,13 +259,31 @@ def prepare(positions: ArrayLike, fps: float, library_fps: float, top_speed: flo
         raise TrajectoryError(ALL_INVALID + ": " +
                               "; ".join(f"{names[c]}: {why}" for c, why in sorted(bad.items())))
     smoothed, speeds = smooth_and_measure(arr, kept, fps, library_fps, sigma, segment)
-    fastest = float((speeds / scales[kept, None]).max())
-    rate = max(1.0, fastest / top_speed)
-    if rate > MAX_RESAMPLE:
-        fast = int(kept[int((speeds / scales[kept, None]).max(axis=1).argmax())])
-        raise TrajectoryError(
-            f"positions: moves at {fastest:.1f} m/s for its scale, more than {MAX_RESAMPLE:g}x the "
-            f"library's fastest {top_speed:.2f} m/s (check the unit: metres, and the fps)", names[fast])
+    pace = scales if tempo is None else scales * np.asarray(tempo, np.float64)
+    own = speeds / pace[kept, None]  # (C, K) the library's speed each character asks for
+    unfit = _too_fast(own, MAX_RESAMPLE * top_speed, segment)
+    if unfit:
+        why = {int(kept[i]): (f"positions: moves at {s:.1f} m/s for its scale at frame {f}, more than "
+                              f"{MAX_RESAMPLE:g}x the library's fastest {top_speed:.2f} m/s (check the "
+                              f"unit: metres, and the fps)") for i, (f, s) in unfit.items()}
+        if not skip_invalid:
+            first = min(why)
+            raise TrajectoryError(why[first], names[first])
+        bad.update(why)
+        stay = np.setdiff1d(np.arange(len(kept)), list(unfit))
+        if len(stay) == 0:
+            raise TrajectoryError(ALL_INVALID + ": " +
+                                  "; ".join(f"{names[c]}: {w}" for c, w in sorted(bad.items())))
+        kept, smoothed, speeds, own = kept[stay], smoothed[stay], speeds[stay], own[stay]
+    rate = max(1.0, float(own.max()) / top_speed) if resample else 1.0
+    warnings: dict[int, str] = {}
+    if rate == 1.0:
+        limit = stride_rate * top_speed
+        warnings = {int(kept[i]): (f"moves at {s:.1f} m/s for its scale at frame {f}, faster than the "
+                                   f"library's fastest gait can step ({top_speed:.2f} m/s, its stride up "
+                                   f"to {stride_rate:g}x faster: {limit:.2f} m/s): its feet slide there; "
+                                   f"'resample' slows the herd's clock instead")
+                    for i, (f, s) in _too_fast(own, limit, segment).items()}
     rate = max(rate, min_rate)
     F = smoothed.shape[1]
     n = resampled_frames(F, rate)
@@ -260,4 +294,13 @@ def prepare(positions: ArrayLike, fps: float, library_fps: float, top_speed: flo
         # The paper's order: the smoothed paths are resampled (not the raw ones smoothed again:
         # that smoothed every resampled batch twice, a seventh of its synthesis time).
         smoothed, speeds = resample_and_measure(smoothed, n, segment, library_fps)
-    return Prepared(smoothed, segment, speeds, float(rate), kept, bad)
+    return Prepared(smoothed, segment, speeds, float(rate), kept, bad, warnings,
+                    None if tempo is None else np.asarray(tempo, np.float64)[kept])
+
+
+def _too_fast(speeds: Floats, limit: float, segment: int) -> dict[int, tuple[int, float]]:
+    """Rows of ``speeds (C, K)`` (segment speeds) over ``limit``: row -> (the first such segment's
+    first frame, the row's top speed)."""
+    over = speeds > limit * (1 + 1e-9)
+    rows = np.flatnonzero(over.any(axis=1))
+    return {int(c): (int(over[c].argmax()) * segment, float(speeds[c].max())) for c in rows}

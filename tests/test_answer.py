@@ -50,7 +50,7 @@ def whole(job: jobs.Job, bank: Bank, meta: dict[str, Any], as_json: bool = False
     ids = [job.ids[c] for c in result.kept]
     reply = {**meta, "resample_rate": result.resample_rate,
              "characters": characters_out(result, ids, frames, req.encoding),
-             "skipped": jobs.skipped(job, result)}
+             "skipped": jobs.skipped(job, result), "warnings": jobs.warned(job, result)}
     if as_json:
         return json.dumps(_base64(reply), separators=(",", ":")).encode()
     return msgpack.packb(reply, use_bin_type=True)  # type: ignore[no-any-return]

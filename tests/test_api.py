@@ -169,6 +169,24 @@ def test_skip_invalid_keeps_the_others_work(server: str, herd: np.ndarray) -> No
     assert body["skipped"] == [{"id": "h1", "index": 1, "reason": "positions: NaN or Inf at frame 7"}]
 
 
+def test_a_character_too_fast_keeps_the_clock_and_is_warned_of_unless_resampling_is_asked(
+        server: str, herd: np.ndarray) -> None:
+    fast = herd[:3].copy()
+    fast[2] = fast[2, :1] + (fast[2] - fast[2, :1]) * 4.0  # far beyond the horse's gallop
+    for encoding in ("s48", "f32"):
+        body = msgpack.unpackb(post(server, batch(fast, encoding=encoding)).content)
+        assert body["resample_rate"] == 1.0 and [c["frames"] for c in body["characters"]] == [240] * 3
+        assert [(w["id"], w["index"]) for w in body["warnings"]] == [("h2", 2)]
+        assert "moves at" in body["warnings"][0]["reason"] and "resample" in body["warnings"][0]["reason"]
+        assert body["skipped"] == []
+    resampled = msgpack.unpackb(post(server, batch(fast, resample=True)).content)
+    assert resampled["resample_rate"] > 1.5 and resampled["warnings"] == []
+    assert resampled["characters"][0]["frames"] > 240
+    as_text = httpx.post(f"{server}/v1/synthesize", content=as_json(batch(fast, encoding="f32")),
+                         headers={"content-type": "application/json"}, timeout=60).json()
+    assert [w["id"] for w in as_text["warnings"]] == ["h2"]
+
+
 def test_limits_are_published_and_enforced(server: str, herd: np.ndarray) -> None:
     limits = httpx.get(f"{server}/v1/limits").json()
     assert limits["max_characters"] == 40 and limits["max_body_bytes"] == 1024 * 1024

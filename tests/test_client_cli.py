@@ -25,9 +25,10 @@ def server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
 
 @pytest.fixture(scope="module")
 def herd() -> np.ndarray:
-    """20 horses, one of them (17, in the last request) too fast for the library: resampled."""
+    """20 horses, one of them (17, in the last request) too fast for the library even at its
+    fastest stride rate: resampled with --resample, else warned of."""
     positions = crowd.simulate(20, 300, seed=1)
-    positions[17] = positions[17, :1] + (positions[17] - positions[17, :1]) * 3.0
+    positions[17] = positions[17, :1] + (positions[17] - positions[17, :1]) * 5.0
     return positions.astype(np.float32)
 
 
@@ -47,18 +48,29 @@ def same_motion(a: Path, b: Path) -> None:
         np.testing.assert_allclose(remote[key], local[key], atol=1e-5, err_msg=key)
 
 
+@pytest.mark.parametrize("resample", [True, False])
 def test_client_synth_cuts_the_herd_and_gets_the_local_motion(server: str, herd: np.ndarray, tmp_path: Path,
-                                                               capsys: pytest.CaptureFixture[str]) -> None:
+                                                               capsys: pytest.CaptureFixture[str],
+                                                               resample: bool) -> None:
     traj = crowd_io.write_npz(tmp_path / "traj.npz", herd, 60.0)
+    flag = ["--resample"] if resample else []
     code, summary, err = run("client", "synth", "--url", server, "--trajectories", str(traj), "--seed", "7",
                              "--out", str(tmp_path / "remote"), "--bvh", "--glb", str(tmp_path / "r.glb"),
-                             capsys=capsys)
+                             *flag, capsys=capsys)
     assert code == 0, err
-    assert "5 request(s)" in err  # 8 + 8 + 4 characters, then the first two again at the last's rate
+    # 8 + 8 + 4 characters (resampled: then the first two again at the last's rate)
+    assert f"{5 if resample else 3} request(s)" in err
+    assert ("warning: character 17: moves at" in err) != resample
     code, local, err = run("synth", "--trajectories", str(traj), "--seed", "7",
-                           "--out", str(tmp_path / "local"), capsys=capsys)
+                           "--out", str(tmp_path / "local"), *flag, capsys=capsys)
     assert code == 0, err
-    assert summary == local and float(summary["resample_rate"]) > 1.0  # type: ignore[arg-type]
+    assert summary == local
+    if resample:
+        assert float(summary["resample_rate"]) > 1.0  # type: ignore[arg-type]
+        assert summary["warnings"] == {}
+    else:  # the clock kept: a frame out per frame in, the too-fast horse named
+        assert summary["resample_rate"] == 1.0 and summary["frames"] == herd.shape[1]
+        assert list(summary["warnings"]) == ["17"]  # type: ignore[call-overload]
     same_motion(tmp_path / "remote", tmp_path / "local")
     files = sorted(p.name for p in (tmp_path / "remote").glob("*.bvh"))
     assert files == sorted(f"{c}.bvh" for c in range(20))

@@ -146,19 +146,19 @@ def test_the_frame_limit_holds_after_resampling(server: str) -> None:
     error = refused(post(server, batch(paths, min_resample_rate=8)), 422, "min_resample_rate",
                     "max_character_frames", "resampled 8x")
     assert "51 characters x 7993 frames" in error["message"]
-    # Made necessary: characters twice as fast as the library's fastest gallop (scale 1) need
-    # their paths resampled 2x -- 80 x 4000 frames fit the limit, 80 x 8000 do not.
+    # Asked for with 'resample': characters twice as fast as the library's fastest gallop (scale 1)
+    # get their paths resampled 2x -- 80 x 4000 frames fit the limit, 80 x 8000 do not.
     top = 2.0 * float(httpx.get(f"{server}/v1/libraries/horse").json()["gaits"][-1]["max_speed"])
     fast = np.zeros((80, 4000, 3), np.float32)
     fast[:, :, 2] = np.arange(4000) / 60.0 * top
     fast[:, :, 0] = np.arange(80)[:, None] * 3.0
-    body = batch(fast)
+    body = batch(fast, resample=True)
     for ch in body["characters"]:
         ch["scale"] = 1.0
     refused(post(server, body), 422, "characters", "max_character_frames", "resampled", "80 characters")
     # The same herd at half the speed needs no resampling and is answered.
     fast[:, :, 2] /= 4.0
-    assert post(server, batch(fast, encoding="i16")).status_code == 200
+    assert post(server, batch(fast, encoding="i16", resample=True)).status_code == 200
 
 
 def test_coordinates_beyond_the_documented_range_are_refused_naming_the_character(server: str) -> None:

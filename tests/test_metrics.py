@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from synth_core import FOOT_NAMES, quat
 from synth_core import metrics as M
-from synth_core import quat
 from synth_core.skeleton import forward_kinematics
 from tests.conftest import toy_skeleton
 from tests.test_contacts import TEMPLATES, synthetic_gait
@@ -110,3 +110,31 @@ def test_penetration_and_bone_length_change() -> None:
     assert change.max_mm == pytest.approx(10.0, rel=1e-3)
     assert change.max_pct == pytest.approx(5.0, rel=1e-3)
     del lower
+
+
+def test_a_stride_is_judged_in_phase_whatever_its_tempo() -> None:
+    """A rotary gallop whose RH lands 3 frames before the next LH (over the 2-frame window of
+    simultaneity): played 6% faster, the pair falls 2 or 3 frames apart by rounding, and
+    grouping touchdowns by frames reads a changed order; in phase it is the same stride. A
+    foot out of its place, or stepping twice, is still caught."""
+    F = 25
+    lands = {"LF": 7, "RF": 12, "LH": 3, "RH": 25 + 0}  # RH at frame 0 of the next stride
+    clip = np.zeros((F, 4), bool)
+    for k, foot in enumerate(FOOT_NAMES):
+        f = lands[foot] % F
+        clip[(f + np.arange(8)) % F, k] = True
+    phases = M.footfall_phases(clip)
+    assert phases == {"LF": 4 / 25, "RF": 9 / 25, "LH": 0.0, "RH": 22 / 25}
+    t = np.arange(400)
+    fast = clip[np.floor(t * 1.06).astype(int) % F]  # the clip played at tempo 1.06
+    down = M.touchdowns(fast)
+    lh = down[FOOT_NAMES.index("LH")]
+    strides = list(zip(lh[:-1], lh[1:], strict=False))
+    assert len(strides) > 10
+    assert all(M.stride_in_order(down, int(a), int(b), phases, 3.0) for a, b in strides)
+    grouped = [g for _, g in M.touchdown_groups(fast, 2)]  # what frame windows make of it
+    assert len({frozenset(g) for g in grouped}) > 4  # some strides read [LH, RH] together
+    late = fast.copy()
+    late[:, FOOT_NAMES.index("RF")] = np.roll(fast[:, FOOT_NAMES.index("RF")], 6)  # RF 6 frames late
+    down = M.touchdowns(late)
+    assert not any(M.stride_in_order(down, int(a), int(b), phases, 3.0) for a, b in strides[1:-1])

@@ -41,8 +41,8 @@ def test_compiled_lock_context_is_the_reference() -> None:
 @pytest.mark.parametrize("backend", ["numba", "numpy"])
 @pytest.mark.parametrize("foot_lock", [True, False])
 def test_windows_equal_the_whole_batch(bank: Bank, backend: str, foot_lock: bool) -> None:
-    paths = crowd.simulate(12, 500, seed=3, top=9.0)  # too fast: resampled, every gait
-    opts = Options(scale_range=(0.8, 1.2), backend=backend, foot_lock=foot_lock, seed=5)
+    paths = crowd.simulate(12, 500, seed=3, top=12.0)  # too fast: resampled, every gait
+    opts = Options(scale_range=(0.8, 1.2), backend=backend, foot_lock=foot_lock, seed=5, resample=True)
     whole = synthesize(bank, paths, options=opts)
     for chunk in (1, 7, 30, 10_000):
         if backend == "numpy" and chunk == 1:

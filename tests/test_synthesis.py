@@ -185,6 +185,12 @@ def test_issue_5_quality_figures_on_the_standard_scenario(animal: str) -> None:
     assert fig["pop_ratio"] <= 1.5
     assert fig["penetration_mm"] <= 5.0 and fig["nan_count"] == 0
     assert min(fig["gait_frames"].values()) > 0.05 * 500 * 500  # every gait used, and not in passing
+    # Today's defaults (the clock kept, Froude sizes, each character's tempo): the same bounds on
+    # the path, skate and footfall within a gait; pops and transition strides are reported.
+    now = fig["defaults"]
+    assert now["resample_rate"] == 1.0 and now["nan_count"] == 0 and now["penetration_mm"] <= 5.0
+    assert now["path_error_cm_max"] <= 1.0 and now["skate_mm_p95"] <= 3.0
+    assert now["footfall_preserved"] >= 0.99
 
 
 def test_footfall_strides_with_a_piece_starting_inside_are_counted_apart(bank: Bank) -> None:
@@ -222,3 +228,59 @@ def test_pops_are_looked_for_near_each_stitch_only() -> None:
     near = evaluate.near_stitches(stitches, 2)
     assert near[0].tolist() == [False] * 7 + [True] * 3  # the last frame's stitch does not wrap round
     assert near[1].tolist() == [False] * 2 + [True] * 5 + [False] * 3
+
+
+def _steady(speeds: list[float], frames: int = 900) -> np.ndarray:
+    """Characters on parallel straight lines, each at its own steady speed (m/s, 60 fps),
+    after a second's stand."""
+    t = np.clip(np.arange(frames) - 60, 0, None) / 60.0
+    return np.stack([np.stack([np.full(frames, 3.0 * c), np.zeros(frames), s * t], axis=-1)
+                     for c, s in enumerate(speeds)])
+
+
+def _stride_frames(res: Result, c: int) -> float:
+    """Median frames between LH touchdowns over the last 400 frames (the gait settled)."""
+    down = np.flatnonzero(np.diff(res.contacts[c, -400:, 2].astype(int)) == 1)
+    return float(np.median(np.diff(down)))
+
+
+def test_sizes_are_dynamically_similar_by_default_and_geometric_as_the_paper_on_request(bank: Bank) -> None:
+    """Froude: a character of scale h at speed v moves as the library does at v / sqrt(h) -- the
+    same gait at the same v^2 / (g h) -- with stride frequency ~ 1 / sqrt(h) (Alexander & Jayes
+    1983). So a half-size and a double-size horse at the same Froude number take the same gait,
+    the small one at twice the frequency; the paper's s/h matching steps every size at the
+    library's frequency, and sends a half-size horse at 3 m/s into a faster gait."""
+    canter = bank.hubs.index("canter")
+    v1 = float(np.mean(bank.speeds[canter][[0, -1]]))  # the library's mid canter, scale 1
+    h = np.array([0.5, 2.0])
+    paths = _steady(list(v1 * np.sqrt(h)))  # one Froude number for both
+    froude = synthesize(bank, paths, scales=h, options=Options(tempo_spread=0.0))
+    assert (froude.gait[:, -400:] == canter).all()
+    small, big = _stride_frames(froude, 0), _stride_frames(froude, 1)
+    assert big / small == pytest.approx(2.0, rel=0.08)  # sqrt(2.0 / 0.5)
+    # A half-size horse at 3 m/s: s/h asks the library for 6 m/s (a gallop), Froude for 4.2.
+    paper = synthesize(bank, _steady([3.0]), scales=[0.5],
+                       options=Options(size_matching="geometric", tempo_spread=0.0))
+    dynamic = synthesize(bank, _steady([3.0]), scales=[0.5], options=Options(tempo_spread=0.0))
+    assert paper.gait[0, -1] == bank.hubs.index("gallop") and dynamic.gait[0, -1] < paper.gait[0, -1]
+    same_fr = synthesize(bank, _steady(list(v1 * h)), scales=h,  # s/h alike: one frequency for both
+                         options=Options(size_matching="geometric", tempo_spread=0.0))
+    assert _stride_frames(same_fr, 0) == pytest.approx(_stride_frames(same_fr, 1), abs=1.0)
+
+
+def test_each_character_steps_at_its_own_tempo_seeded(bank: Bank) -> None:
+    """Equal horses at one speed: stride periods spread within +- the tempo spread (drawn per
+    character from its key: the same seed, the same tempos); none with spread 0."""
+    paths = _steady([2.2] * 8)
+    opts = Options(scale_range=(1.0, 1.0), seed=3)
+    res = synthesize(bank, paths, options=opts)
+    periods = np.array([_stride_frames(res, c) for c in range(8)])
+    assert periods.max() / periods.min() > 1.03 and periods.max() / periods.min() < (1.06 / 0.94) * 1.03
+    again = synthesize(bank, paths, options=opts)
+    assert np.array_equal(again.contacts, res.contacts)
+    same = synthesize(bank, paths, options=Options(scale_range=(1.0, 1.0), seed=3, tempo_spread=0.0))
+    assert len({_stride_frames(same, c) for c in range(8)}) == 1
+    with pytest.raises(TrajectoryError, match="tempo_spread"):
+        synthesize(bank, paths, options=Options(tempo_spread=0.5))
+    with pytest.raises(TrajectoryError, match="size_matching"):
+        synthesize(bank, paths, options=Options(size_matching="cubic"))

@@ -27,7 +27,7 @@ def test_resampling_keeps_every_path_length_and_the_formation() -> None:
     step = np.stack([np.sin(heading), 0 * t, np.cos(heading)], axis=-1) * (speed / 60.0)[:, None]
     base = np.cumsum(step, axis=0)[None]
     herd = base + np.array([[0, 0, 0], [2, 0, 0], [0, 0, 3]])[:, None]  # three in formation
-    fast = prepare(herd, 60.0, 60.0, top_speed=1.0, segment=40, scales=np.ones(3), sigma=0.0)
+    fast = prepare(herd, 60.0, 60.0, top_speed=1.0, segment=40, scales=np.ones(3), sigma=0.0, resample=True)
     assert fast.resample_rate == pytest.approx(segment_speeds(herd, 40, 60.0).max(), rel=0.01)
     assert fast.resample_rate > 1.0
     assert fast.positions.shape[1] == round(199 * fast.resample_rate) + 1
@@ -36,8 +36,38 @@ def test_resampling_keeps_every_path_length_and_the_formation() -> None:
     gap = fast.positions - fast.positions[:1]  # the formation: same offsets at every frame
     assert np.allclose(gap[1], [2, 0, 0], atol=1e-9) and np.allclose(gap[2], [0, 0, 3], atol=1e-9)
     assert segment_speeds(fast.positions, 40, 60.0).max() <= 1.02
-    slow = prepare(herd, 60.0, 60.0, top_speed=100.0, segment=40, scales=np.ones(3), sigma=0.0)
+    slow = prepare(herd, 60.0, 60.0, top_speed=100.0, segment=40, scales=np.ones(3), sigma=0.0, resample=True)
     assert slow.resample_rate == 1.0 and slow.positions.shape == herd.shape
+
+
+def test_the_clock_is_kept_and_a_character_too_fast_even_at_the_stride_limit_is_warned_of() -> None:
+    """By default no resampling: one frame out per frame in. A character faster than the
+    library's top speed times the stride limit is named with the frame and speeds; one within
+    the limit (its stride plays faster) is not; the others' paths are untouched."""
+    herd = np.stack([line(300, 2.0), line(300, 3.5, offset=2.0), line(300, 5.0, offset=4.0)])
+    herd[2, 150:] = herd[2, 150] + (herd[2, 150:] - herd[2, 150]) * 1.6  # 8 m/s from frame 150
+    out = prepare(herd, 60.0, 60.0, top_speed=3.0, segment=40, scales=np.ones(3), sigma=0.0, stride_rate=1.6)
+    assert out.resample_rate == 1.0 and out.positions.shape == herd.shape
+    assert list(out.warnings) == [2]  # 3.5 m/s is within 3.0 x 1.6; 5 and then 8 m/s are not
+    why = out.warnings[2]
+    assert "at frame 0" in why and "8.0 m/s" in why and "4.80 m/s" in why and "resample" in why
+    assert np.allclose(out.positions[:2], herd[:2])
+    paper = prepare(herd, 60.0, 60.0, top_speed=3.0, segment=40, scales=np.ones(3), sigma=0.0,
+                    stride_rate=1.6, resample=True)
+    assert paper.resample_rate > 2.5 and paper.warnings == {}  # resampled: slow enough for the library
+
+
+def test_a_character_no_animal_could_follow_is_refused_alone() -> None:
+    """Faster than MAX_RESAMPLE x the library's top speed: an error naming the character, or
+    with skip_invalid that character skipped and the others kept."""
+    herd = np.stack([line(200, 2.0), line(200, 40.0, offset=2.0), line(200, 1.0, offset=4.0)])
+    with pytest.raises(TrajectoryError, match=r"character 1: .*moves at 40.0 m/s .* at frame 0") as exc:
+        prepare(herd, 60.0, 60.0, top_speed=3.0, segment=40, scales=np.ones(3), sigma=0.0)
+    assert exc.value.character == "1"
+    out = prepare(herd, 60.0, 60.0, top_speed=3.0, segment=40, scales=np.ones(3), sigma=0.0,
+                  skip_invalid=True)
+    assert list(out.kept) == [0, 2] and list(out.rejected) == [1] and out.positions.shape == (2, 200, 3)
+    assert np.allclose(out.positions, herd[[0, 2]])
 
 
 def test_the_smoothed_paths_are_resampled_in_the_papers_order() -> None:
@@ -80,8 +110,8 @@ def test_a_batch_of_many_row_blocks_keeps_its_order_and_its_errors() -> None:
 def test_big_characters_are_judged_at_their_own_scale() -> None:
     """A horse twice the size runs the library's motion at half the speed: no resampling."""
     path = line(100, 6.0)[None]
-    assert prepare(path, 60.0, 60.0, 4.0, 40, np.array([1.0]), sigma=0.0).resample_rate > 1.4
-    assert prepare(path, 60.0, 60.0, 4.0, 40, np.array([2.0]), sigma=0.0).resample_rate == 1.0
+    assert prepare(path, 60.0, 60.0, 4.0, 40, np.array([1.0]), sigma=0.0, resample=True).resample_rate > 1.4
+    assert prepare(path, 60.0, 60.0, 4.0, 40, np.array([2.0]), sigma=0.0, resample=True).resample_rate == 1.0
 
 
 def test_other_frame_rates_are_brought_to_the_librarys() -> None:
@@ -134,7 +164,7 @@ def test_a_rate_reported_by_one_batch_gives_another_batch_the_same_frames() -> N
     t = np.arange(200) / 60.0
     fast = np.stack([3.0 * t, 0 * t, 0 * t], axis=-1)[None]  # 3 m/s
     slow = np.stack([0.5 * t, 0 * t, 0 * t], axis=-1)[None]
-    first = prepare(fast, 60.0, 60.0, 2.2, 40, np.ones(1), sigma=0.0)
+    first = prepare(fast, 60.0, 60.0, 2.2, 40, np.ones(1), sigma=0.0, resample=True)
     assert first.resample_rate > 1.0
     second = prepare(slow, 60.0, 60.0, 2.2, 40, np.ones(1), sigma=0.0, min_rate=first.resample_rate)
     assert second.resample_rate == first.resample_rate
