@@ -44,6 +44,20 @@ CLOSE_TIMEOUT_S = 1.0
 CLOSE_FOR = {413: TOO_BIG, 415: INVALID_DATA, 422: INVALID_DATA, 503: TRY_LATER, 504: TRY_LATER}
 
 
+def give_back(taking: asyncio.Future[Callable[[], None]]) -> None:
+    """A slot being taken that is not wanted any more: the taking cancelled, or the slot given
+    back should it be (or have been) taken after all."""
+    def done(future: asyncio.Future[Callable[[], None]]) -> None:
+        if not future.cancelled() and future.exception() is None:
+            future.result()()
+
+    if taking.done():
+        done(taking)
+    else:
+        taking.cancel()
+        taking.add_done_callback(done)
+
+
 class Closing(Exception):
     """End the session: send ``error`` (if any), then close with ``code``."""
 
@@ -196,13 +210,12 @@ class Session:
         drain = asyncio.ensure_future(self.state.drain.wait())
         try:
             await asyncio.wait({taking, drain}, return_when=asyncio.FIRST_COMPLETED)
+            self.check()  # draining: 1001
+        except BaseException:  # that, or this coroutine cancelled: the slot is not taken
+            give_back(taking)
+            raise
         finally:
             drain.cancel()
-        if not taking.done():
-            taking.cancel()
-            with contextlib.suppress(asyncio.CancelledError):
-                (await taking)()  # it got the slot as it was cancelled: given back
-        self.check()  # draining: 1001
         return taking.result()
 
     async def in_pool(self, fn: Any, *args: Any) -> Any:
