@@ -13,6 +13,7 @@ Needs httpx (and websockets to stream); the server is not needed to import this 
 from __future__ import annotations
 
 import json
+import logging
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass, field
@@ -23,6 +24,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from api_schemas.wire import MSGPACK, Encoding, blob, decode_rotations, unblob
+
+log = logging.getLogger("quadsynth.client")
 
 
 class ServiceError(RuntimeError):
@@ -131,6 +134,16 @@ class _Body:
         self.size = end
 
 
+    def whole(self) -> bytearray:
+        if self.size < len(self.buffer):  # httpx says so first; a guard all the same
+            raise CutShort(f"answer cut short: {self.size} of {len(self.buffer)} bytes")
+        return self.buffer
+
+
+class CutShort(RuntimeError):
+    """An answer that ended before its Content-Length (its connection closed): worth retrying."""
+
+
 def read_body(response: Any) -> bytes | bytearray:
     """The body of a streamed httpx ``response`` (see :class:`_Body`)."""
     if not _Body.applies(response.status_code, response.headers):
@@ -138,7 +151,7 @@ def read_body(response: Any) -> bytes | bytearray:
     body = _Body(response.headers)
     for piece in response.iter_raw():
         body.add(piece)
-    return body.buffer
+    return body.whole()
 
 
 async def aread_body(response: Any) -> bytes | bytearray:
@@ -148,7 +161,22 @@ async def aread_body(response: Any) -> bytes | bytearray:
     body = _Body(response.headers)
     async for piece in response.aiter_raw():
         body.add(piece)
-    return body.buffer
+    return body.whole()
+
+
+def _retriable() -> tuple[type[BaseException], ...]:
+    """Failures after which the same request may simply be sent again: the connection failed or
+    closed before the answer was whole (a replica that died mid-answer). Synthesis is
+    idempotent -- the same body and seed give the same bytes -- so a retry is safe."""
+    import httpx
+
+    return (httpx.TransportError, CutShort)
+
+
+def _note_retry(client: Client | AsyncClient, attempt: int, exc: BaseException) -> None:
+    client.retries += 1
+    log.warning("synthesize: attempt %d of %d failed (%s: %s); retrying", attempt + 1,
+                client.max_retries + 1, type(exc).__name__, exc)
 
 
 def _raise_for(status: int, content: bytes | bytearray) -> None:
@@ -162,12 +190,15 @@ def _raise_for(status: int, content: bytes | bytearray) -> None:
 
 
 class Client:
-    """Synchronous client; ``timeout`` in seconds (synthesis of big batches takes a while)."""
+    """Synchronous client; ``timeout`` in seconds (synthesis of big batches takes a while).
+    ``max_retries``: how many times :meth:`synthesize` sends a request again whose answer was
+    cut short or whose connection failed; ``retries`` counts the retries made."""
 
-    def __init__(self, url: str, timeout: float = 120.0) -> None:
+    def __init__(self, url: str, timeout: float = 120.0, max_retries: int = 2) -> None:
         import httpx
 
         self._http = httpx.Client(base_url=url.rstrip("/"), timeout=timeout)
+        self.max_retries, self.retries = max_retries, 0
 
     def __enter__(self) -> Client:
         return self
@@ -197,10 +228,17 @@ class Client:
     def synthesize(self, positions: ArrayLike, ids: Sequence[str] | None = None,
                    scales: Sequence[float | None] | None = None, **options: Any) -> Motion:
         """``options``: the request's fields (animal, fps, seed, sigma, encoding, skip_invalid, ...)."""
-        with self._http.stream("POST", "/v1/synthesize",
-                               content=request_body(positions, ids, scales, **options),
-                               headers={"content-type": MSGPACK, "accept": MSGPACK}) as response:
-            content = read_body(response)
+        raw = request_body(positions, ids, scales, **options)
+        for attempt in range(self.max_retries + 1):
+            try:
+                with self._http.stream("POST", "/v1/synthesize", content=raw,
+                                       headers={"content-type": MSGPACK, "accept": MSGPACK}) as response:
+                    content = read_body(response)
+                break
+            except _retriable() as exc:
+                if attempt == self.max_retries:
+                    raise
+                _note_retry(self, attempt, exc)
         _raise_for(response.status_code, content)
         return decode_response(content)
 
@@ -310,10 +348,11 @@ class LiveSession:
 class AsyncClient:
     """The same, for asyncio."""
 
-    def __init__(self, url: str, timeout: float = 120.0) -> None:
+    def __init__(self, url: str, timeout: float = 120.0, max_retries: int = 2) -> None:
         import httpx
 
         self._http = httpx.AsyncClient(base_url=url.rstrip("/"), timeout=timeout)
+        self.max_retries, self.retries = max_retries, 0
 
     async def __aenter__(self) -> AsyncClient:
         return self
@@ -323,9 +362,16 @@ class AsyncClient:
 
     async def synthesize(self, positions: ArrayLike, ids: Sequence[str] | None = None,
                          scales: Sequence[float | None] | None = None, **options: Any) -> Motion:
-        async with self._http.stream("POST", "/v1/synthesize",
-                                     content=request_body(positions, ids, scales, **options),
-                                     headers={"content-type": MSGPACK, "accept": MSGPACK}) as response:
-            content = await aread_body(response)
+        raw = request_body(positions, ids, scales, **options)
+        for attempt in range(self.max_retries + 1):
+            try:
+                async with self._http.stream("POST", "/v1/synthesize", content=raw, headers={
+                        "content-type": MSGPACK, "accept": MSGPACK}) as response:
+                    content = await aread_body(response)
+                break
+            except _retriable() as exc:
+                if attempt == self.max_retries:
+                    raise
+                _note_retry(self, attempt, exc)
         _raise_for(response.status_code, content)
         return decode_response(content)

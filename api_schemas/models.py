@@ -245,6 +245,12 @@ class Limits(BaseModel):
     ws_chunk_frames: int = Field(description="frames per WebSocket chunk")
     ws_window: int = Field(description="unacknowledged WebSocket chunks before the server waits")
     ws_send_timeout_s: float = Field(description="a client not reading for this long is closed (1013)")
+    memory_budget_mb: int = Field(description="per worker process: answers in flight x their estimated "
+                                              "size; an answer that does not fit now: 503 + Retry-After, "
+                                              "one that never could: 422")
+    send_timeout_s: float = Field(description="an answer its client takes nothing of for this long "
+                                              "is cut short")
+    body_timeout_s: float = Field(description="a request body not received whole within this: 408")
     encodings: dict[str, dict[str, float]] = Field(
         description="per rotation encoding: bytes per joint-frame and measured worst-case error")
 

@@ -100,6 +100,9 @@ def _serve(args: argparse.Namespace, extra: list[str]) -> int:
             "--ws", "websockets-sansio", "--ws-per-message-deflate", "false",
             "--ws-ping-interval", "20", "--ws-ping-timeout", "20",
             "--ws-max-size", str(Settings.from_env().max_body_bytes), *grace, *workers, *extra]
+    from service import supervisor
+
+    supervisor.install()  # several workers drain as one on SIGTERM (see service.supervisor)
     uvicorn.main.main(args=argv, prog_name="quadsynth serve")
     return 0
 

@@ -63,9 +63,17 @@ class Admission:
         finally:
             release()
 
+    async def wait_turn(self) -> Callable[[], None]:
+        """A running slot for work already admitted (a stream's next window): it waits its turn
+        instead of being refused, and does not count against the queue; held until the returned
+        ``release`` is called."""
+        await self.running.acquire()
+        return self.running.release
+
     @asynccontextmanager
     async def turn(self) -> AsyncIterator[None]:
-        """A running slot for work already admitted (a stream's next window): it waits its turn
-        instead of being refused, and does not count against the queue."""
-        async with self.running:
+        release = await self.wait_turn()
+        try:
             yield
+        finally:
+            release()

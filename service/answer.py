@@ -12,7 +12,9 @@ pages (:func:`produce`).
 
 from __future__ import annotations
 
+import base64
 import functools
+import json
 import math
 import struct
 import threading
@@ -35,11 +37,22 @@ from synth_core.trajectory import TrajectoryError
 PIECE_BYTES = 8 * 1024 * 1024  # float32 rotations per chunk: the chunks stay small enough to stream
 
 
+def characters_per_piece(frames: int, joints: int) -> int:
+    """Characters rendered into one piece: ``PIECE_BYTES`` of float32 rotations (at least one)."""
+    return max(1, PIECE_BYTES // max(1, frames * joints * 16))
+
+
 @dataclass(frozen=True)
 class Hole:
-    """Binary data that comes later; its length is known now."""
+    """Binary data that comes later; its length is known now. ``text``: it goes out as base64
+    (a JSON answer's blobs), ``size`` bytes."""
 
     nbytes: int
+    text: bool = False
+
+    @property
+    def size(self) -> int:
+        return 4 * -(-self.nbytes // 3) if self.text else self.nbytes
 
 
 Template = list[bytes | Hole]
@@ -59,6 +72,47 @@ class Spliced:
     """A value whose template is made already (:func:`character`)."""
 
     parts: Template
+
+
+def json_template(value: Any) -> Template:
+    """``value``'s JSON text as :func:`service.body.encode` writes it (compact, blobs' data as
+    base64) with a text :class:`Hole` inside the quotes where each :class:`Hole` leaf's data goes."""
+    parts: Template = []
+
+    def walk(v: Any) -> None:
+        if isinstance(v, Hole):
+            parts.extend((b'"', Hole(v.nbytes, text=True), b'"'))
+        elif isinstance(v, Spliced):
+            parts.extend(v.parts)
+        elif isinstance(v, dict):
+            parts.append(b"{")
+            for i, (key, item) in enumerate(v.items()):
+                parts.append((b"," if i else b"") + json.dumps(key).encode() + b":")
+                walk(item)
+            parts.append(b"}")
+        elif isinstance(v, list):
+            parts.append(b"[")
+            for i, item in enumerate(v):
+                if i:
+                    parts.append(b",")
+                walk(item)
+            parts.append(b"]")
+        else:
+            parts.append(json.dumps(v, separators=(",", ":")).encode())
+
+    walk(value)
+    return _joined(parts)
+
+
+def _joined(parts: Template) -> Template:
+    """Neighbouring bytes joined."""
+    joined: Template = []
+    for part in parts:
+        if joined and isinstance(part, bytes) and isinstance(joined[-1], bytes):
+            joined[-1] += part
+        else:
+            joined.append(part)
+    return joined
 
 
 def template(value: Any, header: bool = True) -> Template:
@@ -86,13 +140,7 @@ def template(value: Any, header: bool = True) -> Template:
             parts.append(packer.pack(v))
 
     walk(value, header)
-    joined: Template = []
-    for part in parts:
-        if joined and isinstance(part, bytes) and isinstance(joined[-1], bytes):
-            joined[-1] += part
-        else:
-            joined.append(part)
-    return joined
+    return _joined(parts)
 
 
 def hole_blob(dtype: str, shape: list[int], itemsize: int) -> dict[str, Any]:
@@ -113,9 +161,19 @@ def _arrays(frames: int, joints: int, encoding: Encoding) -> tuple[bytes | Hole,
                            "contacts": hole_blob("|u1", [frames], 1)}, header=False))
 
 
-def character(packer: msgpack.Packer, cid: str, scale: float, frames: int, joints: int,
+def character(packer: msgpack.Packer | None, cid: str, scale: float, frames: int, joints: int,
               encoding: Encoding) -> Spliced:
-    """One character of the answer (:func:`service.packing.characters_out`'s dict)."""
+    """One character of the answer (:func:`service.packing.characters_out`'s dict); msgpack, or
+    JSON where there is no ``packer``."""
+    if packer is None:
+        components = 6 if encoding == "s48" else 4
+        rotations = hole_blob(packed_dtype(encoding), [frames, joints, components],
+                              BYTES_PER_JOINT_FRAME[encoding] // components)
+        rotations["encoding"] = encoding
+        return Spliced(json_template({"id": cid, "scale": scale, "frames": frames,
+                                      "root": hole_blob("<f4", [frames, 3], 4), "rotations": rotations,
+                                      "gait": hole_blob("|i1", [frames], 1),
+                                      "contacts": hole_blob("|u1", [frames], 1)}))
     first = packer.pack_map_header(7) + packer.pack("id") + packer.pack(cid) + packer.pack("scale")
     rest = _arrays(frames, joints, encoding)
     return Spliced([first + packer.pack(scale) + rest[0], *rest[1:]])
@@ -129,7 +187,8 @@ def filled(parts: Template, arrays: list[np.ndarray]) -> list[bytes | memoryview
         if isinstance(part, Hole):
             a = next(data)
             assert a.nbytes == part.nbytes and a.flags.c_contiguous
-            out.append(memoryview(a.reshape(-1)).cast("B"))  # type: ignore[arg-type]
+            view = memoryview(a.reshape(-1)).cast("B")  # type: ignore[arg-type]
+            out.append(base64.b64encode(view) if part.text else view)
         else:
             out.append(part)
     return out
@@ -146,12 +205,16 @@ def _scratch() -> Scratch:
     return kept
 
 
-def produce(job: jobs.Job, bank: Bank, meta: dict[str, Any], emit: Callable[[Any], None]) -> int:
-    """The answer to ``job``: ``emit(length)``, the answer's whole length in bytes, once the
-    batch is prepared; then ``emit(piece)`` for each piece of it, in order. ``meta``: the
-    answer's fields before ``resample_rate`` (animal, skeleton_id, fps, encoding). Returns the
-    character-frames sent; 422 (:class:`ApiError`) for a bad trajectory, before anything is
-    emitted; :class:`jobs.Cancelled` between chunks once ``job.cancel`` is set.
+def produce(job: jobs.Job, bank: Bank, meta: dict[str, Any], emit: Callable[[Any], None],
+            as_json: bool = False, prepared: Callable[[int, int], None] | None = None) -> int:
+    """The answer to ``job`` (msgpack; ``as_json``: JSON text, blobs' data in base64):
+    ``emit(length)``, the answer's whole length in bytes, once the batch is prepared; then
+    ``emit(piece)`` for each piece of it, in order. ``meta``: the answer's fields before
+    ``resample_rate`` (animal, skeleton_id, fps, encoding). ``prepared(characters, frames)``
+    is told the size of what will be made before it is (it may refuse by raising). Returns the
+    character-frames sent; 422 (:class:`ApiError`) for a bad trajectory or too many frames
+    after resampling, before anything is emitted; :class:`jobs.Cancelled` between chunks once
+    ``job.cancel`` is set.
 
     The chunks are made side by side on :mod:`synth_core.render_pool`'s threads, each planned,
     rendered (one thread), packed and joined in its thread's own :class:`Scratch` pages: the
@@ -159,24 +222,27 @@ def produce(job: jobs.Job, bank: Bank, meta: dict[str, Any], emit: Callable[[Any
     -> 0.18-0.20 s; over HTTP, interleaved: best 0.226 -> 0.204 s, median 0.273 -> 0.230)."""
     req = job.request
     scales, seeds = jobs.character_scales_and_seeds(req)
-    options = jobs.options(req)
+    options = jobs.options(req, job.max_character_frames)
     try:
         prep, h, keys = prepare_batch(bank, job.positions, req.fps, scales, options, job.ids, seeds)
     except TrajectoryError as exc:
         raise jobs.trajectory_error(exc, job) from None
     C, T = prep.positions.shape[:2]
+    if prepared is not None:
+        prepared(C, T)
     J = bank.skeleton.n_joints
     frames = jobs.output_frames(job, T, prep.kept)
     encoding: Encoding = req.encoding
-    packer = msgpack.Packer(use_bin_type=True)
+    packer = None if as_json else msgpack.Packer(use_bin_type=True)
     characters = [character(packer, job.ids[c], float(h[i]), n, J, encoding)
                   for i, (c, n) in enumerate(zip(prep.kept, frames, strict=True))]
-    parts = template({**meta, "resample_rate": prep.resample_rate, "characters": characters,
-                      "skipped": jobs.skipped(job, prep), "warnings": jobs.warned(job, prep)})
-    emit(sum(p.nbytes if isinstance(p, Hole) else len(p) for p in parts))
+    whole = {**meta, "resample_rate": prep.resample_rate, "characters": characters,
+             "skipped": jobs.skipped(job, prep), "warnings": jobs.warned(job, prep)}
+    parts = json_template(whole) if as_json else template(whole)
+    emit(sum(p.size if isinstance(p, Hole) else len(p) for p in parts))
     holes = [i for i, p in enumerate(parts) if isinstance(p, Hole)]  # four per character, in order
     emit(b"".join(parts[:holes[0]] if holes else parts))  # type: ignore[arg-type]
-    per_chunk = max(1, PIECE_BYTES // (T * J * 16))
+    per_chunk = characters_per_piece(T, J)
 
     def piece(first: int) -> bytes:
         """Characters ``[first, first + per_chunk)``: from their first hole up to the next

@@ -8,17 +8,17 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import functools
 import gc
 import logging
 import signal
 import threading
 import time
-from collections.abc import AsyncIterator, Callable
+from collections.abc import AsyncIterator
 from concurrent.futures import ThreadPoolExecutor
 from contextlib import asynccontextmanager
-from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, TypeVar
+from typing import Any
 
 from fastapi import FastAPI, Request, WebSocket
 from fastapi.exceptions import RequestValidationError
@@ -38,22 +38,21 @@ from api_schemas import (
     SynthesizeRequest,
     SynthesizeResponse,
 )
-from api_schemas.wire import MSGPACK
-from service import answer, body, jobs, memory, stream, web
+from api_schemas.wire import BYTES_PER_JOINT_FRAME, MSGPACK
+from service import answer, body, budget, jobs, memory, stream, web
 from service.admission import Admission
-from service.body import PiecesResponse
+from service.body import JSON, PiecesResponse
+from service.budget import MemoryBudget
 from service.errors import ApiError, handle_api_error, handle_http_error, handle_validation_error
 from service.libraries import LibraryRegistry, library_dir
 from service.metrics import Metrics, MetricsMiddleware
-from service.packing import characters_out, skeleton_id
+from service.packing import skeleton_id
+from service.pipe import Pipe
 from service.settings import Settings
 from synth_core.motion_graph import HUBS
 from synth_core.scratch import Shelf
-from synth_core.synthesis import Result
 
 GLB = "model/gltf-binary"  # glTF 2.0 binary media type (IANA)
-
-Answer = TypeVar("Answer")
 
 log = logging.getLogger("quadsynth.service")
 
@@ -92,7 +91,11 @@ class State:
         self.settings, self.registry = settings, registry
         self.metrics = Metrics()
         self.admission = Admission(settings.max_in_flight, settings.max_queued, self.metrics)
+        self.memory = MemoryBudget(settings.memory_budget_mb, self.metrics)
+        self.pipes: set[Pipe] = set()  # answers going out now (their bytes waiting: /metrics)
+        self.metrics.pipes = self.pipes
         self.pool = ThreadPoolExecutor(settings.max_in_flight, thread_name_prefix="synth")
+        self.decoder = ThreadPoolExecutor(1, thread_name_prefix="decode")  # big bodies, one at a time
         self.scratches = Shelf()  # live sessions' chunk buffers, kept from session to session
         self.draining = False
         self.drain = asyncio.Event()  # set on SIGTERM: WebSocket sessions close with 1001
@@ -115,47 +118,13 @@ class State:
         return ApiError(504, "", f"synthesis took longer than the deadline of {limit:g} s (deadline_s); "
                                  "send fewer characters or frames per request")
 
-    async def _run(self, job: jobs.Job, work: Callable[[], Answer], end: float) -> asyncio.Future[Answer]:
-        """``work`` admitted (503 when the queue is full; the wait counts against the deadline
-        ``end``, loop time) and started in the pool; its slot is given back when it is done."""
-        loop = asyncio.get_running_loop()
-        try:
-            release = await asyncio.wait_for(self.admission.admit(), max(end - loop.time(), 0.0))
-        except TimeoutError:
-            raise self._late(job) from None
-        try:
-            future = loop.run_in_executor(self.pool, work)
-        except BaseException:
-            release()
-            raise
-        future.add_done_callback(lambda _: release())
-        return future
-
-    async def synthesize(self, job: jobs.Job, finish: Callable[[Result, float], Answer]) -> Answer:
-        """Run ``job`` in the pool within the deadline (504 after; the work stops at its next
-        chunk), then ``finish(result, seconds)`` there too: packing and encoding 10 million
-        rotations is CPU work as well, and on the event loop it held /livez for a tenth of a second."""
-        bank = self.registry.banks[job.request.animal]
-        loop = asyncio.get_running_loop()
-        end = loop.time() + self.settings.deadline_s
-
-        def work() -> Answer:
-            if self.settings.test_hooks:
-                self._held()
-            try:
-                return finish(*jobs.run(job, bank))
-            except jobs.Cancelled:
-                self.count_cancelled(loop)
-                raise
-
-        future = await self._run(job, work, end)
-        try:
-            return await asyncio.wait_for(asyncio.shield(future), max(end - loop.time(), 0.0))
-        except TimeoutError:
-            raise self._late(job) from None
-        except asyncio.CancelledError:
-            job.cancel.set()  # the client went away: stop the work too
-            raise
+    def keep_within_budget(self, loop: asyncio.AbstractEventLoop) -> None:
+        """Memory freed and kept for reuse counts against the budget too: past the part the
+        answers in flight leave free, it goes back to the OS (in a thread: trimming hundreds of
+        MB takes a while)."""
+        held = memory.kept()
+        if held is not None and held > self.memory.limit - self.memory.used:
+            loop.run_in_executor(None, memory.give_back)
 
     def count_cancelled(self, loop: asyncio.AbstractEventLoop) -> None:
         """From a pool thread: one more synthesis stopped early (counted on the event loop, which
@@ -166,75 +135,111 @@ class State:
         with contextlib.suppress(RuntimeError):  # the loop is gone: so is /metrics
             loop.call_soon_threadsafe(count)
 
-    async def answer_in_pieces(self, job: jobs.Job, meta: dict[str, Any]) -> PiecesResponse:
-        """The msgpack answer to ``job`` (:mod:`service.answer`), sent while it is made: the pool
-        thread renders and packs a chunk of characters while the network carries the one before.
+    async def answer(self, job: jobs.Job, meta: dict[str, Any], as_json: bool,
+                     input_bytes: int) -> PiecesResponse:
+        """The answer to ``job`` (:mod:`service.answer`; msgpack, or JSON text), sent while it is
+        made: the pool thread renders and packs a chunk of characters while the network carries
+        the one before, and waits when the client is not taking them (:class:`service.pipe.Pipe`).
 
-        Until the answer starts (the batch checked and prepared) everything is as
-        :meth:`synthesize`: 503 when busy, 422 for a bad trajectory, 504 past the deadline. After,
-        the deadline or a failure can only cut the answer short (the connection closes before
-        its Content-Length). The admission slot is given back when the work is done, not when a
-        slow client has read the answer."""
+        Until the answer starts (the batch checked and prepared): 503 when the worker is busy or
+        its memory budget (:mod:`service.budget`) has no room for this answer, 422 for a bad
+        trajectory or too many frames after resampling, 504 past the deadline. After, the
+        deadline, a failure or a client that takes nothing for ``send_timeout_s`` can only cut
+        the answer short (the connection closes before its Content-Length). The admission slot
+        and the memory reserved are given back when the work is done and the last byte has
+        left, not before."""
         bank = self.registry.banks[job.request.animal]
         loop = asyncio.get_running_loop()
-        queue: asyncio.Queue[Any] = asyncio.Queue()
         end = loop.time() + self.settings.deadline_s
+        estimate = functools.partial(
+            budget.answer_bytes, joints=bank.skeleton.n_joints,
+            bytes_per_joint_frame=BYTES_PER_JOINT_FRAME[job.request.encoding], as_json=as_json,
+            buffer_bytes=self.settings.answer_buffer_bytes, input_bytes=input_bytes)
+        reservation = self.memory.reserve(estimate(len(job.lengths), job.out_frames))
+        pipe = Pipe(loop, self.settings.answer_buffer_bytes)
+        left = 2  # the work and the sending: both end before the slot and the memory are free
 
-        def emit(item: Any) -> None:
-            with contextlib.suppress(RuntimeError):  # the loop is gone: nobody is waiting
-                loop.call_soon_threadsafe(queue.put_nowait, item)
-
-        def work() -> None:
+        def work() -> tuple[int, float]:
             try:
                 if self.settings.test_hooks:
                     self._held()
                 t0 = time.perf_counter()
-                frames = answer.produce(job, bank, meta, emit)
-                emit(Finished(frames, time.perf_counter() - t0))
+                frames = answer.produce(job, bank, meta, pipe.put, as_json,
+                                        lambda c, t: reservation.resize(estimate(c, t)))
+                return frames, time.perf_counter() - t0
             except BaseException as exc:  # noqa: BLE001 - handed to the event loop, raised there
                 if isinstance(exc, jobs.Cancelled):
                     self.count_cancelled(loop)
-                emit(exc)
+                pipe.put(exc)
+                raise
+
+        def one_ended() -> None:
+            nonlocal left
+            left -= 1
+            if left == 0:
+                release()
+                reservation.release()
+                self.keep_within_budget(loop)
+                if pipe in self.pipes:
+                    self.pipes.discard(pipe)
+                    self.metrics.answer_bytes += pipe.produced
+
+        def worked(future: asyncio.Future[tuple[int, float]]) -> None:
+            if not future.cancelled() and future.exception() is None:
+                frames, seconds = future.result()
+                self.metrics.character_frames += frames
+                self.metrics.synthesis_seconds += seconds
+                self.metrics.syntheses += 1
+            one_ended()
 
         async def next_item() -> Any:
             try:
-                item = await asyncio.wait_for(queue.get(), max(end - loop.time(), 0.0))
+                item = await asyncio.wait_for(pipe.get(), max(end - loop.time(), 0.0))
             except TimeoutError:
                 raise self._late(job) from None
             if isinstance(item, BaseException):
                 raise item
             return item
 
-        await self._run(job, work, end)
+        try:
+            try:
+                release = await asyncio.wait_for(self.admission.admit(), max(end - loop.time(), 0.0))
+            except TimeoutError:
+                raise self._late(job) from None
+        except BaseException:
+            reservation.release()
+            raise
+        self.pipes.add(pipe)
+        loop.run_in_executor(self.pool, work).add_done_callback(worked)
         try:
             length = await next_item()
         except BaseException:
             job.cancel.set()
+            pipe.close()
+            one_ended()
             raise
 
         async def pieces() -> AsyncIterator[bytes]:
+            got = 0
             try:
-                while isinstance(item := await next_item(), bytes):
+                while got < length:
+                    item = await next_item()
+                    got += len(item)
                     yield item
             except Exception as exc:  # noqa: BLE001 - the answer has started: it can only be cut short
                 log.warning("answer to a synthesize request cut short: %s: %s", type(exc).__name__, exc)
-                return
-            self.metrics.character_frames += item.frames
-            self.metrics.synthesis_seconds += item.seconds
-            self.metrics.syntheses += 1
 
-        async def close() -> None:
-            job.cancel.set()  # a client that left: the work stops at its next chunk
+        async def close(complete: bool) -> None:
+            if not complete:
+                job.cancel.set()  # a client that left or stalled: the work stops at its next chunk
+            pipe.close()
+            one_ended()
 
-        return PiecesResponse(pieces(), length, MSGPACK, close)
+        return PiecesResponse(pieces(), length, JSON if as_json else MSGPACK, close, pipe.sent,
+                              self.settings.send_timeout_s)
 
 
-@dataclass(frozen=True)
-class Finished:
-    """The last item a piece-by-piece answer's worker hands over."""
-
-    frames: int  # character-frames sent
-    seconds: float
+SMALL_BODY = 64 * 1024  # bodies below this are decoded on the event loop (a thread costs more)
 
 
 DRAIN_SESSIONS_S = 2.0  # how long SIGTERM waits for WebSocket sessions to close (1001) first
@@ -259,6 +264,8 @@ def _install_drain(state: State) -> None:
             previous(signum, frame)
 
     def on_term(signum: int, frame: Any) -> None:
+        if state.draining:  # the supervisor's SIGTERM after its fast one (service.supervisor)
+            return
         state.draining = True
         log.info("SIGTERM: draining")
         if state.settings.test_hooks:  # a test holding the workers cannot reach /_test/release now
@@ -333,6 +340,7 @@ def create_app(directory: Path | None = None, settings: Settings | None = None) 
         yield
         state.draining = True
         state.pool.shutdown(wait=False, cancel_futures=True)
+        state.decoder.shutdown(wait=False, cancel_futures=True)
 
     # docs_url/redoc_url None: FastAPI's pages load Swagger UI and ReDoc from a CDN; service.web
     # serves them on vendored copies instead (offline).
@@ -422,7 +430,7 @@ def create_app(directory: Path | None = None, settings: Settings | None = None) 
 
     @app.post("/v1/synthesize", tags=["synthesis"],
               responses={200: _binary_body(SynthesizeResponse, "motion per character"),
-                         **_errors(404, 413, 415, 422, 503, 504)},
+                         **_errors(404, 408, 413, 415, 422, 503, 504)},
               openapi_extra={"requestBody": {"required": True, **_binary_body(
                   SynthesizeRequest, "characters' trajectories and options")}})
     async def synthesize(request: Request) -> Response:
@@ -433,28 +441,21 @@ def create_app(directory: Path | None = None, settings: Settings | None = None) 
         give byte-identical answers."""
         if not registry.loaded:
             raise ApiError(503, "", "libraries are still loading", headers={"Retry-After": "1"})
-        raw = await body.read_body(request, settings.max_body_bytes)
-        job = jobs.parse(body.decode(raw, request.headers.get("content-type")), settings, registry.banks)
+        raw = await body.read_body(request, settings.max_body_bytes, settings.body_timeout_s)
+        content_type = request.headers.get("content-type")
+
+        def parse() -> jobs.Job:
+            return jobs.parse(body.decode(raw, content_type), settings, registry.banks)
+
+        # A big body is decoded and validated in a thread of its own (one at a time): an 8 MiB
+        # msgpack of empty arrays took 0.9 s, and on the event loop /livez waited for it.
+        job = (parse() if len(raw) < SMALL_BODY
+               else await asyncio.get_running_loop().run_in_executor(state.decoder, parse))
         req = job.request
         sk = registry.libraries[req.animal].skeleton
         meta = {"animal": req.animal, "skeleton_id": skeleton_id(req.animal, sk),
                 "fps": registry.banks[req.animal].fps, "encoding": req.encoding}
-        if body.wants_msgpack(request):
-            return await state.answer_in_pieces(job, meta)
-
-        def whole(result: Result, seconds: float) -> tuple[Response, int, float]:  # JSON, for humans
-            frames = jobs.output_frames(job, result.root_pos.shape[1], result.kept)
-            ids = [job.ids[c] for c in result.kept]
-            reply = {**meta, "resample_rate": result.resample_rate,
-                     "characters": characters_out(result, ids, frames, req.encoding),
-                     "skipped": jobs.skipped(job, result), "warnings": jobs.warned(job, result)}
-            return body.encode(reply, False), sum(frames), seconds
-
-        response, character_frames, seconds = await state.synthesize(job, whole)
-        state.metrics.character_frames += character_frames
-        state.metrics.synthesis_seconds += seconds
-        state.metrics.syntheses += 1
-        return response
+        return await state.answer(job, meta, not body.wants_msgpack(request), len(raw))
 
     @app.websocket("/v1/stream")
     async def stream_route(ws: WebSocket) -> None:

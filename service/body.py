@@ -3,14 +3,14 @@
 from __future__ import annotations
 
 import asyncio
-import base64
 import json
+import logging
 from collections.abc import AsyncIterator, Awaitable, Callable
 from typing import Any
 
 import msgpack
 from fastapi import Request
-from fastapi.responses import Response, StreamingResponse
+from fastapi.responses import StreamingResponse
 from starlette.types import Receive, Scope, Send
 
 from api_schemas.wire import MSGPACK
@@ -19,23 +19,32 @@ from service.errors import ApiError
 MSGPACK_TYPES = (MSGPACK, "application/x-msgpack", "application/msgpack")
 JSON = "application/json"
 
+log = logging.getLogger("quadsynth.service")
+
 
 def media_type(header: str | None) -> str:
     return (header or "").split(";")[0].strip().lower()
 
 
-async def read_body(request: Request, limit: int) -> bytes:
+async def read_body(request: Request, limit: int, timeout_s: float) -> bytes:
     """The whole body, refused with 413 as soon as it passes ``limit`` -- by its Content-Length,
-    or while reading (a chunked body has none), so an oversized upload is never held whole."""
+    or while reading (a chunked body has none), so an oversized upload is never held whole --
+    and with 408 when it has not arrived whole within ``timeout_s`` (a stalled upload holds a
+    connection and its part of the body; nginx has its own timeout, a bare replica has this)."""
     declared = request.headers.get("content-length")
     if declared is not None and declared.isdigit() and int(declared) > limit:
         raise ApiError(413, "body", f"{declared} bytes is over the limit of {limit} bytes (max_body_bytes)")
     parts, size = [], 0
-    async for chunk in request.stream():
-        size += len(chunk)
-        if size > limit:
-            raise ApiError(413, "body", f"more than the limit of {limit} bytes (max_body_bytes)")
-        parts.append(chunk)
+    try:
+        async with asyncio.timeout(timeout_s):
+            async for chunk in request.stream():
+                size += len(chunk)
+                if size > limit:
+                    raise ApiError(413, "body", f"more than the limit of {limit} bytes (max_body_bytes)")
+                parts.append(chunk)
+    except TimeoutError:
+        raise ApiError(408, "body", f"not received whole within {timeout_s:g} s (body_timeout_s): "
+                                    f"{size} bytes came", headers={"Connection": "close"}) from None
     return b"".join(parts)
 
 
@@ -65,35 +74,29 @@ def wants_msgpack(request: Request) -> bool:
     return media_type(request.headers.get("content-type")) in MSGPACK_TYPES
 
 
-def _base64_bytes(value: Any) -> Any:
-    if isinstance(value, bytes):
-        return base64.b64encode(value).decode("ascii")
-    if isinstance(value, dict):
-        return {k: _base64_bytes(v) for k, v in value.items()}
-    if isinstance(value, list):
-        return [_base64_bytes(v) for v in value]
-    return value
-
-
-def encode(body: Any, as_msgpack: bool, status: int = 200) -> Response:
-    if as_msgpack:
-        return Response(msgpack.packb(body, use_bin_type=True), status, media_type=MSGPACK)
-    return Response(json.dumps(_base64_bytes(body), separators=(",", ":")), status, media_type=JSON)
+SEND_SLICE = 1024 * 1024  # bytes handed to the server per send: what a stalled socket can pin
 
 
 class PiecesResponse(StreamingResponse):
-    """A 200 answer of a known ``length`` sent piece by piece as ``pieces`` yields them.
+    """A 200 answer of a known ``length`` sent piece by piece as ``pieces`` yields them;
+    ``sent(n)`` is told of each piece once it has left (:class:`service.pipe.Pipe`'s room).
 
+    Each piece goes to the server in slices of ``SEND_SLICE`` bytes: the server's ``send``
+    waits while the socket is full, and only then, so a client that stops reading pins one slice
+    in the transport, not a piece. A slice not taken within ``send_timeout_s`` ends the answer.
     If the pieces stop short of ``length`` (the work failed or passed its deadline after the
-    answer started), the answer is left incomplete: the server closes the connection and the
-    client sees a body cut short, never a shorter answer that parses. A client that leaves is
-    noticed between pieces (a task waits on ``receive`` for the disconnect: the server's
-    ``send`` to a closed connection just returns). ``close`` runs at the end in every case."""
+    answer started, or the client stalled), the answer is left incomplete: the server closes the
+    connection and the client sees a body cut short, never a shorter answer that parses. A
+    client that leaves is noticed between slices (a task waits on ``receive`` for the
+    disconnect: the server's ``send`` to a closed connection just returns). ``close(complete)``
+    runs at the end in every case."""
 
     def __init__(self, pieces: AsyncIterator[bytes], length: int, media_type: str,
-                 close: Callable[[], Awaitable[None]]) -> None:
+                 close: Callable[[bool], Awaitable[None]], sent: Callable[[int], None],
+                 send_timeout_s: float) -> None:
         super().__init__(pieces, 200, {"content-length": str(length)}, media_type)
-        self.length, self.close = length, close
+        self.pieces, self.length, self.close = pieces, length, close
+        self.sent, self.send_timeout_s = sent, send_timeout_s
 
     async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
         async def disconnected() -> None:
@@ -101,17 +104,26 @@ class PiecesResponse(StreamingResponse):
                 pass
 
         gone = asyncio.ensure_future(disconnected())
-        sent = 0
+        total = 0
         try:
-            await send({"type": "http.response.start", "status": self.status_code,
-                        "headers": self.raw_headers})
-            async for piece in self.body_iterator:
-                if gone.done():
-                    break
-                await send({"type": "http.response.body", "body": piece, "more_body": True})
-                sent += len(piece)
-            if sent == self.length and not gone.done():
+            async with asyncio.timeout(self.send_timeout_s):
+                await send({"type": "http.response.start", "status": self.status_code,
+                            "headers": self.raw_headers})
+            async for piece in self.pieces:
+                view = memoryview(piece)
+                for start in range(0, len(view), SEND_SLICE):
+                    if gone.done():
+                        return
+                    async with asyncio.timeout(self.send_timeout_s):
+                        await send({"type": "http.response.body", "body": view[start:start + SEND_SLICE],
+                                    "more_body": True})
+                total += len(view)
+                self.sent(len(view))
+            if total == self.length and not gone.done():
                 await send({"type": "http.response.body", "body": b"", "more_body": False})
+        except TimeoutError:
+            log.warning("answer cut short: the client took nothing for %g s (send_timeout_s)",
+                        self.send_timeout_s)
         finally:
             gone.cancel()
-            await self.close()
+            await self.close(total == self.length and not gone.done())

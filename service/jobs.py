@@ -5,23 +5,22 @@ from __future__ import annotations
 
 import functools
 import threading
-import time
 from collections.abc import Iterable
 from dataclasses import dataclass
 from typing import Any, TypeVar
 
 import numpy as np
 from numpy.typing import NDArray
-from pydantic import ValidationError
+from pydantic import BaseModel, TypeAdapter, ValidationError
 
-from api_schemas import LiveRequest, SynthesizeRequest
+from api_schemas import CharacterIn, LiveCharacter, LiveRequest, SynthesizeRequest
 from api_schemas.wire import WireError, unblob
-from service.errors import ApiError, from_validation
+from service.errors import ApiError, field_path, from_validation
 from service.settings import Settings
 from synth_core.bank import Bank
 from synth_core.streaming import BatchStream
-from synth_core.synthesis import Options, Result, synthesize
-from synth_core.trajectory import Prepared, TrajectoryError
+from synth_core.synthesis import Options, Result
+from synth_core.trajectory import FrameLimitError, Prepared, TrajectoryError, resampled_frames
 
 
 class Cancelled(Exception):
@@ -34,6 +33,8 @@ class Job:
     positions: NDArray[np.floating]  # (C, F_max, 3): shorter paths held at their last point
     lengths: list[int]  # each character's own point count
     cancel: threading.Event
+    max_character_frames: int | None = None  # checked again once the resampling is known
+    out_frames: int = 0  # frames each character comes back with at least (the longest's)
 
     @functools.cached_property
     def ids(self) -> list[str]:
@@ -45,6 +46,33 @@ class Job:
 Checked = TypeVar("Checked", SynthesizeRequest, LiveRequest)
 
 
+# Characters validated at a time: a body of 10,000 took 0.32 s in one pydantic call, which holds
+# the GIL throughout -- in a decoding thread, /livez on the event loop still waited. Between
+# slices the event loop gets its turn.
+VALIDATE_SLICE = 256
+
+
+@functools.cache
+def _characters(model: type[BaseModel]) -> TypeAdapter[list[Any]]:
+    item = CharacterIn if model is SynthesizeRequest else LiveCharacter
+    return TypeAdapter(list[item])  # type: ignore[valid-type]
+
+
+def validated_characters(model: type[BaseModel], characters: list[Any]) -> list[Any]:
+    """``model``'s characters validated ``VALIDATE_SLICE`` at a time (422 naming the first problem)."""
+    adapter, out = _characters(model), []
+    for start in range(0, len(characters), VALIDATE_SLICE):
+        try:
+            out += adapter.validate_python(characters[start:start + VALIDATE_SLICE])
+        except ValidationError as exc:
+            problems = exc.errors()
+            index, *rest = problems[0]["loc"]
+            more = f" (and {len(problems) - 1} more problems)" if len(problems) > 1 else ""
+            raise ApiError(422, field_path([start + int(index), *rest], "characters"),
+                           f"{problems[0]['msg']}{more}") from None
+    return out
+
+
 def validate(model: type[Checked], body: Any, settings: Settings, banks: dict[str, Bank]) -> Checked:
     """What a synthesize request and a live session share: a map within max_characters, the
     model's own checks, a loaded animal, a scale range, unique ids -- 422 naming the field."""
@@ -54,6 +82,8 @@ def validate(model: type[Checked], body: Any, settings: Settings, banks: dict[st
     if isinstance(characters, list) and len(characters) > settings.max_characters:
         raise ApiError(422, "characters", f"{len(characters)} characters is over the limit of "
                                           f"{settings.max_characters} per request (max_characters)")
+    if isinstance(characters, list) and len(characters) > VALIDATE_SLICE:
+        body = {**body, "characters": validated_characters(model, characters)}
     try:
         req = model.model_validate(body)
     except ValidationError as exc:
@@ -94,14 +124,18 @@ def parse(body: Any, settings: Settings, banks: dict[str, Bank]) -> Job:
         paths.append(points)
     lengths = [len(p) for p in paths]
     bank = banks[req.animal]
-    # Counted at the library's frame rate: that is how many frames come back (before any
-    # resampling of a too-fast herd, which can add up to 8x; see trajectory.MAX_RESAMPLE).
-    out_frames = int(round((max(lengths) - 1) * bank.fps / req.fps)) + 1
+    # Counted at the library's frame rate and resampled at least min_resample_rate: that many
+    # frames come back at least. A too-fast herd that asks for 'resample' may be resampled more
+    # (up to 8x, see trajectory.MAX_RESAMPLE): checked again once that is known, before it is made.
+    out_frames = resampled_frames(int(round((max(lengths) - 1) * bank.fps / req.fps)) + 1,
+                                  req.min_resample_rate)
     total = out_frames * len(paths)
     if total > settings.max_character_frames:
-        raise ApiError(422, "characters", f"{len(paths)} characters x {out_frames} frames at "
-                                          f"{bank.fps:g} fps = {total} character-frames is over the limit "
-                                          f"of {settings.max_character_frames} (max_character_frames)")
+        by = f" resampled {req.min_resample_rate:g}x (min_resample_rate)" if req.min_resample_rate > 1 else ""
+        raise ApiError(422, "min_resample_rate" if by else "characters",
+                       f"{len(paths)} characters x {out_frames} frames at {bank.fps:g} fps{by} = {total} "
+                       f"character-frames is over the limit of {settings.max_character_frames} "
+                       f"(max_character_frames)")
     # float32 points stay float32 (the synthesis widens them a few characters at a time, exactly):
     # half the fresh memory of a float64 copy of the batch.
     dtype = np.float32 if all(p.dtype == np.float32 for p in paths) else np.float64
@@ -113,7 +147,7 @@ def parse(body: Any, settings: Settings, banks: dict[str, Bank]) -> Job:
         for c, p in enumerate(paths):
             positions[c, :len(p)] = p
             positions[c, len(p):] = p[-1]  # a shorter path: it stands at its end
-    return Job(req, positions, lengths, threading.Event())
+    return Job(req, positions, lengths, threading.Event(), settings.max_character_frames, out_frames)
 
 
 def character_scales_and_seeds(req: SynthesizeRequest) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
@@ -123,32 +157,20 @@ def character_scales_and_seeds(req: SynthesizeRequest) -> tuple[NDArray[np.float
     return scales, seeds
 
 
-def options(req: SynthesizeRequest) -> Options:
+def options(req: SynthesizeRequest, max_character_frames: int | None = None) -> Options:
     return Options(sigma=req.sigma, seed=req.seed, scale_range=(req.scale_min, req.scale_max),
                    skip_invalid=req.skip_invalid, foot_lock=req.foot_lock, first_index=req.first_index,
                    min_resample_rate=req.min_resample_rate, resample=req.resample,
-                   size_matching=req.size_matching, tempo_spread=req.tempo_spread)
-
-
-def run(job: Job, bank: Bank) -> tuple[Result, float]:
-    """Synthesize (in a worker thread); raises :class:`ApiError` 422 for a bad trajectory."""
-    req = job.request
-    scales, seeds = character_scales_and_seeds(req)
-
-    def check_cancel(done: int, total: int) -> None:
-        if job.cancel.is_set():
-            raise Cancelled
-
-    t0 = time.perf_counter()
-    try:
-        result = synthesize(bank, job.positions, req.fps, scales, options(req), ids=job.ids,
-                            progress=check_cancel, seeds=seeds)
-    except TrajectoryError as exc:
-        raise trajectory_error(exc, job) from None
-    return result, time.perf_counter() - t0
+                   size_matching=req.size_matching, tempo_spread=req.tempo_spread,
+                   max_character_frames=max_character_frames)
 
 
 def trajectory_error(exc: TrajectoryError, job: Job) -> ApiError:
+    if isinstance(exc, FrameLimitError):
+        return ApiError(422, "characters", f"{exc} (max_character_frames): the paths need resampling "
+                                           f"('resample' of a character faster than the library, or "
+                                           f"min_resample_rate); "
+                                           f"send fewer characters or frames per request")
     message = str(exc.args[0]) if exc.args else str(exc)
     if exc.character is None:
         return ApiError(422, "characters", message)
@@ -163,7 +185,8 @@ def open_stream(job: Job, bank: Bank, chunk_frames: int) -> BatchStream:
     req = job.request
     scales, seeds = character_scales_and_seeds(req)
     try:
-        return BatchStream(bank, job.positions, req.fps, scales, options(req), job.ids, seeds, chunk_frames)
+        return BatchStream(bank, job.positions, req.fps, scales, options(req, job.max_character_frames),
+                           job.ids, seeds, chunk_frames)
     except TrajectoryError as exc:
         raise trajectory_error(exc, job) from None
 

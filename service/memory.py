@@ -33,6 +33,39 @@ TRIM_THRESHOLD = 256 << 20  # freed memory at the heap's top kept up to this
 TOP_PAD = 64 << 20  # the heap grows by this much more than asked: fewer, larger growths
 
 
+class _Mallinfo2(ctypes.Structure):
+    _fields_ = [(name, ctypes.c_size_t) for name in (
+        "arena", "ordblks", "smblks", "hblks", "hblkhd", "usmblks", "fsmblks", "uordblks", "fordblks",
+        "keepcost")]
+
+
+def _libc() -> ctypes.CDLL | None:
+    if platform.system() != "Linux" or platform.libc_ver()[0] != "glibc":
+        return None
+    try:
+        return ctypes.CDLL("libc.so.6")
+    except OSError:
+        return None
+
+
+def kept() -> int | None:
+    """Bytes freed and kept by malloc for reuse, over all its arenas (None: not glibc >= 2.33)."""
+    libc = _libc()
+    if libc is None or not hasattr(libc, "mallinfo2"):
+        return None
+    libc.mallinfo2.restype = _Mallinfo2
+    return int(libc.mallinfo2().fordblks)
+
+
+def give_back() -> None:
+    """Return the memory malloc keeps to the OS (every arena): the answers' memory budget
+    (service.budget) bounds what is kept for reuse too -- the worker calls this when an answer
+    ends and what is kept passes the budget's free part."""
+    libc = _libc()
+    if libc is not None:
+        libc.malloc_trim(0)
+
+
 def tune() -> dict[str, bool]:
     """Set this process's allocation behaviour (see the module's doc); which of the two took."""
     return {"numpy_hugepages_off": _numpy_hugepages_off(), "glibc_malloc": _glibc_malloc()}
@@ -49,11 +82,8 @@ def _numpy_hugepages_off() -> bool:
 
 
 def _glibc_malloc() -> bool:
-    if platform.system() != "Linux" or platform.libc_ver()[0] != "glibc":
+    libc = _libc()
+    if libc is None:
         return False  # musl and others: their allocators have no such knobs
-    try:
-        libc = ctypes.CDLL("libc.so.6")
-    except OSError:
-        return False
     return all(libc.mallopt(param, value) == 1 for param, value in (
         (_M_MMAP_THRESHOLD, MMAP_THRESHOLD), (_M_TRIM_THRESHOLD, TRIM_THRESHOLD), (_M_TOP_PAD, TOP_PAD)))

@@ -9,7 +9,9 @@ from __future__ import annotations
 import gc
 import os
 from collections import Counter
+from collections.abc import Collection
 from dataclasses import dataclass, field
+from typing import Any
 
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
@@ -25,6 +27,9 @@ class Metrics:
     in_flight: int = 0
     ws_sessions: int = 0
     memory_tuning: dict[str, bool] = field(default_factory=dict)  # service.memory.tune()'s, if run
+    memory_reserved: int = 0  # bytes of the memory budget answers in flight hold (service.budget)
+    pipes: Collection[Any] = ()  # answers going out (service.pipe.Pipe): produced, waiting, blocked
+    answer_bytes: int = 0  # bytes of answers made, of the pipes gone
 
     def render(self) -> str:
         pid = os.getpid()
@@ -56,6 +61,19 @@ class Metrics:
             "# HELP quadsynth_websocket_sessions Open WebSocket sessions.",
             "# TYPE quadsynth_websocket_sessions gauge",
             f'quadsynth_websocket_sessions{{pid="{pid}"}} {self.ws_sessions}',
+            "# HELP quadsynth_memory_reserved_bytes Memory budget held by answers in flight (estimated).",
+            "# TYPE quadsynth_memory_reserved_bytes gauge",
+            f'quadsynth_memory_reserved_bytes{{pid="{pid}"}} {self.memory_reserved}',
+            "# HELP quadsynth_answer_bytes_produced_total Bytes of answers made (handed to their sockets).",
+            "# TYPE quadsynth_answer_bytes_produced_total counter",
+            f'quadsynth_answer_bytes_produced_total{{pid="{pid}"}} '
+            f'{self.answer_bytes + sum(p.produced for p in self.pipes)}',
+            "# HELP quadsynth_answer_bytes_waiting Bytes of answers made and not yet sent.",
+            "# TYPE quadsynth_answer_bytes_waiting gauge",
+            f'quadsynth_answer_bytes_waiting{{pid="{pid}"}} {sum(p.pending for p in self.pipes)}',
+            "# HELP quadsynth_answers_blocked Answers whose making waits for a client to read.",
+            "# TYPE quadsynth_answers_blocked gauge",
+            f'quadsynth_answers_blocked{{pid="{pid}"}} {sum(p.blocked for p in self.pipes)}',
             "# HELP python_gc_collections_total Runs of the cyclic garbage collector, by generation "
             "(a full one, 2, pauses the process).",
             "# TYPE python_gc_collections_total counter",
@@ -72,9 +90,27 @@ class Metrics:
         return "\n".join(lines) + "\n"
 
 
+# Any other method is counted as "other": the label must not take whatever a client invents
+# (20,000 made-up methods grew /metrics to 20,037 lines, issue 34).
+METHODS = frozenset({"GET", "HEAD", "POST", "PUT", "PATCH", "DELETE", "OPTIONS"})
+
+
+def route_name(scope: Scope) -> str:
+    """The route template of a request: an API route's own; a plain route's path (/docs,
+    /openapi.json: FastAPI does not put those in the scope); else "unmatched"."""
+    route = scope.get("route")
+    name = getattr(route, "path", None)
+    if name:
+        return str(name)
+    app = scope.get("app")
+    plain = {getattr(r, "path", None) for r in getattr(app, "routes", ())
+             if "{" not in str(getattr(r, "path", "{"))}
+    return str(scope["path"]) if scope.get("path") in plain else "unmatched"
+
+
 class MetricsMiddleware:
     """Counts every HTTP response by its route template (not the raw path: an unknown URL must
-    not make a new series)."""
+    not make a new series) and its method (one of ``METHODS``, else "other")."""
 
     def __init__(self, app: ASGIApp, metrics: Metrics) -> None:
         self.app, self.metrics = app, metrics
@@ -94,6 +130,5 @@ class MetricsMiddleware:
         try:
             await self.app(scope, receive, counted)
         finally:
-            route = scope.get("route")
-            name = getattr(route, "path", None) or "unmatched"
-            self.metrics.requests[(scope["method"], name, status)] += 1
+            method = scope["method"] if scope["method"] in METHODS else "other"
+            self.metrics.requests[(method, route_name(scope), status)] += 1

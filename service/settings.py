@@ -22,6 +22,10 @@ class Settings:
     ws_window: int = 8
     ws_send_timeout_s: float = 10.0
     drain_grace_s: float = 20.0
+    memory_budget_mb: int = 1024  # answers in flight x their estimated size, per worker (service.budget)
+    answer_buffer_bytes: int = 16 * 1024 * 1024  # made and not yet sent, per answer (service.pipe)
+    send_timeout_s: float = 10.0  # a client taking nothing for this long: its answer is cut short
+    body_timeout_s: float = 30.0  # a request body not arriving whole within this: 408
     test_hooks: bool = False  # routes that hold the workers on an event (tests only)
     memory_tuning: bool = True  # freed memory kept, no huge pages for numpy: see service.memory
 
@@ -48,7 +52,8 @@ class Settings:
             max_frames=self.max_frames, max_character_frames=self.max_character_frames,
             max_in_flight=self.max_in_flight, max_queued=self.max_queued, deadline_s=self.deadline_s,
             ws_chunk_frames=self.ws_chunk_frames, ws_window=self.ws_window,
-            ws_send_timeout_s=self.ws_send_timeout_s,
+            ws_send_timeout_s=self.ws_send_timeout_s, memory_budget_mb=self.memory_budget_mb,
+            send_timeout_s=self.send_timeout_s, body_timeout_s=self.body_timeout_s,
             encodings={e: {"bytes_per_joint_frame": BYTES_PER_JOINT_FRAME[e],
                            "max_error_deg": ENCODING_ERROR[e][0],
                            "max_error_mm_at_3cm": ENCODING_ERROR[e][1]} for e in BYTES_PER_JOINT_FRAME})

@@ -17,7 +17,7 @@ import contextlib
 import functools
 import logging
 import time
-from collections.abc import Callable, Iterator, MutableMapping
+from collections.abc import Awaitable, Callable, Iterator, MutableMapping
 from typing import TYPE_CHECKING, Any
 
 import msgpack
@@ -43,6 +43,20 @@ CLOSE_TIMEOUT_S = 1.0
 # HTTP status of an error -> the close code after it.
 CLOSE_FOR = {404: INVALID_DATA, 413: TOO_BIG, 415: INVALID_DATA, 422: INVALID_DATA,
              503: TRY_LATER, 504: TRY_LATER}
+
+
+def give_back(taking: asyncio.Future[Callable[[], None]]) -> None:
+    """A slot being taken that is not wanted any more: the taking cancelled, or the slot given
+    back should it be (or have been) taken after all."""
+    def done(future: asyncio.Future[Callable[[], None]]) -> None:
+        if not future.cancelled() and future.exception() is None:
+            future.result()()
+
+    if taking.done():
+        done(taking)
+    else:
+        taking.cancel()
+        taking.add_done_callback(done)
 
 
 class Closing(Exception):
@@ -189,11 +203,30 @@ class Session:
             raise Closing(GOING_AWAY, ApiError(503, "", "the server is shutting down; reconnect to "
                                                         "another replica"))
 
+    async def pool_slot(self, take: Callable[[], Awaitable[Callable[[], None]]]) -> Callable[[], None]:
+        """A slot of the worker pool (``take``: the admission's ``admit`` or ``wait_turn``) -- or,
+        if SIGTERM comes first, the session closes with 1001 and an error saying so (uvicorn's
+        own shutdown would close a session still waiting with 1012)."""
+        taking = asyncio.ensure_future(take())
+        drain = asyncio.ensure_future(self.state.drain.wait())
+        try:
+            await asyncio.wait({taking, drain}, return_when=asyncio.FIRST_COMPLETED)
+            self.check()  # draining: 1001
+        except BaseException:  # that, or this coroutine cancelled: the slot is not taken
+            give_back(taking)
+            raise
+        finally:
+            drain.cancel()
+        return taking.result()
+
     async def in_pool(self, fn: Any, *args: Any) -> Any:
         """``fn(*args)`` in the worker pool, in turn with REST syntheses."""
         loop = asyncio.get_running_loop()
-        async with self.state.admission.turn():
+        release = await self.pool_slot(self.state.admission.wait_turn)
+        try:
             return await loop.run_in_executor(self.state.pool, fn, *args)
+        finally:
+            release()
 
     async def batch(self, body: dict[str, Any]) -> None:
         settings, registry = self.settings, self.state.registry
@@ -208,9 +241,12 @@ class Session:
         job = jobs.parse(body, settings, registry.banks)
         req = job.request
         bank = registry.banks[req.animal]
-        async with self.state.admission.slot():  # refused (503 -> 1013) when the worker is full
+        release = await self.pool_slot(self.state.admission.admit)  # refused (503 -> 1013) when full
+        try:
             stream: BatchStream = await asyncio.get_running_loop().run_in_executor(
                 self.state.pool, jobs.open_stream, job, bank, chunk_frames)
+        finally:
+            release()
         frames = jobs.output_frames(job, stream.frames, stream.kept)
         ids = [job.ids[c] for c in stream.kept]
         count = -(-stream.frames // chunk_frames)
@@ -257,6 +293,8 @@ class Session:
                 with contextlib.suppress(BaseException):
                     await making
         cancelled = self.cancel.is_set()
+        if sent < count:  # stopped early: the client cancelled or left (SIGTERM raised before)
+            self.state.metrics.cancelled += 1
         self.cancel.clear()
         await self.send({"type": "end", "batch": number, "chunks": sent, "cancelled": cancelled})
 
@@ -324,7 +362,8 @@ class Session:
         try:
             while True:
                 message = await self.next_live()
-                if message is None:
+                if message is None:  # before its finish: the client cancelled or left
+                    self.state.metrics.cancelled += 1
                     break
                 finishing = message.get("type") == "finish"
                 advance = (functools.partial(synth.finish, W) if finishing else

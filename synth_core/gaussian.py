@@ -25,6 +25,12 @@ if AVAILABLE:
     import numba
 
 
+# Narrower than this (frames) the kernel is the identity: its weight one frame away,
+# exp(-0.5 / sigma^2), is below 1e-86. Below ~1e-154 scipy's sigma^2 underflows to 0 and it
+# divides by it (a fuzzed request's sigma of 1e-308 got a 500).
+IDENTITY_SIGMA = 1e-2
+
+
 @functools.lru_cache(maxsize=16)
 def weights(sigma: float) -> NDArray[np.float64]:
     """``gaussian_filter1d``'s kernel for ``sigma`` (its default truncation, 4 sigma), from the
@@ -63,6 +69,8 @@ def smooth_frames(x: NDArray[np.float64], sigma: float, first: int, n: int) -> N
     """Frames ``[first, first + n)`` of ``gaussian_filter1d(x, sigma, axis=1, mode="nearest")``
     for ``x (C, T, K)`` float64: compiled where those frames' windows (4 sigma either side) lie
     within ``x`` (the ``mode`` then reads nothing), else scipy's."""
+    if sigma < IDENTITY_SIGMA:
+        return np.array(x[:, first:first + n], np.float64)
     kernel = weights(float(sigma))
     r = len(kernel) - 1
     if not AVAILABLE or first < r or first + n + r > x.shape[1]:

@@ -78,6 +78,7 @@ class Options:
     # the caller's clock is kept, and a character too fast even at MAX_RATE gets a warning)
     size_matching: str = "froude"  # how a character of scale h uses the library (character_tempo)
     tempo_spread: float = TEMPO_SPREAD  # each character's own stride tempo, +- this share
+    max_character_frames: int | None = None  # refuse (FrameLimitError) a batch that would make more
 
 
 @dataclass(frozen=True, eq=False)
@@ -604,7 +605,7 @@ def prepare_batch(bank: Bank, positions: ArrayLike, fps: float | None, scales: A
     tempo = character_tempo(keys, all_scales, options.size_matching, options.tempo_spread)
     prep = prepare(positions, fps, bank.fps, bank.top_speed, bank.mean_cycle, all_scales,
                    options.sigma, options.skip_invalid, ids, options.min_resample_rate, options.resample,
-                   MAX_RATE, tempo)
+                   MAX_RATE, tempo, options.max_character_frames)
     return prep, all_scales[prep.kept], keys[prep.kept]
 
 

@@ -40,6 +40,9 @@ Floats = NDArray[np.float64]
 
 DEFAULT_SIGMA = 4.0  # frames of Gaussian smoothing at the library's frame rate
 TELEPORT_M = 5.0  # a jump longer than this between two frames is not locomotion
+# Coordinates beyond this are refused: float32 root positions far out lose the centimetres a
+# step is made of, and at |x| >= 1e16 headings and rotations came out zero-norm (issue 34).
+MAX_COORDINATE_M = 1e6
 ALL_INVALID = "every character was invalid"  # the refusal when skip_invalid leaves none
 MAX_RESAMPLE = 8.0  # refuse trajectories needing more than 8x the frames
 _GROUND = [0, 2]
@@ -69,6 +72,15 @@ class TrajectoryError(ValueError):
     def __init__(self, message: str, character: int | str | None = None) -> None:
         super().__init__(message if character is None else f"character {character}: {message}")
         self.character, self.reason = character, message
+
+
+class FrameLimitError(TrajectoryError):
+    """The batch would come out with more character-frames than allowed, resampling included."""
+
+    def __init__(self, characters: int, frames: int, rate: float, limit: int) -> None:
+        super().__init__(f"{characters} characters x {frames} frames (paths resampled {rate:.4g}x) = "
+                         f"{characters * frames} character-frames is over the limit of {limit}")
+        self.characters, self.frames, self.rate, self.limit = characters, frames, rate, limit
 
 
 @dataclass(frozen=True)
@@ -110,6 +122,12 @@ def check(positions: ArrayLike, fps: float, ids: list[str] | None = None) -> NDA
     return arr
 
 
+def resampled_frames(frames: int, rate: float) -> int:
+    """Frames of a path of ``frames`` resampled ``rate`` times (whole frames, rounded up). A rate
+    reported by another batch, (n - 1) / (F - 1), must give back n here: hence the slack."""
+    return int(np.ceil((frames - 1) * rate - 1e-9)) + 1 if rate > 1.0 else frames
+
+
 def problems(positions: NDArray[np.floating], fps: float) -> dict[int, str]:
     """Per character index, what is wrong with its trajectory (none: absent)."""
     if positions.shape[1] < 2:
@@ -122,7 +140,13 @@ def problems(positions: NDArray[np.floating], fps: float) -> dict[int, str]:
         for c in np.flatnonzero(~finite):
             frame = int(np.flatnonzero(~np.isfinite(part[c]).all(axis=-1))[0])
             found[a + int(c)] = f"positions: NaN or Inf at frame {frame}"
-        d = np.diff(part if finite.all() else np.nan_to_num(part), axis=1)
+        far = finite & (np.abs(part).max(axis=(1, 2), initial=0.0) > MAX_COORDINATE_M)
+        for c in np.flatnonzero(far):
+            frame = int(np.flatnonzero(np.abs(part[c]).max(axis=-1) > MAX_COORDINATE_M)[0])
+            found[a + int(c)] = (f"positions: {np.abs(part[c, frame]).max():.3g} m at frame {frame} is "
+                                 f"beyond the range of +-{MAX_COORDINATE_M:g} m (metres from the origin)")
+        finite &= ~far
+        d = np.diff(part if finite.all() else np.where(finite[:, None, None], part, 0.0), axis=1)
         jump = np.einsum("cfk,cfk->cf", d, d).max(axis=1) > TELEPORT_M**2
         for c in np.flatnonzero(finite & jump):
             step = np.linalg.norm(d[c], axis=-1)
@@ -209,12 +233,14 @@ def prepare(positions: ArrayLike, fps: float, library_fps: float, top_speed: flo
             scales: NDArray[np.floating], sigma: float = DEFAULT_SIGMA,
             skip_invalid: bool = False, ids: list[str] | None = None,
             min_rate: float = 1.0, resample: bool = False, stride_rate: float = 1.0,
-            tempo: NDArray[np.floating] | None = None) -> Prepared:
+            tempo: NDArray[np.floating] | None = None, max_character_frames: int | None = None) -> Prepared:
     """Validate, bring to the library's frame rate, smooth, resample if asked (``resample``: where
     a character is too fast; and at least by ``min_rate``), segment. ``stride_rate``: how much
     faster than its fastest clip a gait's stride may play (a character faster than that at its
     scale gets a warning when the clock is kept). ``tempo (C,)``: each character's stride
-    frequency factor k (it asks the library for ``s / (h k)``; default 1)."""
+    frequency factor k (it asks the library for ``s / (h k)``; default 1). :class:`FrameLimitError`
+    before resampling when the kept characters would come out with more than
+    ``max_character_frames`` frames in all."""
     arr = check(positions, fps, ids)
     if not (np.isfinite(sigma) and 0 <= sigma <= 100):
         raise TrajectoryError(f"sigma: must be within [0, 100] frames, got {sigma}")
@@ -259,10 +285,11 @@ def prepare(positions: ArrayLike, fps: float, library_fps: float, top_speed: flo
                                    f"'resample' slows the herd's clock instead")
                     for i, (f, s) in _too_fast(own, limit, segment).items()}
     rate = max(rate, min_rate)
+    F = smoothed.shape[1]
+    n = resampled_frames(F, rate)
+    if max_character_frames is not None and n * len(kept) > max_character_frames:
+        raise FrameLimitError(len(kept), n, rate, max_character_frames)
     if rate > 1.0:
-        # A rate reported by another batch, (n - 1) / (F - 1), must give back n here: hence the slack.
-        F = smoothed.shape[1]
-        n = int(np.ceil((F - 1) * rate - 1e-9)) + 1
         rate = (n - 1) / (F - 1)  # what it really is after rounding to whole frames
         # The paper's order: the smoothed paths are resampled (not the raw ones smoothed again:
         # that smoothed every resampled batch twice, a seventh of its synthesis time).

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import base64
+import json
 from typing import Any
 
 import msgpack
@@ -28,37 +30,51 @@ def body(encoding: str) -> dict[str, Any]:
     return {"seed": 4, "encoding": encoding, "skip_invalid": True, "characters": characters}
 
 
-def whole(job: jobs.Job, bank: Bank, meta: dict[str, Any]) -> bytes:
-    """The answer as app.py builds the JSON one: synthesize, then every field packed at once."""
+def _base64(value: Any) -> Any:
+    if isinstance(value, bytes):
+        return base64.b64encode(value).decode("ascii")
+    if isinstance(value, dict):
+        return {k: _base64(v) for k, v in value.items()}
+    if isinstance(value, list):
+        return [_base64(v) for v in value]
+    return value
+
+
+def whole(job: jobs.Job, bank: Bank, meta: dict[str, Any], as_json: bool = False) -> bytes:
+    """The answer built whole: synthesize, then every field packed at once (msgpack; or compact
+    JSON, blobs' data as base64)."""
     req = job.request
     scales, seeds = jobs.character_scales_and_seeds(req)
     result = synthesize(bank, job.positions, req.fps, scales, jobs.options(req), ids=job.ids, seeds=seeds)
     frames = jobs.output_frames(job, result.root_pos.shape[1], result.kept)
     ids = [job.ids[c] for c in result.kept]
-    return msgpack.packb({**meta, "resample_rate": result.resample_rate,
-                          "characters": characters_out(result, ids, frames, req.encoding),
-                          "skipped": jobs.skipped(job, result), "warnings": jobs.warned(job, result)},
-                         use_bin_type=True)
+    reply = {**meta, "resample_rate": result.resample_rate,
+             "characters": characters_out(result, ids, frames, req.encoding),
+             "skipped": jobs.skipped(job, result), "warnings": jobs.warned(job, result)}
+    if as_json:
+        return json.dumps(_base64(reply), separators=(",", ":")).encode()
+    return msgpack.packb(reply, use_bin_type=True)  # type: ignore[no-any-return]
 
 
-@pytest.mark.parametrize("encoding", ["s48", "i16", "f32"])
-def test_the_answer_in_pieces_is_the_whole_answer_byte_for_byte(bank: Bank, encoding: str,
+@pytest.mark.parametrize(("encoding", "as_json"), [("s48", False), ("i16", False), ("f32", False),
+                                                   ("s48", True), ("f32", True)])
+def test_the_answer_in_pieces_is_the_whole_answer_byte_for_byte(bank: Bank, encoding: str, as_json: bool,
                                                               monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setattr(answer, "PIECE_BYTES", 3 * 140 * bank.skeleton.n_joints * 16)  # 3 a chunk
     job = jobs.parse(body(encoding), Settings(), {"horse": bank})
     meta = {"animal": "horse", "skeleton_id": "horse-x", "fps": bank.fps, "encoding": encoding}
     emitted: list[Any] = []
-    sent = answer.produce(job, bank, meta, emitted.append)
+    sent = answer.produce(job, bank, meta, emitted.append, as_json)
     length, pieces = emitted[0], emitted[1:]
     assert len(pieces) == 1 + 2  # the head, then 6 kept characters 3 at a time
-    expected = whole(job, bank, meta)
+    expected = whole(job, bank, meta, as_json)
     assert b"".join(pieces) == expected and length == len(expected)
-    decoded = msgpack.unpackb(expected)
+    decoded = json.loads(expected) if as_json else msgpack.unpackb(expected)
     assert [c["id"] for c in decoded["characters"]] == ["h0", "h1", "h2", "h3", "h5", "h6"]
     assert decoded["skipped"][0]["index"] == 4 and sent == sum(c["frames"] for c in decoded["characters"])
     # The render threads' scratch pages are reused by the next answer, and it is the same again.
     emitted.clear()
-    answer.produce(job, bank, meta, emitted.append)
+    answer.produce(job, bank, meta, emitted.append, as_json)
     assert b"".join(emitted[1:]) == expected
 
 

@@ -43,3 +43,9 @@ def test_compiled_where_the_windows_fit(monkeypatch: pytest.MonkeyPatch) -> None
     np.testing.assert_array_equal(gaussian.smooth_frames(x, 4.0, 16, 28), want[:, 16:44])
     with pytest.raises(AssertionError, match="scipy was called"):
         gaussian.smooth_frames(x, 4.0, 15, 28)
+
+
+@pytest.mark.parametrize("sigma", [1e-308, 1e-200, 1e-3])
+def test_a_vanishing_sigma_smooths_nothing_and_does_not_fail(sigma: float) -> None:
+    x = np.random.default_rng(0).normal(size=(2, 30, 3))
+    np.testing.assert_array_equal(gaussian.smooth_frames(x, sigma, 5, 20), x[:, 5:25])

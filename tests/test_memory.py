@@ -58,3 +58,30 @@ def test_memory_tuning_is_on_by_default_and_can_be_turned_off(monkeypatch: pytes
     assert Settings.from_env().memory_tuning is True
     monkeypatch.setenv("QUADSYNTH_MEMORY_TUNING", "0")
     assert Settings.from_env().memory_tuning is False
+
+
+_KEPT = """
+import json, os
+import numpy as np
+from service import memory
+memory.tune()
+page = os.sysconf("SC_PAGE_SIZE")
+def rss():
+    with open("/proc/self/statm") as f:
+        return int(f.read().split()[1]) * page
+arrays = [np.ones(1 << 17) for _ in range(100)]  # 100 x 1 MiB from the heap, every page written
+del arrays
+before, rss_before = memory.kept(), rss()
+memory.give_back()
+print(json.dumps({"before": before, "after": memory.kept(), "returned": rss_before - rss()}))
+"""
+
+
+@pytest.mark.skipif(platform.system() != "Linux" or platform.libc_ver()[0] != "glibc",
+                    reason="glibc's malloc statistics")
+def test_memory_kept_for_reuse_is_measured_and_given_back() -> None:
+    out = subprocess.run([sys.executable, "-c", _KEPT], capture_output=True, text=True, check=True,
+                         timeout=120)
+    result = json.loads(out.stdout)
+    assert result["before"] >= 90 << 20  # the tuned process kept the 100 MiB it freed
+    assert result["after"] < 10 << 20 and result["returned"] >= 80 << 20

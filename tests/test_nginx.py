@@ -46,8 +46,8 @@ def nginx_binary() -> str:
 def local_config(replicas: list[int], port: int, workdir: Path) -> str:
     """deploy/nginx.conf with the replicas on loopback and everything it writes under `workdir`."""
     conf = (REPO / "deploy" / "nginx.conf").read_text()
-    servers = "\n".join(f"        server 127.0.0.1:{p} max_fails=0;" for p in replicas)
-    rewrites = [(r"^\s*server quadsynth:8000 resolve max_fails=0;.*$", servers),
+    servers = "\n".join(f"        server 127.0.0.1:{p} max_fails=3 fail_timeout=5s;" for p in replicas)
+    rewrites = [(r"^\s*server quadsynth:8000 resolve max_fails=3 fail_timeout=5s;.*$", servers),
                 (r"^\s*resolver .*$", ""),
                 (r"^pid .*$", f"pid {workdir}/nginx.pid;"),
                 (r"client_body_temp_path \S+;", f"client_body_temp_path {workdir}/body;"),
@@ -59,12 +59,12 @@ def local_config(replicas: list[int], port: int, workdir: Path) -> str:
     return conf
 
 
-Cluster = tuple[str, list[str], list[subprocess.Popen[bytes]]]
+Cluster = tuple[str, list[str], list[subprocess.Popen[bytes]], Path]
 
 
 @pytest.fixture(scope="module")
 def cluster(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Cluster]:
-    """(nginx URL, the two replicas' own URLs, their processes)."""
+    """(nginx URL, the two replicas' own URLs, their processes, nginx's error log)."""
     nginx = nginx_binary()
     ports = [free_port(), free_port()]
     procs = [start(["--port", str(p), "--log-level", "warning"], tmp_path_factory.mktemp(f"replica{i}"),
@@ -93,7 +93,7 @@ def cluster(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Cluster]:
             except httpx.TransportError:
                 assert time.monotonic() < deadline, "nginx did not answer"
                 time.sleep(0.1)
-        yield url, urls, procs
+        yield url, urls, procs, workdir / "error.log"
     finally:
         balancer.terminate()
         balancer.wait(timeout=10)
@@ -127,7 +127,7 @@ def served(url: str, status: int) -> int:
 
 def test_requests_and_a_stream_pass_through_and_spread_over_both_replicas(
         cluster: Cluster, herd: np.ndarray) -> None:
-    url, replicas, _ = cluster
+    url, replicas, _, _ = cluster
     before = [served(r, 200) for r in replicas]
     answers: list[httpx.Response] = []
     senders = [threading.Thread(target=lambda: answers.append(post(url, body(herd)))) for _ in range(6)]
@@ -153,7 +153,7 @@ def test_requests_and_a_stream_pass_through_and_spread_over_both_replicas(
 
 
 def test_an_oversized_body_is_refused_by_nginx_in_the_services_format(cluster: Cluster) -> None:
-    url, _, _ = cluster
+    url, _, _, _ = cluster
     response = post(url, b"\0" * (8 * 1024 * 1024 + 1))
     assert response.status_code == 413
     assert response.json()["error"] == {"status": 413, "field": "body",
@@ -198,7 +198,7 @@ class Filled:
 
 def test_a_busy_or_missing_replica_is_retried_on_the_other(cluster: Cluster, herd: np.ndarray) -> None:
     """(Runs last: it stops a replica.)"""
-    url, (busy, other), procs = cluster
+    url, (busy, other), procs, log = cluster
     one = body(herd[:1])
     refused_before = served(busy, 503)
     with Filled(busy, herd[:1]) as filled:
@@ -213,8 +213,13 @@ def test_a_busy_or_missing_replica_is_retried_on_the_other(cluster: Cluster, her
     procs[0].terminate()  # gone: connection refused, nginx goes on to the other
     procs[0].wait(timeout=30)
     before = served(other, 200)
-    assert [post(url, one).status_code for _ in range(4)] == [200] * 4
-    assert served(other, 200) - before == 4
+    port = busy.rsplit(":", 1)[1]
+    refused_connects = log.read_text().count(f"127.0.0.1:{port}/v1/synthesize")
+    assert [post(url, one).status_code for _ in range(20)] == [200] * 20
+    assert served(other, 200) - before == 20
+    # Passive health (max_fails=3): the dead replica is tried at most 3 times, not for each
+    # request (least_conn alone tries it first for about every other one).
+    assert log.read_text().count(f"127.0.0.1:{port}/v1/synthesize") - refused_connects <= 3
     procs[1].terminate()  # none left: nginx's own answer, in the service's format
     procs[1].wait(timeout=30)
     response = post(url, one)
