@@ -49,6 +49,7 @@ from synth_core.synthesis import (
     MAX_RATE,
     MIN_TURN_SPEED,
     N_HUBS,
+    STAND_SHARE,
     Floats,
     Plan,
     _choose,
@@ -217,6 +218,7 @@ class LiveSynth:
             raise TrajectoryError(f"scale: must be a positive number, got {self.scales[bad]}", bad)
         self.tempo = character_tempo(self.keys, self.scales, size_matching, tempo_spread)
         self.pace = self.scales * self.tempo  # path speed over this: the library's (synthesis.plan)
+        self.slow = float(bank.speeds[min(bank.speeds)][0])  # the walk plays slower below this
         ratio = bank.fps / fps
         self.out_step = int(round(ratio)) if abs(ratio - round(ratio)) < 1e-9 else 1
         self.kinds = _kinds(bank)
@@ -606,8 +608,8 @@ class LiveSynth:
         makes it, ``out`` None) or the block's rows as :meth:`_block_rows` (into ``out``)."""
         P = self.pieces
         walked = plan_kernels.live_block(
-            self.tables, self.bank.contacts, MAX_RATE, self.margin, self.bank.creep, t0, v, pts, self.scales,
-            self.tempo,
+            self.tables, self.bank.contacts, MAX_RATE, min(self.bank.speeds), self.slow, STAND_SHARE,
+            self.margin, self.bank.creep, t0, v, pts, self.scales, self.tempo,
             self.clock, self.walked, (P.start, P.kind, P.first, P.clock0, P.trav0), P.before, self.busy, out,
             self.out_step)
         if out is not None:

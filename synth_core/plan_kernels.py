@@ -104,7 +104,17 @@ def _interp(x: float, xp: Any) -> float:
 
 
 @_jit()
-def _clocks(v: Any, high: Any, max_rate: float, tempo: float, out: Any) -> None:
+def _rate(v: float, hub: int, high: Any, max_rate: float, slowest: int, slow: float, share: float) -> float:
+    """synthesis._stride_clock's clip frames per frame (before the tempo) of hub ``hub`` at speed
+    ``v`` (``slow``: the slowest hub's slowest clip speed, below which it plays slower)."""
+    if hub == slowest and v < slow:
+        return max(v / slow, share)
+    return float(min(max(v / high[hub], 1.0), max_rate))
+
+
+@_jit()
+def _clocks(v: Any, high: Any, max_rate: float, slowest: int, slow: float, share: float, tempo: float,
+            out: Any) -> None:
     """stride_clocks for one character: ``out (N_HUBS + 1, T + 1)`` (``high``: each hub's
     fastest clip, -inf for none; the last row is every transition's: plain time)."""
     T = v.shape[0]
@@ -114,7 +124,7 @@ def _clocks(v: Any, high: Any, max_rate: float, tempo: float, out: Any) -> None:
         out[hub, 0] = 0.0
         for t in range(T):
             if has:
-                acc += min(max(v[t] / high[hub], 1.0), max_rate) * tempo
+                acc += _rate(v[t], hub, high, max_rate, slowest, slow, share) * tempo
             else:
                 acc = float(t + 1)
             out[hub, t + 1] = acc
@@ -265,8 +275,9 @@ def _frames(offset: Any, frames_of: Any, clips: Any, cyclic: Any, source: Any, t
 @_jit(parallel=True)
 def _plan_all(offset: Any, frames_of: Any, clips: Any, cyclic: Any, source: Any, target: Any, tr_kind: Any,
               entry: Any, exit_: Any, total: Any, low: Any, high: Any, curve_at: Any, curves: Any,
-              contacts_of: Any, slowest: int, fastest: int, max_rate: float, margin: int,
-              n_hubs: int, step: int, ahead: int, creep: float, v: Any, path: Any, h: Any, tempo: Any,
+              contacts_of: Any, slowest: int, fastest: int, max_rate: float, slow: float, share: float,
+              margin: int, n_hubs: int, step: int, ahead: int, creep: float, v: Any, path: Any, h: Any,
+              tempo: Any,
               draws: Any, workers: int, rows: Any, weights: Any, gait: Any, contacts: Any,
               stitches: Any) -> None:
     C, T = v.shape
@@ -279,7 +290,7 @@ def _plan_all(offset: Any, frames_of: Any, clips: Any, cyclic: Any, source: Any,
         kind = np.empty(E, np.int64)
         first = np.empty(E, np.int64)
         for c in range(worker, C, workers):
-            _clocks(v[c], high, max_rate, tempo[c], clocks)
+            _clocks(v[c], high, max_rate, slowest, slow, share, tempo[c], clocks)
             acc = 0.0
             travelled[0] = 0.0
             for t in range(1, T):
@@ -295,9 +306,9 @@ def _plan_all(offset: Any, frames_of: Any, clips: Any, cyclic: Any, source: Any,
 
 
 def plan_frames(tb: Tables, contacts_of: NDArray[np.bool_], slowest: int, fastest: int, max_rate: float,
-                margin: int, step: int, ahead: int, creep: float, v: NDArray[np.float64],
-                path: NDArray[np.float64], h: NDArray[np.float64], tempo: NDArray[np.float64],
-                draws: NDArray[np.float64], frames: int | None = None
+                slow: float, share: float, margin: int, step: int, ahead: int, creep: float,
+                v: NDArray[np.float64], path: NDArray[np.float64], h: NDArray[np.float64],
+                tempo: NDArray[np.float64], draws: NDArray[np.float64], frames: int | None = None
                 ) -> tuple[NDArray[np.int32], NDArray[np.float32], NDArray[np.int8], NDArray[np.bool_],
                            NDArray[np.bool_]]:
     """A plan's ``rows, weights, gait, contacts, stitches`` (see ``synthesis.Plan``) for speeds
@@ -316,7 +327,7 @@ def plan_frames(tb: Tables, contacts_of: NDArray[np.bool_], slowest: int, fastes
     c = np.ascontiguousarray
     k = tb.kinds
     _plan_all(k.offset, k.frames, k.clips, k.cyclic, k.source, k.target, k.tr_kind, k.entry, k.exit, tb.total,
-              tb.low, tb.high, tb.curve_at, tb.curves, contacts_of, slowest, fastest, max_rate,
+              tb.low, tb.high, tb.curve_at, tb.curves, contacts_of, slowest, fastest, max_rate, slow, share,
               margin, len(tb.low), step, ahead, creep, c(v, np.float64), c(path, np.float64),
               c(h, np.float64), c(tempo, np.float64), c(draws), numba.get_num_threads(), rows, weights, gait,
               contacts, stitches)
@@ -332,8 +343,9 @@ def plan_frames(tb: Tables, contacts_of: NDArray[np.bool_], slowest: int, fastes
 
 @_jit()
 def _live_scan(c: int, t0: int, n: int, v: Any, pts: Any, h: float, tempo: float, high: Any, max_rate: float,
-               n_hubs: int, creep: float, total: Any, clock_in: Any, walked_in: Any, start: Any, kind: Any,
-               clock0: Any, trav0: Any, busy: Any, clocks: Any, walked: Any) -> None:
+               slowest: int, slow: float, share: float, n_hubs: int, creep: float, total: Any, clock_in: Any,
+               walked_in: Any, start: Any, kind: Any, clock0: Any, trav0: Any, busy: Any, clocks: Any,
+               walked: Any) -> None:
     """Frames [t0, t0 + n) of character c: its clocks ``(n_hubs + 1, n + 1)`` and distance
     ``(n + 1,)`` from the carried ones; the distance at their start of pieces starting there;
     the end of a transition under way, if it is there (LiveSynth._start_distances and
@@ -344,7 +356,7 @@ def _live_scan(c: int, t0: int, n: int, v: Any, pts: Any, h: float, tempo: float
             acc = clock_in[hub, c]
             clocks[hub, 0] = acc
             for t in range(n):
-                acc += min(max(v[t] / high[hub], 1.0), max_rate) * tempo
+                acc += _rate(v[t], hub, high, max_rate, slowest, slow, share) * tempo
                 clocks[hub, t + 1] = acc
         else:  # plain time
             for t in range(n + 1):
@@ -383,7 +395,8 @@ def _live_scan(c: int, t0: int, n: int, v: Any, pts: Any, h: float, tempo: float
 
 @_jit(parallel=True)
 def _live_block(offset: Any, frames_of: Any, clips: Any, cyclic: Any, source: Any, target: Any, total: Any,
-                high: Any, curve_at: Any, curves: Any, contacts_of: Any, max_rate: float, margin: int,
+                high: Any, curve_at: Any, curves: Any, contacts_of: Any, max_rate: float, slowest: int,
+                slow: float, share: float, margin: int,
                 n_hubs: int, creep: float, t0: int, v: Any, pts: Any, h: Any, tempo: Any, clock: Any,
                 walked_in: Any,
                 start: Any, kind: Any, first: Any, clock0: Any, trav0: Any, before: Any, busy: Any,
@@ -397,7 +410,8 @@ def _live_block(offset: Any, frames_of: Any, clips: Any, cyclic: Any, source: An
         walked = np.empty(n + 1)
         for c in range(worker, C, workers):
             hc = h[c]
-            _live_scan(c, t0, n, v[c], pts[c], hc, tempo[c], high, max_rate, n_hubs, creep, total, clock,
+            _live_scan(c, t0, n, v[c], pts[c], hc, tempo[c], high, max_rate, slowest, slow, share, n_hubs,
+                       creep, total, clock,
                        walked_in, start, kind, clock0, trav0, busy, clocks, walked)
             walked_out[c] = walked[n]
             if not with_rows:
@@ -445,7 +459,8 @@ def _live_block(offset: Any, frames_of: Any, clips: Any, cyclic: Any, source: An
                 stitches[c, i] = stitch
 
 
-def live_block(tb: Tables, contacts_of: NDArray[np.bool_], max_rate: float, margin: int, creep: float,
+def live_block(tb: Tables, contacts_of: NDArray[np.bool_], max_rate: float, slowest: int, slow: float,
+               share: float, margin: int, creep: float,
                t0: int, v: NDArray[np.float64], pts: NDArray[np.float64], h: NDArray[np.float64],
                tempo: NDArray[np.float64], clock: NDArray[np.float64], walked: NDArray[np.float64],
                slots: tuple[NDArray[Any], ...], before: NDArray[np.bool_], busy: NDArray[np.int64],
@@ -471,9 +486,9 @@ def live_block(tb: Tables, contacts_of: NDArray[np.bool_], max_rate: float, marg
     sent = -(-(t0 + n) // out_step) - -(-t0 // out_step)
     assert not with_rows or all(a.shape[:2] == (C, sent) for a in out), "out: a row per frame sent"
     _live_block(k.offset, k.frames, k.clips, k.cyclic, k.source, k.target, tb.total, tb.high, tb.curve_at,
-                tb.curves, contacts_of, max_rate, margin, len(tb.low), creep, t0, v, pts, h, tempo, clock,
-                walked, start, kind, first, clock0, trav0, before, busy, with_rows, out_step,
-                numba.get_num_threads(), rows, weights, gait, contacts, stitches, walked_out)
+                tb.curves, contacts_of, max_rate, slowest, slow, share, margin, len(tb.low), creep, t0, v,
+                pts, h, tempo, clock, walked, start, kind, first, clock0, trav0, before, busy, with_rows,
+                out_step, numba.get_num_threads(), rows, weights, gait, contacts, stitches, walked_out)
     return walked_out
 
 

@@ -55,7 +55,11 @@ MARGIN = 10  # frames over which a finished piece fades out where the next start
 N_HUBS = 5  # static, walk, trot, canter, gallop
 CHUNK = 256  # characters planned and rendered at a time (the working set stays in cache)
 BACKENDS = ("auto", "numba", "numpy")
-STAND_SHARE = 0.5  # below this share of the slowest clip's speed a character stands
+# Below its slowest clip's speed the slowest gait plays that clip's stride slower (its feet keep
+# pace with a slow path, as an animal creeping walks with long stances), down to this share of
+# its pace; slower still, a character stands. (At 0.5, with the stride at full pace, creeping
+# horses stood while their root crept on over the pinned hooves, which lifted 25 cm.)
+STAND_SHARE = 0.08
 MIN_TURN_SPEED = 0.05  # m/s: slower than this the heading holds (a standing animal does not spin)
 LOOKAHEAD = 2  # segments: gaits are chosen on the speed this far ahead, as transitions take time
 DECISION_SHARE = 4  # gait decisions this many times a segment
@@ -131,8 +135,8 @@ def _kinds(bank: Bank) -> _Kinds:
 
 def coverage(bank: Bank) -> tuple[Floats, Floats]:
     """Per hub, the lowest and highest speed it covers (inf, -inf: none). The slowest gait
-    covers down to STAND_SHARE of its slowest clip (its slowest clip, played slower); below
-    that a character stands."""
+    covers down to STAND_SHARE of its slowest clip (its slowest clip, played slower: see
+    :func:`stride_clocks`); below that a character stands."""
     low = np.full(N_HUBS, np.inf)
     high = np.full(N_HUBS, -np.inf)
     for h, s in bank.speeds.items():
@@ -192,14 +196,22 @@ def stride_clocks(bank: Bank, kinds: _Kinds, speed: Floats, t0: int = 0,
 
     ``tempo (C,)`` clip frames per output frame (:func:`character_tempo`; default 1) -- times up
     to MAX_RATE where the character is asked for more speed than the gait's fastest clip has (a
-    transition still under way, a sprint), so the feet keep pace instead of sliding.
+    transition still under way, a sprint), so the feet keep pace instead of sliding; and, for
+    the slowest gait asked for less than its slowest clip, times down to STAND_SHARE.
     """
     C, T = speed.shape
     clocks = np.broadcast_to(np.arange(t0, t0 + T + 1, dtype=np.float64), (N_HUBS + 1, C, T + 1)).copy()
     k = np.ones(C) if tempo is None else tempo
-    for hub, s in bank.speeds.items():
-        clocks[hub] = _stride_clock(speed, s[-1], np.zeros(C) if at is None else at[hub], k)
+    for hub in bank.speeds:
+        clocks[hub] = _stride_clock(speed, _clip_range(bank, hub), np.zeros(C) if at is None else at[hub], k)
     return clocks
+
+
+def _clip_range(bank: Bank, hub: int) -> tuple[float, float]:
+    """A hub's (slowest, fastest) clip speed as its stride clock reads them: the slowest gait
+    plays slower below its slowest clip; others never (slowest 0)."""
+    s = bank.speeds[hub]
+    return (float(s[0]) if hub == min(bank.speeds) else 0.0), float(s[-1])
 
 
 def hub_clocks(bank: Bank, hubs: NDArray[np.int64], speed: Floats, t0: int, at: Floats,
@@ -208,16 +220,20 @@ def hub_clocks(bank: Bank, hubs: NDArray[np.int64], speed: Floats, t0: int, at: 
     same numbers; a live decision reads no other: a fifth of the work)."""
     C, T = speed.shape
     clocks = np.broadcast_to(np.arange(t0, t0 + T + 1, dtype=np.float64), (C, T + 1)).copy()
-    for hub, s in bank.speeds.items():
+    for hub in bank.speeds:
         who = np.flatnonzero(hubs == hub)
         if len(who):
-            clocks[who] = _stride_clock(speed[who], s[-1], at[hub, who], tempo[who])
+            clocks[who] = _stride_clock(speed[who], _clip_range(bank, hub), at[hub, who], tempo[who])
     return clocks
 
 
-def _stride_clock(speed: Floats, fastest: float, begin: Floats, tempo: Floats) -> Floats:
-    """One hub's clock from ``begin (C,)``: ``tempo`` clip frames per frame, up to MAX_RATE faster."""
-    rate = np.clip(speed / fastest, 1.0, MAX_RATE) * tempo[:, None]
+def _stride_clock(speed: Floats, clips: tuple[float, float], begin: Floats, tempo: Floats) -> Floats:
+    """One hub's clock from ``begin (C,)``: ``tempo`` clip frames per frame, up to MAX_RATE faster
+    above its fastest clip's speed, down to STAND_SHARE below its slowest's (``clips``: the two
+    speeds, the slowest 0 for a gait that never plays slower)."""
+    slow, fast = clips
+    rate = np.where(speed < slow, np.maximum(speed / max(slow, 1e-12), STAND_SHARE),
+                    np.clip(speed / fast, 1.0, MAX_RATE)) * tempo[:, None]
     return np.asarray(np.cumsum(np.concatenate([begin[:, None], rate], axis=1), axis=1))
 
 
@@ -498,8 +514,9 @@ def plan(bank: Bank, prep: Prepared, h: Floats, keys: NDArray[np.uint64], margin
         draws = uniform_streams(keys, SCHEDULE_STREAM, -(-T // step), N_HUBS)
         # Rows of the frames kept only (the schedule reads T: a first window's took twice as long).
         rows, weights, gait, contacts, stitches = plan_kernels.plan_frames(
-            tb, bank.contacts, min(bank.speeds), max(bank.speeds), MAX_RATE, margin, step, lookahead(m),
-            bank.creep, v, path, h, tempo, draws, keep)
+            tb, bank.contacts, min(bank.speeds), max(bank.speeds), MAX_RATE,
+            _clip_range(bank, min(bank.speeds))[0], STAND_SHARE, margin, step, lookahead(m), bank.creep, v,
+            path, h, tempo, draws, keep)
         return Plan(rows, weights, yaw, path[:, :keep], h, contacts, stitches, gait)
     clocks = stride_clocks(bank, kinds, v, tempo=tempo)
     step = np.linalg.norm(np.diff(path[..., [0, 2]], axis=1), axis=-1)

@@ -284,3 +284,19 @@ def test_each_character_steps_at_its_own_tempo_seeded(bank: Bank) -> None:
         synthesize(bank, paths, options=Options(tempo_spread=0.5))
     with pytest.raises(TrajectoryError, match="size_matching"):
         synthesize(bank, paths, options=Options(size_matching="cubic"))
+
+
+def test_a_creeping_character_walks_slowly_with_its_feet_on_the_ground(bank: Bank) -> None:
+    """Below the slowest walk clip the walk plays slower (longer stances) instead of the animal
+    standing while its root creeps on over pinned feet (issue 27: hooves floated 25 cm). After FK:
+    the lowest foot stays on the ground (<= 1 cm, issue 27's floating target) and the feet step."""
+    speeds = [0.1, 0.2, 0.4]
+    res = synthesize(bank, _steady(speeds, 720), scales=np.ones(3), options=Options(tempo_spread=0.0))
+    feet = feet_of(bank, res)
+    height = feet[..., 1] - res.path[..., None, 1]
+    moving = slice(180, None)  # past the start
+    assert (height[:, moving].min(axis=-1) <= 0.01).all()
+    walk = bank.hubs.index("walk")
+    assert (res.gait[:, moving] == walk).mean() > 0.95
+    travelled = np.linalg.norm(feet[:, -1][..., [0, 2]] - feet[:, 180][..., [0, 2]], axis=-1)  # (C, 4)
+    assert (travelled > 0.5 * np.array(speeds)[:, None] * (720 - 180) / 60).all()  # every foot steps on
