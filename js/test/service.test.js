@@ -131,7 +131,7 @@ test('live: points in, contiguous frames out, an end after finish', { skip }, as
 test('bad input is an error naming the field, not a hang', { skip }, async () => {
   const qs = client();
   await assert.rejects(qs.synthesize({ animal: 'unicorn', characters: characters(points, C) }),
-    (e) => e instanceof ServiceError && e.status === 422 && e.field === 'animal');
+    (e) => e instanceof ServiceError && e.status === 404 && e.field === 'animal');
   const bad = points.slice(0, F * 3);
   bad[30] = NaN;
   const stream = qs.stream({ animal: 'horse', characters: [{ id: 'x', points: bad }] });
