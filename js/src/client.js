@@ -120,12 +120,18 @@ export class QuadSynthClient {
    * @param options.codec  {encode, decode} of msgpack; default @msgpack/msgpack
    * @param options.retries  reconnections after a 1001/1013 close (default 5), backoff from
    *                         options.retryDelayMs (default 250) doubling each time
+   * @param options.restRetries  a REST request sent again when it got no answer or its answer
+   *                         was cut short (a replica died mid-answer; the request is idempotent:
+   *                         same seed, same motion), at most this many times (default 2);
+   *                         the retries made are counted in `.restRetriesMade`
    */
   constructor(url, options = {}) {
     this.url = url.replace(/\/+$/, '');
     this.connect = options.webSocket ?? ((u) => new globalThis.WebSocket(u));
     this.retries = options.retries ?? 5;
     this.retryDelayMs = options.retryDelayMs ?? 250;
+    this.restRetries = options.restRetries ?? 2;
+    this.restRetriesMade = 0;
     this.fetch = options.fetch ?? globalThis.fetch.bind(globalThis);
     this.givenCodec = options.codec ?? null;
   }
@@ -155,11 +161,21 @@ export class QuadSynthClient {
    * as Float32Array (F x 3) or [[x, y, z], ...]. Rotations come back decoded, whatever the encoding. */
   async synthesize(request) {
     const { encode, decode } = await this.codec();
-    const response = await this.fetch(`${this.url}/v1/synthesize`, {
-      method: 'POST', body: encode(requestBody(request)),
-      headers: { 'content-type': MSGPACK, accept: MSGPACK },
-    });
-    const bytes = new Uint8Array(await response.arrayBuffer());
+    const sent = encode(requestBody(request));
+    let response, bytes;
+    for (let attempt = 0; ; attempt++) {
+      try {
+        response = await this.fetch(`${this.url}/v1/synthesize`, {
+          method: 'POST', body: sent, headers: { 'content-type': MSGPACK, accept: MSGPACK },
+        });
+        bytes = new Uint8Array(await response.arrayBuffer());  // rejects on a body cut short
+        break;
+      } catch (error) {
+        if (attempt >= this.restRetries || error instanceof ServiceError) throw error;
+        this.restRetriesMade++;
+        await sleep(this.retryDelayMs * 2 ** attempt);
+      }
+    }
     if (!response.ok) {
       let error = { field: '', message: new TextDecoder().decode(bytes.subarray(0, 200)) };
       try { error = JSON.parse(new TextDecoder().decode(bytes)).error; } catch { /* not JSON */ }

@@ -98,12 +98,13 @@ export interface LiveStart {
 }
 export interface Codec { encode(value: unknown): Uint8Array; decode(bytes: Uint8Array): any }
 export interface ClientOptions {
-  webSocket?: (url: string) => WebSocket; fetch?: typeof fetch; codec?: Codec; retries?: number; retryDelayMs?: number;
+  webSocket?: (url: string) => WebSocket; fetch?: typeof fetch; codec?: Codec; retries?: number; retryDelayMs?: number; restRetries?: number;
 }
 
 export class QuadSynthClient {
   constructor(url: string, options?: ClientOptions);
   readonly streamUrl: string;
+  readonly restRetriesMade: number;
   libraries(): Promise<{ libraries: { animal: string; joints: number; fps: number; gaits: string[] }[] }>;
   limits(): Promise<Record<string, any>>;
   skeleton(animal: string): Promise<Skeleton & { detail: LibraryDetail }>;
