@@ -190,6 +190,37 @@ export class QuadSynthClient {
     return body;
   }
 
+  /**
+   * A big herd spread over several requests in flight at once (`concurrency`, default 2), so
+   * the replicas behind a load balancer share it; the answer is the one `synthesize` gives for
+   * the whole herd: each piece says where it starts in the herd (`first_index`), so every
+   * character draws its gait, scale and tempo as in one request, and pieces asked to resample
+   * (`resample`) that came back at a lower rate than the fastest are asked again at that rate
+   * (`min_resample_rate`), so all keep the same frames. `skipped` and `warnings` index the herd.
+   */
+  async synthesizeSpread(request, { concurrency = 2 } = {}) {
+    const C = request.characters.length;
+    const n = Math.max(1, Math.min(concurrency, C));
+    const cuts = Array.from({ length: n + 1 }, (_, k) => Math.round((k * C) / n));
+    const pieces = cuts.slice(0, -1).map((a, k) => [a, cuts[k + 1]]);
+    const base = request.first_index ?? 0;
+    const send = (a, b, rate) => this.synthesize({
+      ...request, characters: request.characters.slice(a, b), first_index: base + a,
+      ...(rate > (request.min_resample_rate ?? 1) ? { min_resample_rate: rate } : {}),
+    });
+    let answers = await Promise.all(pieces.map(([a, b]) => send(a, b, 1)));
+    const rate = Math.max(...answers.map((m) => m.resample_rate));
+    answers = await Promise.all(answers.map((m, k) => (m.resample_rate < rate && m.characters.length
+      ? send(pieces[k][0], pieces[k][1], rate) : m)));
+    const shift = (list, k) => (list ?? []).map((e) => ({ ...e, index: e.index + pieces[k][0] }));
+    return {
+      ...answers[0], resample_rate: rate,
+      characters: answers.flatMap((m) => m.characters),
+      skipped: answers.flatMap((m, k) => shift(m.skipped, k)),
+      warnings: answers.flatMap((m, k) => shift(m.warnings, k)),
+    };
+  }
+
   async reconnecting(attempt, error) {
     if (!RETRY_CODES.has(error.code) || attempt >= this.retries) throw error;
     await sleep(this.retryDelayMs * 2 ** attempt);

@@ -109,6 +109,8 @@ export class QuadSynthClient {
   limits(): Promise<Record<string, any>>;
   skeleton(animal: string): Promise<Skeleton & { detail: LibraryDetail }>;
   synthesize(request: SynthesizeRequest): Promise<Motion>;
+  /** The herd in `concurrency` requests in flight at once; the same answer as `synthesize`. */
+  synthesizeSpread(request: SynthesizeRequest, options?: { concurrency?: number }): Promise<Motion>;
   stream(request: SynthesizeRequest, options?: {
     chunkFrames?: number; onStart?: (start: Record<string, any>) => void;
     onReconnect?: (info: { code?: number; error: ServiceError }) => void;

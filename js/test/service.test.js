@@ -173,3 +173,19 @@ test('pose assembly equals synth_core FK: f32 within 0.01 mm, s48 within the enc
     assert.equal(over, 0, `${encoding}: ${over} foot-frames further from synth_core's FK than the encoding allows`);
   }
 });
+
+test('a herd spread over requests in flight is the motion one request gives', { skip }, async () => {
+  const qs = client();
+  const n = 7, pts = herd(n, 240);
+  const whole = { animal: 'horse', fps: 60, seed: 11, encoding: 'f32', characters: characters(pts, n) };
+  const one = await qs.synthesize(whole);
+  const spread = await qs.synthesizeSpread(whole, { concurrency: 3 });
+  assert.equal(spread.characters.length, n);
+  spread.characters.forEach((ch, c) => {
+    assert.equal(ch.id, one.characters[c].id);
+    assert.equal(ch.scale, one.characters[c].scale);
+    assert.deepEqual(ch.rotations, one.characters[c].rotations);
+    assert.deepEqual(ch.root, one.characters[c].root);
+  });
+  assert.deepEqual(spread.warnings, one.warnings);
+});
