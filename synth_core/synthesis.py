@@ -4,16 +4,18 @@ For a batch of characters at once, all array operations over (characters, frames
 the only Python loops run over segments (a dozen) and gaits (four):
 
 1. **Schedule** (per segment, vectorized over characters). Every character starts standing and
-   moves through the motion graph one hub at a time. A segment's speed ``s / h`` (scale h) picks
-   the gait: the current one while its range covers the speed (hysteresis), else one of the
-   gaits covering it -- at random where ranges overlap (each character's own counter-based
-   draws, :mod:`synth_core.draws`) -- reached one transition per step. A transition starts when
-   the stride reaches the phase the clip starts from (``Bank`` entry), and the next gait picks up
-   at the phase the clip ends in: the footfall sequence carries on across it.
+   moves through the motion graph one hub at a time. A segment's speed ``s / (h k)`` (scale h,
+   stride tempo k: :func:`character_tempo`, Froude similarity by default) picks the gait: the
+   current one while its range covers the speed (hysteresis), else one of the gaits covering
+   it -- at random where ranges overlap (each character's own counter-based draws,
+   :mod:`synth_core.draws`) -- reached one transition per step. A transition starts when the
+   stride reaches the phase the clip starts from (``Bank`` entry), and the next gait picks up at
+   the phase the clip ends in: the footfall sequence carries on across it.
 2. **Clip interpolation.** Within a gait every speed-map clip has the same frames and contacts,
-   so the stride phase just runs on (one clip frame per output frame) and the speed only moves
-   the pair of clips blended, ``M = (1 - a) M_i + a M_j`` with the paper's ``a``, a continuous
-   function of the speed interpolated between segment centres: no pop where segments meet.
+   so the stride phase just runs on (k clip frames per output frame: :func:`stride_clocks`) and
+   the speed only moves the pair of clips blended, ``M = (1 - a) M_i + a M_j`` with the paper's
+   ``a``, a continuous function of the speed interpolated between segment centres: no pop where
+   segments meet.
 3. **Stitch.** Where a piece starts (transition in or out), the piece before it carries on and
    fades out over ``margin`` frames (smoothstep).
 4. **Warp.** The root's ground position is the (smoothed) trajectory point of that frame plus
