@@ -58,6 +58,7 @@ from synth_core.synthesis import (
     blend_rows,
     character_scales,
     character_tempo,
+    clip_range,
     decision_step,
     distance_since,
     entry_frame,
@@ -218,7 +219,7 @@ class LiveSynth:
             raise TrajectoryError(f"scale: must be a positive number, got {self.scales[bad]}", bad)
         self.tempo = character_tempo(self.keys, self.scales, size_matching, tempo_spread)
         self.pace = self.scales * self.tempo  # path speed over this: the library's (synthesis.plan)
-        self.slow = float(bank.speeds[min(bank.speeds)][0])  # the walk plays slower below this
+        self.slow = clip_range(bank, min(bank.speeds))[0]  # the walk plays slower below this
         ratio = bank.fps / fps
         self.out_step = int(round(ratio)) if abs(ratio - round(ratio)) < 1e-9 else 1
         self.kinds = _kinds(bank)

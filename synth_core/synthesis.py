@@ -205,11 +205,11 @@ def stride_clocks(bank: Bank, kinds: _Kinds, speed: Floats, t0: int = 0,
     clocks = np.broadcast_to(np.arange(t0, t0 + T + 1, dtype=np.float64), (N_HUBS + 1, C, T + 1)).copy()
     k = np.ones(C) if tempo is None else tempo
     for hub in bank.speeds:
-        clocks[hub] = _stride_clock(speed, _clip_range(bank, hub), np.zeros(C) if at is None else at[hub], k)
+        clocks[hub] = _stride_clock(speed, clip_range(bank, hub), np.zeros(C) if at is None else at[hub], k)
     return clocks
 
 
-def _clip_range(bank: Bank, hub: int) -> tuple[float, float]:
+def clip_range(bank: Bank, hub: int) -> tuple[float, float]:
     """A hub's (slowest, fastest) clip speed as its stride clock reads them: the slowest gait
     plays slower below its slowest clip; others never (slowest 0)."""
     s = bank.speeds[hub]
@@ -225,7 +225,7 @@ def hub_clocks(bank: Bank, hubs: NDArray[np.int64], speed: Floats, t0: int, at: 
     for hub in bank.speeds:
         who = np.flatnonzero(hubs == hub)
         if len(who):
-            clocks[who] = _stride_clock(speed[who], _clip_range(bank, hub), at[hub, who], tempo[who])
+            clocks[who] = _stride_clock(speed[who], clip_range(bank, hub), at[hub, who], tempo[who])
     return clocks
 
 
@@ -517,7 +517,7 @@ def plan(bank: Bank, prep: Prepared, h: Floats, keys: NDArray[np.uint64], margin
         # Rows of the frames kept only (the schedule reads T: a first window's took twice as long).
         rows, weights, gait, contacts, stitches = plan_kernels.plan_frames(
             tb, bank.contacts, min(bank.speeds), max(bank.speeds), MAX_RATE,
-            _clip_range(bank, min(bank.speeds))[0], STAND_SHARE, margin, step, lookahead(m), bank.creep, v,
+            clip_range(bank, min(bank.speeds))[0], STAND_SHARE, margin, step, lookahead(m), bank.creep, v,
             path, h, tempo, draws, keep)
         return Plan(rows, weights, yaw, path[:, :keep], h, contacts, stitches, gait)
     clocks = stride_clocks(bank, kinds, v, tempo=tempo)
