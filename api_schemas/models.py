@@ -110,7 +110,7 @@ class SynthesizeRequest(BaseModel):
                                                           "instead of refusing the request")
     scale_min: float = Field(default=0.8, gt=0, le=100)
     scale_max: float = Field(default=1.2, gt=0, le=100)
-    foot_lock: bool = Field(default=True, description="pin planted feet (synth_core.footlock)")
+    foot_lock: bool = Field(default=True, description="pin planted feet (synth_core.runtime.footlock)")
     first_index: int = Field(default=0, ge=0, le=2**53,
                              description="index of the first character in the whole herd: a herd sent "
                                          "in several requests, each with its own first_index, draws "

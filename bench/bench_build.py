@@ -12,8 +12,8 @@ import tempfile
 import time
 from pathlib import Path
 
-from synth_core.artifact import load_library, save_library
-from synth_core.build import build_builtin
+from synth_core.build.animals import build_builtin
+from synth_core.build.artifact import load_library, save_library
 
 
 def main() -> None:

@@ -16,9 +16,9 @@ from pathlib import Path
 
 import numpy as np
 
-from synth_core import bvh, quat
-from synth_core.contacts import detect_contacts
-from synth_core.skeleton import forward_kinematics
+from synth_core.motion import bvh, quat
+from synth_core.motion.contacts import detect_contacts
+from synth_core.motion.skeleton import forward_kinematics
 
 MANN = Path(__file__).resolve().parents[1].parent / "shared" / "mocap" / "mann_dog"
 

@@ -47,7 +47,7 @@ import numpy as np
 from api_schemas.client import Client
 from api_schemas.wire import blob
 from service.settings import Settings
-from synth_core import crowd
+from synth_core.quality import herd_sim as crowd
 
 REPO = Path(__file__).resolve().parents[1]
 MSGPACK = "application/vnd.msgpack"

@@ -16,12 +16,12 @@ from __future__ import annotations
 import time
 from typing import Any
 
-from synth_core import crowd
-from synth_core.bank import Bank, build_bank
-from synth_core.build import build_builtin
-from synth_core.onthefly import synthesize_onthefly
-from synth_core.scratch import Scratch
-from synth_core.synthesis import Options, synthesize
+from synth_core.build.animals import build_builtin
+from synth_core.compiled.scratch import Scratch
+from synth_core.quality import herd_sim as crowd
+from synth_core.quality.onthefly import synthesize_onthefly
+from synth_core.runtime.bank import Bank, build_bank
+from synth_core.runtime.synthesis import Options, synthesize
 
 OPTIONS = Options(scale_range=(0.8, 1.2), seed=0)
 ROUND_S = 0.1  # each point runs about this long per round (a short point: several times)

@@ -40,7 +40,7 @@ import numpy as np
 from api_schemas.client import read_body
 from api_schemas.wire import blob
 from quadsynth.bench_ws import LeanSocket
-from synth_core import crowd
+from synth_core.quality import herd_sim as crowd
 
 CHARACTERS, FRAMES = 500, 500
 LIVE_CHARACTERS, LIVE_SECONDS, LIVE_TICK = 4000, 10.0, 15  # a tick: half a second of 30 fps points

@@ -17,8 +17,8 @@ import numpy as np
 from synth_core import SIZE_MATCHING, TEMPO_SPREAD
 
 if TYPE_CHECKING:
-    from synth_core.skeleton import Skeleton
-    from synth_core.synthesis import Result
+    from synth_core.motion.skeleton import Skeleton
+    from synth_core.runtime.synthesis import Result
 
 
 def _step(message: str) -> None:
@@ -118,7 +118,7 @@ def _preview(args: argparse.Namespace, extra: list[str]) -> int:
 
 
 def _library_export(args: argparse.Namespace, extra: list[str]) -> int:
-    from synth_core.library.clips import export_clips
+    from synth_core.builtin.clips import export_clips
 
     written = export_clips(args.animal, Path(args.out))
     print(f"wrote {len(written)} files to {args.out}")
@@ -144,14 +144,14 @@ def _library_mesh(args: argparse.Namespace, extra: list[str]) -> int:
 
 
 def _build(args: argparse.Namespace, extra: list[str]) -> int:
-    from synth_core.artifact import save_library
+    from synth_core.build.artifact import save_library
 
     if args.animal:
-        from synth_core.build import build_builtin
+        from synth_core.build.animals import build_builtin
 
         library = build_builtin(args.animal)
     else:
-        from synth_core.manifest import build_from_manifest
+        from synth_core.build.manifest import build_from_manifest
 
         library = build_from_manifest(Path(args.manifest))
         for doubt in library.extra.get("warnings", []):
@@ -161,8 +161,8 @@ def _build(args: argparse.Namespace, extra: list[str]) -> int:
 
 
 def _report(args: argparse.Namespace, extra: list[str]) -> int:
-    from synth_core.artifact import load_library
-    from synth_core.build import report
+    from synth_core.build.animals import report
+    from synth_core.build.artifact import load_library
 
     figures = report(load_library(args.file))
     print(json.dumps(figures) if args.json else json.dumps(figures, indent=2))
@@ -170,8 +170,8 @@ def _report(args: argparse.Namespace, extra: list[str]) -> int:
 
 
 def _export_speedmap(args: argparse.Namespace, extra: list[str]) -> int:
-    from synth_core import bvh
-    from synth_core.artifact import load_library
+    from synth_core.build.artifact import load_library
+    from synth_core.motion import bvh
 
     library = load_library(args.file)
     out = Path(args.out)
@@ -201,7 +201,7 @@ def _progress(label: str) -> Callable[[int, int], None]:
 
 
 def _load_library(animal: str, library: str | None) -> Any:
-    from synth_core.artifact import load_library
+    from synth_core.build.artifact import load_library
 
     if library:
         return load_library(library)
@@ -213,7 +213,8 @@ def _load_library(animal: str, library: str | None) -> Any:
 
 
 def _crowd_sim(args: argparse.Namespace, extra: list[str]) -> int:
-    from synth_core import crowd, crowd_io
+    from synth_core.quality import herd_sim as crowd
+    from synth_core.runtime import trajectory_files as crowd_io
 
     positions = crowd.simulate(args.characters, args.frames, seed=args.seed, fps=args.fps,
                                top=args.top_speed, spacing=args.spacing)
@@ -222,9 +223,9 @@ def _crowd_sim(args: argparse.Namespace, extra: list[str]) -> int:
 
 
 def _synth(args: argparse.Namespace, extra: list[str]) -> int:
-    from synth_core import crowd_io
-    from synth_core.bank import build_bank
-    from synth_core.synthesis import Options, synthesize
+    from synth_core.runtime import trajectory_files as crowd_io
+    from synth_core.runtime.bank import build_bank
+    from synth_core.runtime.synthesis import Options, synthesize
 
     traj = crowd_io.read(args.trajectories, args.fps)
     library = _load_library(args.animal, args.library)
@@ -246,7 +247,7 @@ def _client_synth(args: argparse.Namespace, extra: list[str]) -> int:
 
     from api_schemas.client import ServiceError
     from quadsynth import remote
-    from synth_core import crowd_io
+    from synth_core.runtime import trajectory_files as crowd_io
 
     traj = crowd_io.read(args.trajectories, args.fps)
     try:
@@ -298,8 +299,8 @@ def _write_herd(args: argparse.Namespace, skeleton: Skeleton, result: Result, id
 
 
 def _eval(args: argparse.Namespace, extra: list[str]) -> int:
-    from synth_core import evaluate
-    from synth_core.bank import build_bank
+    from synth_core.quality import evaluate
+    from synth_core.runtime.bank import build_bank
 
     if args.suite == "standard" and (args.scenario or args.out):  # before any library is built
         raise ValueError("--scenario and --out: only with --suite edge")
@@ -307,7 +308,7 @@ def _eval(args: argparse.Namespace, extra: list[str]) -> int:
     libraries: dict[str, Any] = {}
     for name in args.animal:
         if name == "mann_dog":
-            from synth_core.manifest import build_from_manifest
+            from synth_core.build.manifest import build_from_manifest
 
             libraries[name] = build_from_manifest(Path(args.manifest))
         else:
@@ -324,7 +325,7 @@ def _eval(args: argparse.Namespace, extra: list[str]) -> int:
 def _eval_edge(args: argparse.Namespace, banks: dict[str, Any]) -> int:
     """``eval --suite edge``: the edge scenarios per animal (JSON); with ``--out DIR`` also
     DIR/edge.json, DIR/edge.md (a table per animal) and DIR/edge_worst_<animal>.png."""
-    from synth_core import evaluate
+    from synth_core.quality import evaluate
 
     suites: dict[str, Any] = {}
     kept: dict[str, dict[str, Any]] = {}
@@ -488,7 +489,8 @@ def build_parser() -> argparse.ArgumentParser:
     ev.add_argument("--json", action="store_true", help="one JSON object on one line")
     ev.add_argument("--suite", choices=["standard", "edge"], default="standard",
                     help="standard: one crowd-sim herd (--characters, --frames); edge: stops, creeps, "
-                    "turns, jitter, a too-fast character, sizes (synth_core/edge.py), against issue 27's "
+                    "turns, jitter, a too-fast character, sizes (synth_core/quality/edge.py), against "
+                    "issue 27's "
                     "targets")
     ev.add_argument("--scenario", action="append", default=None,
                     help="edge suite: only this scenario (repeatable; default: all)")

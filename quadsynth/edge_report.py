@@ -10,13 +10,13 @@ from typing import Any
 
 import numpy as np
 
-from synth_core import evaluate
-from synth_core import metrics as M
-from synth_core.bank import Bank
-from synth_core.edge import Scenario
-from synth_core.export.crowd import scaled_skeleton
-from synth_core.motion import Motion
-from synth_core.synthesis import Result
+from synth_core.export.character import scaled_skeleton
+from synth_core.motion.clip import Motion
+from synth_core.quality import evaluate
+from synth_core.quality import metrics as M
+from synth_core.quality.edge import Scenario
+from synth_core.runtime.bank import Bank
+from synth_core.runtime.synthesis import Result
 
 SHORT = {"glide_ratio": "glide", "strict_skate_mm_p95": "skate p95 mm", "jump_cm_max": "jump cm",
          "limb_flips": "flips", "walk_support_share": "walk >=2 down",

@@ -18,9 +18,9 @@ import numpy as np  # noqa: E402
 from matplotlib.animation import FuncAnimation, PillowWriter  # noqa: E402
 
 from quadsynth.preview import bone_colors, draw_pose  # noqa: E402
-from synth_core.export.crowd import character_motion  # noqa: E402
-from synth_core.skeleton import Skeleton  # noqa: E402
-from synth_core.synthesis import Result  # noqa: E402
+from synth_core.export.character import character_motion  # noqa: E402
+from synth_core.motion.skeleton import Skeleton  # noqa: E402
+from synth_core.runtime.synthesis import Result  # noqa: E402
 
 GAIT_COLORS = ["#777777", "#2ca02c", "#1f77b4", "#ff7f0e", "#d62728"]  # static, walk, trot, canter, gallop
 MAX_TOP = 2000  # characters drawn in the top view

@@ -16,9 +16,9 @@ import numpy as np  # noqa: E402
 from mpl_toolkits.mplot3d.art3d import Poly3DCollection  # noqa: E402
 from numpy.typing import NDArray  # noqa: E402
 
-from synth_core.artifact import Library  # noqa: E402
+from synth_core.build.artifact import Library  # noqa: E402
 from synth_core.export.mesh import SkinnedMesh, build_mesh, pose_mesh, standing_rotations  # noqa: E402
-from synth_core.skeleton import forward_kinematics  # noqa: E402
+from synth_core.motion.skeleton import forward_kinematics  # noqa: E402
 
 LIGHT = np.array([0.4, 0.8, 0.45]) / np.linalg.norm([0.4, 0.8, 0.45])
 COLOR = np.array([0.55, 0.38, 0.24])

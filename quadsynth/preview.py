@@ -23,9 +23,10 @@ from matplotlib.animation import FuncAnimation, PillowWriter  # noqa: E402
 from matplotlib.axes import Axes  # noqa: E402
 from numpy.typing import NDArray  # noqa: E402
 
-from synth_core import FOOT_NAMES, bvh  # noqa: E402
-from synth_core.contacts import contacts_from_json, detect_contacts  # noqa: E402
-from synth_core.motion import Motion  # noqa: E402
+from synth_core import FOOT_NAMES
+from synth_core.motion import bvh
+from synth_core.motion.clip import Motion  # noqa: E402
+from synth_core.motion.contacts import contacts_from_json, detect_contacts  # noqa: E402
 
 LEFT, RIGHT, BODY, PLANT = "#1f5fbf", "#e07b00", "#222222", "#d62728"
 FOOT_COLORS = {"LF": "#1f5fbf", "RF": "#e07b00", "LH": "#6fa8ff", "RH": "#ffb347"}

@@ -23,10 +23,10 @@ import numpy as np
 from numpy.typing import NDArray
 
 from api_schemas.client import CharacterMotion, Client, Motion, ServiceError
-from synth_core.motion_graph import HUBS
-from synth_core.skeleton import Skeleton
-from synth_core.synthesis import Result
-from synth_core.trajectory import ALL_INVALID, resample
+from synth_core.build.motion_graph import HUBS
+from synth_core.motion.skeleton import Skeleton
+from synth_core.runtime.synthesis import Result
+from synth_core.runtime.trajectory import ALL_INVALID, resample
 
 RATE_ALLOWANCE = 2.0  # output frames a piece is sized for: the retimed frames x this (resampling)
 BODY_SLACK = 64 * 1024  # request bytes besides the characters (options, msgpack framing)

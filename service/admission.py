@@ -12,7 +12,7 @@ from collections.abc import AsyncIterator, Callable
 from contextlib import asynccontextmanager
 
 from service.errors import ApiError
-from service.metrics import Metrics
+from service.prometheus import Metrics
 
 RETRY_AFTER_S = 1
 

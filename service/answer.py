@@ -28,11 +28,11 @@ import numpy as np
 from api_schemas.wire import BYTES_PER_JOINT_FRAME, Encoding, packed_dtype
 from service import jobs
 from service.packing import contact_bits, pack_rotations
-from synth_core import render_pool
-from synth_core.bank import Bank
-from synth_core.scratch import Scratch
-from synth_core.synthesis import prepare_batch, render_chunk
-from synth_core.trajectory import TrajectoryError
+from synth_core.compiled import render_pool
+from synth_core.compiled.scratch import Scratch
+from synth_core.runtime.bank import Bank
+from synth_core.runtime.synthesis import prepare_batch, render_chunk
+from synth_core.runtime.trajectory import TrajectoryError
 
 PIECE_BYTES = 8 * 1024 * 1024  # float32 rotations per chunk: the chunks stay small enough to stream
 
@@ -216,7 +216,7 @@ def produce(job: jobs.Job, bank: Bank, meta: dict[str, Any], emit: Callable[[Any
     after resampling, before anything is emitted; :class:`jobs.Cancelled` between chunks once
     ``job.cancel`` is set.
 
-    The chunks are made side by side on :mod:`synth_core.render_pool`'s threads, each planned,
+    The chunks are made side by side on :mod:`synth_core.compiled.render_pool`'s threads, each planned,
     rendered (one thread), packed and joined in its thread's own :class:`Scratch` pages: the
     numpy around the render runs on every core too (a 500 x 500 answer in-process: 0.26-0.28
     -> 0.18-0.20 s; over HTTP, interleaved: best 0.226 -> 0.204 s, median 0.273 -> 0.230)."""

@@ -39,18 +39,19 @@ from api_schemas import (
     SynthesizeResponse,
 )
 from api_schemas.wire import BYTES_PER_JOINT_FRAME, MSGPACK
-from service import answer, body, budget, jobs, memory, stream, web
+from service import answer, body, budget, jobs, memory, web
+from service import batch_ws as stream
 from service.admission import Admission
 from service.body import JSON, PiecesResponse
 from service.budget import MemoryBudget
 from service.errors import ApiError, handle_api_error, handle_http_error, handle_validation_error
 from service.libraries import LibraryRegistry, library_dir
-from service.metrics import Metrics, MetricsMiddleware
 from service.packing import skeleton_id
 from service.pipe import Pipe
+from service.prometheus import Metrics, MetricsMiddleware
 from service.settings import Settings
-from synth_core.motion_graph import HUBS
-from synth_core.scratch import Shelf
+from synth_core.build.motion_graph import HUBS
+from synth_core.compiled.scratch import Shelf
 
 GLB = "model/gltf-binary"  # glTF 2.0 binary media type (IANA)
 
@@ -99,7 +100,7 @@ class State:
         self.scratches = Shelf()  # live sessions' chunk buffers, kept from session to session
         self.draining = False
         self.drain = asyncio.Event()  # set on SIGTERM: WebSocket sessions close with 1001
-        self.sessions: set[Any] = set()  # open WebSocket sessions (service.stream.Session)
+        self.sessions: set[Any] = set()  # open WebSocket sessions (service.batch_ws.Session)
         self.sessions_closed = asyncio.Event()
         # Test hooks (settings.test_hooks): a worker about to synthesize sets `held` and waits
         # until `hold` is set again; /_test/hold clears it, /_test/release sets it.
@@ -297,9 +298,9 @@ def warm_up(registry: LibraryRegistry) -> None:
     import numpy as np
 
     from service.packing import pack_rotations
-    from synth_core.live import LiveSynth
-    from synth_core.streaming import BatchStream
-    from synth_core.synthesis import synthesize
+    from synth_core.runtime.live import LiveSynth
+    from synth_core.runtime.streaming import BatchStream
+    from synth_core.runtime.synthesis import synthesize
 
     path = np.zeros((1, 30, 3))
     path[0, :, 2] = np.linspace(0.0, 0.3, 30)

@@ -5,7 +5,7 @@ with 422 naming ``memory_budget_mb``.
 
 The estimate (:func:`answer_bytes`) counts what an answer holds at its peak: its prepared paths,
 and the larger of what preparing them takes and what streaming holds -- the pieces being rendered
-and waiting in :mod:`synth_core.render_pool`, the bounded hand-over to the socket
+and waiting in :mod:`synth_core.compiled.render_pool`, the bounded hand-over to the socket
 (:mod:`service.pipe`) and the piece the socket is sending.
 """
 
@@ -15,14 +15,14 @@ import threading
 
 from service.answer import characters_per_piece
 from service.errors import ApiError
-from service.metrics import Metrics
-from synth_core import render_pool
-from synth_core.trajectory import ROWS
+from service.prometheus import Metrics
+from synth_core.compiled import render_pool
+from synth_core.runtime.trajectory import ROWS
 
 RETRY_AFTER_S = 1
 MB = 1 << 20
 PREPARED_BYTES = 24 + 24  # per character-frame: the smoothed float64 path, and the plan's columns
-# Preparing the paths (retimed, smoothed: synth_core.trajectory, ROWS characters at a time) makes
+# Preparing the paths (retimed, smoothed: synth_core.runtime.trajectory, ROWS characters at a time) makes
 # about four float64 copies of a row block's paths at once: traced, 229 MB at the peak of a
 # 250 x 8,000 answer (its 48 MB of paths included), before any piece is made.
 PREPARING_COPIES = 4

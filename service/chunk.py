@@ -21,9 +21,9 @@ import numpy as np
 from api_schemas.wire import BYTES_PER_JOINT_FRAME, Encoding, blob, packed_dtype
 from service.answer import Hole, hole_blob, template
 from service.packing import contact_bits, pack_rotations
-from synth_core import render_pool
-from synth_core.scratch import Scratch
-from synth_core.streaming import Window
+from synth_core.compiled import render_pool
+from synth_core.compiled.scratch import Scratch
+from synth_core.runtime.streaming import Window
 
 _ALIGN = 8  # the rotations' place in the buffer: the compiled packer writes uint16 words there
 

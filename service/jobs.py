@@ -17,10 +17,10 @@ from api_schemas import CharacterIn, LiveCharacter, LiveRequest, SynthesizeReque
 from api_schemas.wire import WireError, unblob
 from service.errors import ApiError, field_path, from_validation
 from service.settings import Settings
-from synth_core.bank import Bank
-from synth_core.streaming import BatchStream
-from synth_core.synthesis import Options, Result
-from synth_core.trajectory import FrameLimitError, Prepared, TrajectoryError, resampled_frames
+from synth_core.runtime.bank import Bank
+from synth_core.runtime.streaming import BatchStream
+from synth_core.runtime.synthesis import Options, Result
+from synth_core.runtime.trajectory import FrameLimitError, Prepared, TrajectoryError, resampled_frames
 
 
 class Cancelled(Exception):

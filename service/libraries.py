@@ -1,6 +1,6 @@
 """Animal libraries held in memory by the service, loaded once at start-up.
 
-Libraries are artifact files (:mod:`synth_core.artifact`) in the library directory
+Libraries are artifact files (:mod:`synth_core.build.artifact`) in the library directory
 (``QUADSYNTH_LIBRARY_DIR``; default a per-user data directory, :func:`library_dir`): every
 ``*.qslib.npz`` there is loaded. The built-in horse and dog are built into it first when missing
 (about a second each), so a fresh install serves out of the box.
@@ -23,11 +23,11 @@ from pathlib import Path
 
 import synth_core
 from api_schemas import LibraryStatus, LibrarySummary
-from synth_core.artifact import SUFFIX, Library, LibraryFileError, load_library, save_library
-from synth_core.bank import Bank, build_bank
+from synth_core.build.artifact import SUFFIX, Library, LibraryFileError, load_library, save_library
+from synth_core.builtin import BUILTIN_ANIMALS
 from synth_core.export.gltf import mesh_glb
 from synth_core.export.mesh import standing_rotations
-from synth_core.library import BUILTIN_ANIMALS
+from synth_core.runtime.bank import Bank, build_bank
 
 log = logging.getLogger("quadsynth.libraries")
 
@@ -82,7 +82,7 @@ def _current(path: Path) -> bool:
 def ensure_builtin_libraries(directory: Path) -> list[Path]:
     """Build and save the built-in animals' libraries that are missing or were built by other code
     (an upgrade: the library directory outlives a checkout); returns the new files."""
-    from synth_core.build import build_builtin
+    from synth_core.build.animals import build_builtin
 
     built = []
     for animal in BUILTIN_ANIMALS:
@@ -101,7 +101,7 @@ def ensure_builtin_libraries(directory: Path) -> list[Path]:
 def builtin_library(animal: str) -> Library:
     """A built-in animal's library: its file in the library directory if this code built it,
     else built now."""
-    from synth_core.build import build_builtin
+    from synth_core.build.animals import build_builtin
 
     path = library_dir() / f"{animal}{SUFFIX}"
     return load_library(path) if _current(path) else build_builtin(animal)

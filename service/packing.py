@@ -14,8 +14,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from api_schemas.wire import S48_MAX, Encoding, blob, encode_rotations, packed_dtype
-from synth_core.skeleton import Skeleton
-from synth_core.synthesis import Result
+from synth_core.motion.skeleton import Skeleton
+from synth_core.runtime.synthesis import Result
 
 numba: Any
 try:

@@ -30,7 +30,7 @@ UP_AXIS = 1
 """Index of the vertical axis (Y up)."""
 
 SIZE_MATCHING: tuple[str, str] = ("froude", "geometric")
-"""How a character of scale h uses the library (synth_core.synthesis.character_tempo)."""
+"""How a character of scale h uses the library (synth_core.runtime.synthesis.character_tempo)."""
 
 TEMPO_SPREAD = 0.06
 """Each character's own stride frequency, uniform within +- this share of its size's (seeded).

@@ -9,11 +9,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from synth_core import quat
-from synth_core.bank import Bank, build_bank
-from synth_core.build import build_builtin
-from synth_core.motion import Motion
-from synth_core.skeleton import Skeleton
+from synth_core.build.animals import build_builtin
+from synth_core.motion import quat
+from synth_core.motion.clip import Motion
+from synth_core.motion.skeleton import Skeleton
+from synth_core.runtime.bank import Bank, build_bank
 
 REPO = Path(__file__).resolve().parents[1]
 # Library files built by this checkout's code, as ./scripts/serve and ./scripts/test use (the

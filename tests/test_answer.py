@@ -14,9 +14,9 @@ from api_schemas.wire import blob
 from service import answer, jobs
 from service.packing import characters_out
 from service.settings import Settings
-from synth_core import crowd
-from synth_core.bank import Bank
-from synth_core.synthesis import synthesize
+from synth_core.quality import herd_sim as crowd
+from synth_core.runtime.bank import Bank
+from synth_core.runtime.synthesis import synthesize
 
 
 def body(encoding: str) -> dict[str, Any]:

@@ -19,7 +19,7 @@ import numpy as np
 import pytest
 
 from api_schemas.wire import ENCODING_ERROR, blob, decode_rotations, rotation_angle, unblob
-from synth_core import crowd
+from synth_core.quality import herd_sim as crowd
 from tests.test_service import running
 
 MSGPACK = "application/vnd.msgpack"
@@ -374,9 +374,9 @@ def test_python_client_gives_the_motion_synthesize_gives_locally(server: str, he
     import asyncio
 
     from api_schemas.client import AsyncClient, Client, ServiceError, read_body
-    from synth_core.bank import build_bank
-    from synth_core.build import build_builtin
-    from synth_core.synthesis import Options, synthesize
+    from synth_core.build.animals import build_builtin
+    from synth_core.runtime.bank import build_bank
+    from synth_core.runtime.synthesis import Options, synthesize
 
     with Client(server) as qs:
         motion = qs.synthesize(herd[:3], ids=["a", "b", "c"], scales=[1.1, None, 0.9], seed=5, encoding="f32")

@@ -12,9 +12,9 @@ import pytest
 
 from quadsynth.cli import main
 from service.libraries import LibraryRegistry
-from synth_core import bvh
-from synth_core.artifact import Library, LibraryFileError, load_library, save_library
-from synth_core.build import build_builtin
+from synth_core.build.animals import build_builtin
+from synth_core.build.artifact import Library, LibraryFileError, load_library, save_library
+from synth_core.motion import bvh
 
 
 @pytest.fixture(scope="module")

@@ -9,8 +9,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from synth_core import bvh
-from synth_core.bvh import BVHError
+from synth_core.motion import bvh
+from synth_core.motion.bvh import BVHError
 from tests.conftest import MANN_DIR, MANN_FILES, mann_path, random_motion
 
 ROUND_TRIP_MM = 0.1

@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from service.chunk import chunk_message, packed_chunk
-from synth_core.scratch import Scratch, Shelf
-from synth_core.streaming import Window, joined
+from synth_core.compiled.scratch import Scratch, Shelf
+from synth_core.runtime.streaming import Window, joined
 
 
 def window(C: int, n: int, J: int, start: int, seed: int) -> Window:

@@ -15,7 +15,9 @@ import pygltflib
 import pytest
 
 from quadsynth.cli import main
-from synth_core import bvh, crowd, crowd_io
+from synth_core.motion import bvh
+from synth_core.quality import herd_sim as crowd
+from synth_core.runtime import trajectory_files as crowd_io
 from tests.test_service import free_port, running
 
 LIMITS = {"QUADSYNTH_MAX_CHARACTERS": "8", "QUADSYNTH_MAX_CHARACTER_FRAMES": "20000",

@@ -5,9 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from synth_core import FOOT_NAMES, bvh
-from synth_core import contacts as C
-from synth_core.motion import Motion
+from synth_core import FOOT_NAMES
+from synth_core.motion import bvh
+from synth_core.motion import contacts as C
+from synth_core.motion.clip import Motion
 from tests.conftest import MANN_CYCLES, mann_path, toy_skeleton
 
 DUTY_TOLERANCE = 0.08  # issue 2: within 0.08 of SOURCE.md

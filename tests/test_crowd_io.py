@@ -7,8 +7,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from synth_core import crowd, crowd_io
-from synth_core.crowd_io import TrajectoryFileError
+from synth_core.quality import herd_sim as crowd
+from synth_core.runtime import trajectory_files as crowd_io
+from synth_core.runtime.trajectory_files import TrajectoryFileError
 
 
 def write(path: Path, text: str) -> Path:

@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from api_schemas.wire import blob
-from synth_core import crowd
+from synth_core.quality import herd_sim as crowd
 from tests.test_service import free_port, running, start, wait_until_live
 
 MSGPACK = "application/vnd.msgpack"

@@ -2,10 +2,10 @@
 
 import numpy as np
 
-from synth_core import crowd
-from synth_core.bank import Bank
-from synth_core.draws import character_keys, uniform, uniform_streams
-from synth_core.synthesis import Options, synthesize
+from synth_core.quality import herd_sim as crowd
+from synth_core.runtime.bank import Bank
+from synth_core.runtime.draws import character_keys, uniform, uniform_streams
+from synth_core.runtime.synthesis import Options, synthesize
 
 
 def test_draws_are_uniform_and_independent_of_the_batch() -> None:

@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 
 from quadsynth.cli import main
-from synth_core import edge, evaluate
-from synth_core.bank import Bank
+from synth_core.quality import edge, evaluate
+from synth_core.runtime.bank import Bank
 
 FPS = 60.0
 HORSE = {"walk": (0.56, 1.51), "trot": (1.36, 3.24), "canter": (2.6, 5.62), "gallop": (4.75, 10.26)}

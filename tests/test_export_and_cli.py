@@ -11,12 +11,13 @@ import pygltflib
 import pytest
 
 from quadsynth.cli import main
-from synth_core import bvh, crowd
-from synth_core.bank import Bank, build_bank
-from synth_core.build import build_builtin
+from synth_core.build.animals import build_builtin
 from synth_core.export import write_bvh_files, write_glb
-from synth_core.onthefly import synthesize_onthefly
-from synth_core.synthesis import Options, Result, synthesize
+from synth_core.motion import bvh
+from synth_core.quality import herd_sim as crowd
+from synth_core.quality.onthefly import synthesize_onthefly
+from synth_core.runtime.bank import Bank, build_bank
+from synth_core.runtime.synthesis import Options, Result, synthesize
 
 
 @pytest.fixture(scope="module")

@@ -15,7 +15,8 @@ import numpy as np
 import pytest
 
 from quadsynth.cli import main
-from synth_core import crowd, crowd_io
+from synth_core.quality import herd_sim as crowd
+from synth_core.runtime import trajectory_files as crowd_io
 from tests.test_client_cli import same_motion
 from tests.test_nginx import Cluster, cluster, in_flight  # noqa: F401  (cluster: the fixture)
 

@@ -1,4 +1,4 @@
-"""The compiled Gaussian smoothing (synth_core.gaussian) is scipy's, bit for bit: the batch's and
+"""The compiled Gaussian smoothing (synth_core.runtime.gaussian) is scipy's, bit for bit: the batch's and
 the live mode's paths depend on it."""
 
 from __future__ import annotations
@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 from scipy.ndimage import gaussian_filter1d
 
-from synth_core import gaussian, kernels
+from synth_core.compiled import kernels
+from synth_core.runtime import gaussian
 
 
 @pytest.mark.parametrize("sigma", [0.6, 2.3, 4.0, 7.9])

@@ -14,17 +14,18 @@ import numpy as np
 import pygltflib
 import pytest
 
-from synth_core import crowd, quat
-from synth_core.artifact import Library
-from synth_core.bank import build_bank
-from synth_core.build import build_builtin
-from synth_core.contacts import contacts_from_json, ranges_to_contacts
+from synth_core.build.animals import build_builtin
+from synth_core.build.artifact import Library
+from synth_core.build.motion_graph import HUBS
 from synth_core.export import write_bvh_files, write_glb
 from synth_core.export.gltf import bind_rotations, mesh_glb
 from synth_core.export.mesh import build_mesh, pose_mesh
-from synth_core.motion_graph import HUBS
-from synth_core.skeleton import forward_kinematics
-from synth_core.synthesis import Options, Result, synthesize
+from synth_core.motion import quat
+from synth_core.motion.contacts import contacts_from_json, ranges_to_contacts
+from synth_core.motion.skeleton import forward_kinematics
+from synth_core.quality import herd_sim as crowd
+from synth_core.runtime.bank import build_bank
+from synth_core.runtime.synthesis import Options, Result, synthesize
 
 REPO = Path(__file__).resolve().parent.parent
 

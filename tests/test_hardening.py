@@ -26,7 +26,7 @@ from api_schemas.wire import (
     unblob,
 )
 from service import budget
-from synth_core import crowd
+from synth_core.quality import herd_sim as crowd
 from tests.test_service import running
 
 MSGPACK = "application/vnd.msgpack"

@@ -5,10 +5,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from synth_core import bvh, ik, quat
-from synth_core.library.clips import build_clips
-from synth_core.motion import Motion
-from synth_core.skeleton import forward_kinematics
+from synth_core.build import ik
+from synth_core.builtin.clips import build_clips
+from synth_core.motion import bvh, quat
+from synth_core.motion.clip import Motion
+from synth_core.motion.skeleton import forward_kinematics
 from tests.conftest import mann_path
 
 _X = np.array([1.0, 0.0, 0.0])

@@ -18,8 +18,8 @@ import numpy as np
 import pytest
 
 from api_schemas.client import Client
-from synth_core import crowd
-from synth_core.skeleton import Skeleton, forward_kinematics
+from synth_core.motion.skeleton import Skeleton, forward_kinematics
+from synth_core.quality import herd_sim as crowd
 from tests.test_service import running
 
 REPO = Path(__file__).resolve().parents[1]

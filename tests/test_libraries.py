@@ -8,7 +8,7 @@ import pytest
 
 from service import libraries
 from service.libraries import LibraryRegistry, library_dir, required_animals
-from synth_core.artifact import SUFFIX
+from synth_core.build.artifact import SUFFIX
 
 
 def test_library_dir_is_per_user_not_the_working_directory(monkeypatch: pytest.MonkeyPatch,

@@ -1,6 +1,6 @@
 """The built-in gait clips: feet, loops, footfalls, joint bend directions, speeds, export.
 
-Measured on the motions with synth_core.metrics; footfall templates are checked on contacts
+Measured on the motions with synth_core.quality.metrics; footfall templates are checked on contacts
 re-detected from the exported BVH, not on the generator's own parameters.
 """
 
@@ -13,13 +13,14 @@ import numpy as np
 import pytest
 
 from quadsynth.cli import main
-from synth_core import FOOT_NAMES, bvh, quat
-from synth_core import contacts as C
-from synth_core import metrics as M
-from synth_core.bank import nearest_pose
-from synth_core.library.clips import CLIP_NAMES, GAITS, TRANSITIONS, build_clips
-from synth_core.library.gaits import FOOTFALL_TEMPLATES, GAIT_SPECS
-from synth_core.motion import Motion
+from synth_core import FOOT_NAMES
+from synth_core.builtin.clips import CLIP_NAMES, GAITS, TRANSITIONS, build_clips
+from synth_core.builtin.gaits import FOOTFALL_TEMPLATES, GAIT_SPECS
+from synth_core.motion import bvh, quat
+from synth_core.motion import contacts as C
+from synth_core.motion.clip import Motion
+from synth_core.quality import metrics as M
+from synth_core.runtime.bank import nearest_pose
 
 ANIMALS = ("horse", "dog")
 SPEED_RANGES = {  # m/s; dog: the real dog (SOURCE.md); horse: the literature (issue 3)

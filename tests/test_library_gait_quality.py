@@ -13,12 +13,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from synth_core import bvh
-from synth_core import contacts as C
-from synth_core.build import build_builtin, map_positions
-from synth_core.library.clips import GAITS, TRANSITIONS, build_clips
-from synth_core.motion import Motion
-from synth_core.speed_map import cycle_displacement
+from synth_core.build.animals import build_builtin, map_positions
+from synth_core.build.speed_map import cycle_displacement
+from synth_core.builtin.clips import GAITS, TRANSITIONS, build_clips
+from synth_core.motion import bvh
+from synth_core.motion import contacts as C
+from synth_core.motion.clip import Motion
 
 # Horse at each gait's typical speed: (speed m/s, [stride frequencies Hz], duty factor), from
 # gait-reference.md tables 1a, 2a and 3a.
@@ -122,7 +122,7 @@ def test_hooves_and_paws_stand_flat_until_breakover(clips: Clips, animal: str, c
 def glide_ratio(feet: np.ndarray, root: np.ndarray) -> float:
     """Near-ground glide ratio (ENGINEERING.md): over frames where a foot is below H, its
     horizontal speed weighted by 2 - 2^(h/H), divided by the body's mean speed. ``feet (F, 4, 3)``
-    on ground level 0, ``root (F, 3)``. (To be replaced by synth_core.metrics' once it has it.)"""
+    on ground level 0, ``root (F, 3)``. (To be replaced by synth_core.quality.metrics' once it has it.)"""
     height = feet[1:, :, 1]
     speed = np.linalg.norm(np.diff(feet[..., [0, 2]], axis=0), axis=-1)
     near = height < GLIDE_HEIGHT

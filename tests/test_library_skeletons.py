@@ -5,10 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from synth_core import bvh, quat
-from synth_core.library import BUILTIN_ANIMALS, build_skeleton, dog_skeleton, horse_skeleton
-from synth_core.motion import Motion
-from synth_core.skeleton import Skeleton, forward_kinematics
+from synth_core.builtin import BUILTIN_ANIMALS, build_skeleton, dog_skeleton, horse_skeleton
+from synth_core.motion import bvh, quat
+from synth_core.motion.clip import Motion
+from synth_core.motion.skeleton import Skeleton, forward_kinematics
 from tests.conftest import mann_path
 
 

@@ -1,4 +1,4 @@
-"""Live synthesis (synth_core.live): points a few at a time, frames back within the documented
+"""Live synthesis (synth_core.runtime.live): points a few at a time, frames back within the documented
 latency -- the batch plan's own frames, made incrementally."""
 
 from __future__ import annotations
@@ -6,16 +6,16 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from synth_core import crowd
-from synth_core.bank import Bank
-from synth_core.live import LiveSynth, _Columns
-from synth_core.live_shards import LiveShards
-from synth_core.metrics import foot_skate
-from synth_core.skeleton import forward_kinematics
-from synth_core.streaming import Window
-from synth_core.streaming import joined as shards_joined
-from synth_core.synthesis import Options, synthesize
-from synth_core.trajectory import TELEPORT_M, TrajectoryError
+from synth_core.motion.skeleton import forward_kinematics
+from synth_core.quality import herd_sim as crowd
+from synth_core.quality.metrics import foot_skate
+from synth_core.runtime.bank import Bank
+from synth_core.runtime.live import LiveSynth, _Columns
+from synth_core.runtime.live_shards import LiveShards
+from synth_core.runtime.streaming import Window
+from synth_core.runtime.streaming import joined as shards_joined
+from synth_core.runtime.synthesis import Options, synthesize
+from synth_core.runtime.trajectory import TELEPORT_M, TrajectoryError
 
 
 def feed(live: LiveSynth, positions: np.ndarray, seed: int = 0) -> tuple[list[Window], list[int]]:
@@ -269,9 +269,9 @@ def test_frames_kept_from_earlier_windows_are_the_frames_posed_again(bank: Bank,
     context) may round a last bit differently -- seen once, on a fresh compile: 2 of 96,000 root
     numbers, 7e-17 m apart."""
     pytest.importorskip("numba")
-    from synth_core import kernels
-    from synth_core.footlock import PAD
-    from synth_core.synthesis import plan, prepare_batch
+    from synth_core.compiled import kernels
+    from synth_core.runtime.footlock import PAD
+    from synth_core.runtime.synthesis import plan, prepare_batch
 
     options = Options(seed=5, scale_range=(0.8, 1.2))
     prep, h, keys = prepare_batch(bank, herd, 60.0, None, options, None, None)

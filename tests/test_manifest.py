@@ -7,12 +7,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from synth_core import contacts as C
-from synth_core import metrics as M
-from synth_core.artifact import Library
-from synth_core.build import map_positions, report
-from synth_core.manifest import ManifestError, build_from_manifest
-from synth_core.speed_map import cycle_displacement
+from synth_core.build.animals import map_positions, report
+from synth_core.build.artifact import Library
+from synth_core.build.manifest import ManifestError, build_from_manifest
+from synth_core.build.speed_map import cycle_displacement
+from synth_core.motion import contacts as C
+from synth_core.quality import metrics as M
 from tests.conftest import MANN_DIR
 
 FIXTURE = Path(__file__).parent / "fixtures" / "mann_dog.toml"
@@ -166,9 +166,9 @@ def test_cycles_are_closed_into_loops_or_said_not_to_loop(mann: Library) -> None
 def test_close_loop_removes_a_strides_drift_and_keeps_its_shape() -> None:
     """A joint swinging sin-wise while drifting 12 deg over the stride (the next stride starts
     12 deg on): closed, the stride swings exactly periodically; the loop error names the joint."""
-    from synth_core import quat
-    from synth_core.manifest import close_loop, loop_error
-    from synth_core.motion import Motion
+    from synth_core.build.manifest import close_loop, loop_error
+    from synth_core.motion import quat
+    from synth_core.motion.clip import Motion
     from tests.conftest import toy_skeleton
 
     skeleton = toy_skeleton()

@@ -9,8 +9,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from synth_core import bvh
-from synth_core.build import build_builtin
+from synth_core.build.animals import build_builtin
+from synth_core.builtin import build_skeleton
 from synth_core.export.mesh import (
     SkinnedMesh,
     build_mesh,
@@ -19,8 +19,8 @@ from synth_core.export.mesh import (
     rest_world_positions,
     standing_rotations,
 )
-from synth_core.library import build_skeleton
-from synth_core.skeleton import Skeleton, forward_kinematics
+from synth_core.motion import bvh
+from synth_core.motion.skeleton import Skeleton, forward_kinematics
 from tests.conftest import mann_path, toy_skeleton
 
 Posed = tuple[Skeleton, np.ndarray | None]  # a skeleton and its bind pose (None: the rest pose)

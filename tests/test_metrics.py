@@ -5,9 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from synth_core import FOOT_NAMES, quat
-from synth_core import metrics as M
-from synth_core.skeleton import forward_kinematics
+from synth_core import FOOT_NAMES
+from synth_core.motion import quat
+from synth_core.motion.skeleton import forward_kinematics
+from synth_core.quality import metrics as M
 from tests.conftest import toy_skeleton
 from tests.test_contacts import TEMPLATES, synthetic_gait
 

@@ -25,7 +25,7 @@ import pytest
 
 from api_schemas.client import Client
 from api_schemas.wire import blob
-from synth_core import crowd
+from synth_core.quality import herd_sim as crowd
 from tests.test_service import free_port, start, wait_until_live
 
 REPO = Path(__file__).resolve().parents[1]

@@ -11,8 +11,8 @@ from PIL import Image
 
 from quadsynth.cli import main
 from quadsynth.preview import load_for_preview, render
-from synth_core import bvh
-from synth_core.contacts import contacts_json
+from synth_core.motion import bvh
+from synth_core.motion.contacts import contacts_json
 from tests.conftest import mann_path, random_motion
 
 

@@ -8,7 +8,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation, Slerp
 
-from synth_core import quat
+from synth_core.motion import quat
 
 seeds = st.integers(min_value=0, max_value=2**31)  # room for seed + k
 

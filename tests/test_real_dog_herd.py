@@ -10,15 +10,17 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from synth_core import UP_AXIS, crowd, ik
-from synth_core import contacts as C
-from synth_core.artifact import Library
-from synth_core.bank import Bank, build_bank
-from synth_core.build import map_positions
-from synth_core.evaluate import world_positions
-from synth_core.manifest import build_from_manifest, gait_cycles
-from synth_core.speed_map import cycle_displacement
-from synth_core.synthesis import Options, Result, synthesize
+from synth_core import UP_AXIS
+from synth_core.build import ik
+from synth_core.build.animals import map_positions
+from synth_core.build.artifact import Library
+from synth_core.build.manifest import build_from_manifest, gait_cycles
+from synth_core.build.speed_map import cycle_displacement
+from synth_core.motion import contacts as C
+from synth_core.quality import herd_sim as crowd
+from synth_core.quality.evaluate import world_positions
+from synth_core.runtime.bank import Bank, build_bank
+from synth_core.runtime.synthesis import Options, Result, synthesize
 from tests.conftest import MANN_DIR
 
 FIXTURE = Path(__file__).parent / "fixtures" / "mann_dog.toml"

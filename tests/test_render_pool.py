@@ -1,4 +1,4 @@
-"""synth_core.render_pool.ordered: parts of a work side by side, results in order, nothing left
+"""synth_core.compiled.render_pool.ordered: parts of a work side by side, results in order, nothing left
 running when stopped early; render_pool.shared: a thread's parts taken by idle threads, every part
 run once, from every pool thread at once without a deadlock."""
 
@@ -11,7 +11,7 @@ from concurrent.futures import wait
 
 import pytest
 
-from synth_core import render_pool
+from synth_core.compiled import render_pool
 
 
 def test_results_come_in_the_items_order_whatever_order_they_finish_in() -> None:

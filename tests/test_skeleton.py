@@ -7,8 +7,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from synth_core import FOOT_NAMES, quat
-from synth_core.skeleton import Skeleton, forward_kinematics, guess_feet
+from synth_core import FOOT_NAMES
+from synth_core.motion import quat
+from synth_core.motion.skeleton import Skeleton, forward_kinematics, guess_feet
 from tests.conftest import random_motion, toy_skeleton
 
 

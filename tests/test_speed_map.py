@@ -7,11 +7,19 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from synth_core import ik, quat
-from synth_core.artifact import Library
-from synth_core.build import build_builtin, footfall_gaps, map_positions, report, sync_frames
-from synth_core.motion_graph import HUBS, MotionGraph, Transition
-from synth_core.speed_map import FASTEST, STRAIGHT, SpeedRange, build_speed_map, default_ranges, relocate_root
+from synth_core.build import ik
+from synth_core.build.animals import build_builtin, footfall_gaps, map_positions, report, sync_frames
+from synth_core.build.artifact import Library
+from synth_core.build.motion_graph import HUBS, MotionGraph, Transition
+from synth_core.build.speed_map import (
+    FASTEST,
+    STRAIGHT,
+    SpeedRange,
+    build_speed_map,
+    default_ranges,
+    relocate_root,
+)
+from synth_core.motion import quat
 from tests.test_library_clips import PEAK_JOINT_SPEED
 
 ANIMALS = ("horse", "dog")
@@ -76,7 +84,7 @@ def test_footfall_measure_catches_a_clip_that_lands_out_of_order(libraries: dict
 
 @pytest.mark.parametrize("gait", ["walk", "gallop"])
 def test_fast_strides_lower_the_body_instead_of_stretching_legs(gait: str) -> None:
-    from synth_core.library.clips import build_clips
+    from synth_core.builtin.clips import build_clips
 
     source = build_clips("horse")[gait]
     sm = build_speed_map(source, source.speed_mps() * np.array([1.0, FASTEST]))
@@ -105,7 +113,7 @@ def test_root_relocation_scales_ground_steps_keeps_heights_and_the_first_frame()
 
 def test_plants_move_along_the_stride_by_the_root_shift(libraries: dict[str, Library]) -> None:
     """Paper step 2: a plant's new place is its old one plus d_c along the stride of that foot."""
-    from synth_core.library.clips import build_clips
+    from synth_core.builtin.clips import build_clips
 
     trot = build_clips("horse")["trot"]
     own = trot.speed_mps()

@@ -19,9 +19,9 @@ from websockets.sync.client import ClientConnection, connect
 
 from api_schemas.client import Client
 from api_schemas.wire import blob, unblob
-from synth_core import crowd
-from synth_core.bank import Bank
-from synth_core.live import LiveSynth
+from synth_core.quality import herd_sim as crowd
+from synth_core.runtime.bank import Bank
+from synth_core.runtime.live import LiveSynth
 from tests.test_api import LIMITS, metric, post
 from tests.test_service import free_port, running, start, wait_until_live
 
@@ -318,7 +318,7 @@ def test_live_cancel_ends_the_session_and_the_next_can_start(server: str) -> Non
 
 def test_a_live_session_after_a_bigger_one_sends_the_same_bytes(server: str) -> None:
     """Live sessions pack their chunks over the buffers an earlier session of the worker used
-    (service.stream, synth_core.scratch.Shelf): after a bigger session, a session sends the
+    (service.batch_ws, synth_core.compiled.scratch.Shelf): after a bigger session, a session sends the
     bytes it sent before it."""
     def session(characters: int) -> list[bytes]:
         path = crowd.simulate(characters, 200, seed=2, fps=30.0).astype(np.float32)

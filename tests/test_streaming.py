@@ -5,10 +5,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from synth_core import crowd, render_pool, streaming
-from synth_core.bank import Bank
-from synth_core.streaming import BatchStream, lock_context, runs
-from synth_core.synthesis import Options, synthesize
+from synth_core.compiled import render_pool
+from synth_core.quality import herd_sim as crowd
+from synth_core.runtime import streaming
+from synth_core.runtime.bank import Bank
+from synth_core.runtime.streaming import BatchStream, lock_context, runs
+from synth_core.runtime.synthesis import Options, synthesize
 
 
 def test_runs_and_context_cover_whole_plants() -> None:
@@ -24,7 +26,7 @@ def test_runs_and_context_cover_whole_plants() -> None:
 
 
 def test_compiled_lock_context_is_the_reference() -> None:
-    kernels = pytest.importorskip("synth_core.kernels")
+    kernels = pytest.importorskip("synth_core.compiled.kernels")
     rng = np.random.default_rng(7)
     # Runs of random lengths (1 to 12 frames), so windows start and end in plants, in swings,
     # at the first and the last frame.

@@ -6,13 +6,15 @@ import numpy as np
 import pytest
 
 from service.libraries import builtin_library
-from synth_core import crowd, evaluate, kernels
-from synth_core import metrics as M
-from synth_core.bank import Bank, build_bank
-from synth_core.footlock import plant_targets
-from synth_core.skeleton import forward_kinematics
-from synth_core.synthesis import Options, Result, headings, plan, prepare_batch, synthesize
-from synth_core.trajectory import TrajectoryError
+from synth_core.compiled import kernels
+from synth_core.motion.skeleton import forward_kinematics
+from synth_core.quality import evaluate
+from synth_core.quality import herd_sim as crowd
+from synth_core.quality import metrics as M
+from synth_core.runtime.bank import Bank, build_bank
+from synth_core.runtime.footlock import plant_targets
+from synth_core.runtime.synthesis import Options, Result, headings, plan, prepare_batch, synthesize
+from synth_core.runtime.trajectory import TrajectoryError
 
 
 @pytest.fixture(scope="module")

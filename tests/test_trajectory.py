@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from synth_core.trajectory import ROWS, TELEPORT_M, TrajectoryError, prepare, segment_speeds, smooth
+from synth_core.runtime.trajectory import ROWS, TELEPORT_M, TrajectoryError, prepare, segment_speeds, smooth
 
 
 def line(frames: int, speed: float, fps: float = 60.0, offset: float = 0.0) -> np.ndarray:

@@ -1,6 +1,6 @@
 // Pose assembly: a frame's local rotations -> every joint's world position, rotation and matrix.
 //
-// The convention (the same as synth_core.skeleton.forward_kinematics, docs/play-the-stream.md):
+// The convention (the same as synth_core.motion.skeleton.forward_kinematics, docs/play-the-stream.md):
 //   joint 0 (the pelvis):  position = root (the stream's `root`, already in world metres)
 //                          rotation = q[0]
 //   joint j > 0, parent p: position = position[p] + rotate(rotation[p], offsets[j] * scale)

@@ -1,11 +1,11 @@
 """A synthesized character's gaits and foot contacts as a JSON document: the BVH sidecar
 ``<id>.contacts.json`` and the ``extras`` of its node in a glTF herd hold the same document.
 
-It extends the clips' ``contacts.json`` (:func:`synth_core.contacts.contacts_json`: ``fps``,
+It extends the clips' ``contacts.json`` (:func:`synth_core.motion.contacts.contacts_json`: ``fps``,
 ``frames``, ``range_convention``, per foot planted ``[start, stop)`` ranges; ``quadsynth
 preview`` reads it) with ``gait``: ``[start, stop, name]`` runs of the gait played, a
 transition's first half counted to the gait it leaves and its second to the gait it reaches
-(:class:`synth_core.synthesis.Result`), and the character's ``scale``.
+(:class:`synth_core.runtime.synthesis.Result`), and the character's ``scale``.
 """
 
 from __future__ import annotations
@@ -13,9 +13,9 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from synth_core.contacts import contacts_json
-from synth_core.motion_graph import HUBS
-from synth_core.synthesis import Result
+from synth_core.build.motion_graph import HUBS
+from synth_core.motion.contacts import contacts_json
+from synth_core.runtime.synthesis import Result
 
 
 def gait_runs(gait: NDArray[np.integer]) -> list[list[int | str]]:

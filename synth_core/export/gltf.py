@@ -21,12 +21,13 @@ import numpy as np
 import pygltflib as G
 from numpy.typing import NDArray
 
-from synth_core import FOOT_NAMES, quat
+from synth_core import FOOT_NAMES
+from synth_core.build.motion_graph import HUBS
 from synth_core.export.annotations import character_annotations
 from synth_core.export.mesh import SkinnedMesh, build_mesh
-from synth_core.motion_graph import HUBS
-from synth_core.skeleton import Skeleton
-from synth_core.synthesis import Result
+from synth_core.motion import quat
+from synth_core.motion.skeleton import Skeleton
+from synth_core.runtime.synthesis import Result
 
 _FLOAT, _USHORT, _UINT = 5126, 5123, 5125
 _ARRAY_BUFFER, _ELEMENT_ARRAY_BUFFER = 34962, 34963

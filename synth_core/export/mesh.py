@@ -26,7 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from synth_core.skeleton import Skeleton
+from synth_core.motion.skeleton import Skeleton
 
 Floats = NDArray[np.float64]
 
@@ -89,8 +89,8 @@ def bind_pose(skeleton: Skeleton, local: NDArray[np.floating] | None = None
     """World positions (J, 3), world rotations (J, 4) and local rotations (J, 4) of the pose the
     mesh is made on: ``local`` rotations (default the rest pose) turned about +Y to face +Z and
     lifted so the lowest joint is at y = 0."""
-    from synth_core import quat
-    from synth_core.skeleton import forward_kinematics
+    from synth_core.motion import quat
+    from synth_core.motion.skeleton import forward_kinematics
 
     local = quat.identity((skeleton.n_joints,), np.float64) if local is None else np.array(local, np.float64)
     pos, _ = forward_kinematics(skeleton, np.zeros(3), local)
@@ -424,7 +424,7 @@ def pose_mesh(mesh: SkinnedMesh, world_pos: NDArray[np.floating], world_rot: NDA
     """(V, 3) vertices of ``mesh`` skinned to one pose (linear blend skinning, as a glTF viewer
     does): ``world_pos (J, 3)`` and ``world_rot (J, 4)`` from :func:`forward_kinematics` of a
     character of ``scale`` (its bones ``scale`` times as long, so its mesh is too)."""
-    from synth_core import quat
+    from synth_core.motion import quat
 
     bound = quat.rotate(quat.inv(mesh.bind_rot[mesh.joints]),
                         mesh.positions[:, None, :] - mesh.bind_pos[mesh.joints])  # (V, 4, 3) joint space

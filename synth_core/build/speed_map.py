@@ -1,0 +1,261 @@
+"""Speed maps (Sung 2011, section 3): one cyclic clip made into dozens of speeds, frame count fixed.
+
+For each target speed ``s' = s + k * delta`` the source clip is changed in the paper's order:
+
+1. **Root.** Every frame's ground displacement is scaled by ``l' / l`` (``l`` the root path
+   length), so the path is ``l' = (s'/s) l`` long over the same frames; ``P'0(0) = P0(0)``;
+   heights are kept.
+2. **Foot plants.** Each plant moves from the source's average planted position ``P̄`` by a
+   vector ``V`` along the stride of the same foot (the direction between its adjacent
+   footprints), of magnitude ``d_c = |P'0(f_c) - P0(f_c)|`` at the plant's middle frame ``f_c``.
+   The paper leaves V's sense implicit; we point it with the root's shift (back for slower
+   speeds). The clip loops, so a plant running over the clip's end is one plant, and the
+   footprint after the last is the first one a cycle on.
+3. **IK** (:mod:`synth_core.build.ik`). The paper solves plant by plant in time order so the beat
+   order holds; our targets for every frame are fixed before solving (each plant's, then the
+   swings' between them), so all frames and all speeds are solved at once, and every foot is
+   pinned to its new plant for the plant's whole duration (the contact annotation is the
+   source's, unchanged: the footfall order cannot change). Between two plants the swinging
+   foot follows its source path plus a correction blended (smoothstep) from the previous
+   plant's shift to the next one's - the paper is silent on swings.
+
+Speeds are in m/s here (the paper's ``s = l / n`` is per frame).
+
+Beyond the paper: where a sped-up stride would straighten a leg past 98% of its reach (or past
+the source's own straightest), the root sinks just enough, eased in and out over a quarter
+cycle, as running animals do at full stride. Legs then never lock straight (where no hinge axis
+is defined) and stretch only if a target is out of reach horizontally; the map records that.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.ndimage import gaussian_filter1d, maximum_filter1d
+
+from synth_core import UP_AXIS
+from synth_core.build import ik
+from synth_core.motion.clip import Motion
+from synth_core.motion.contacts import runs
+from synth_core.motion.skeleton import Skeleton
+
+Floats = NDArray[np.float64]
+DEFAULT_CLIPS = 60  # per gait: the paper builds "roughly around 60" (Table 1: 55)
+_HORIZONTAL = [0, 2]
+
+
+@dataclass(frozen=True)
+class SpeedRange:
+    """Speeds of one gait's map, m/s: ``count`` clips from ``low`` to ``high`` (delta apart)."""
+
+    low: float
+    high: float
+    count: int = DEFAULT_CLIPS
+
+    def __post_init__(self) -> None:
+        if not (0 < self.low <= self.high and np.isfinite(self.high)):
+            raise ValueError(f"speed range: need 0 < low <= high, got ({self.low}, {self.high})")
+        if self.count < 2 and self.low != self.high:
+            raise ValueError(f"speed range: count must be >= 2, got {self.count}")
+
+    @property
+    def delta(self) -> float:
+        return (self.high - self.low) / max(self.count - 1, 1)
+
+    def speeds(self) -> Floats:
+        return np.linspace(self.low, self.high, self.count)
+
+
+# Default range around each gait's source speed: down to half (the walk to 40%), up by 8%.
+# Slowing a clip shortens its strides, which any leg can do; speeding it up lengthens them,
+# which the legs' reach soon stops (the stretch figures say where).
+SLOWEST, FASTEST, SLOWEST_WALK, OVERLAP = 0.5, 1.08, 0.4, 0.9
+
+
+def default_ranges(source_speeds: Mapping[str, float], count: int = DEFAULT_CLIPS) -> dict[str, SpeedRange]:
+    """Ranges for gaits given slow to fast; each starts low enough to overlap the one before."""
+    ranges: dict[str, SpeedRange] = {}
+    previous: SpeedRange | None = None
+    for gait, speed in source_speeds.items():
+        low = speed * (SLOWEST_WALK if previous is None else SLOWEST)
+        if previous is not None:
+            low = min(low, OVERLAP * previous.high)
+        previous = ranges[gait] = SpeedRange(low, FASTEST * speed, count)
+    return ranges
+
+
+@dataclass(frozen=True, eq=False)
+class SpeedMap:
+    """One gait's clips at ``speeds``: same frames, same contacts as the source."""
+
+    gait: str
+    skeleton: Skeleton
+    fps: float
+    speeds: Floats  # (N,) m/s, ascending
+    root_pos: NDArray[np.float32]  # (N, F, 3)
+    rotations: NDArray[np.float32]  # (N, F, J, 4) local
+    contacts: NDArray[np.bool_]  # (F, 4), shared by every clip
+    stretch: NDArray[np.float32]  # (N, F, 4) limb length factor (1: no stretch)
+    source_speed: float  # m/s
+
+    @property
+    def n_clips(self) -> int:
+        return len(self.speeds)
+
+    @property
+    def n_frames(self) -> int:
+        return int(self.rotations.shape[1])
+
+    def clip(self, i: int) -> Motion:
+        return Motion(self.skeleton, self.root_pos[i], self.rotations[i], self.fps, self.contacts,
+                      f"{self.gait}_{self.speeds[i]:.2f}", self.gait)
+
+    def bracket(self, speed: float) -> tuple[int, int, float]:
+        """The two clips around ``speed`` and the blend weight of the second (clamped at the ends)."""
+        s = self.speeds
+        j = int(np.clip(np.searchsorted(s, speed), 1, len(s) - 1)) if len(s) > 1 else 0
+        i = max(j - 1, 0)
+        if i == j:
+            return i, j, 0.0
+        return i, j, float(np.clip((speed - s[i]) / (s[j] - s[i]), 0.0, 1.0))
+
+
+def cycle_displacement(root_pos: NDArray[np.floating]) -> Floats:
+    """Horizontal root advance over one loop of a cyclic clip, ``(..., F, 3) -> (..., 3)``: its
+    mean step times its frames."""
+    root = np.asarray(root_pos, dtype=np.float64)
+    F = root.shape[-2]
+    step = (root[..., -1, :] - root[..., 0, :]) / max(F - 1, 1)
+    step[..., UP_AXIS] = 0.0
+    return np.asarray(step * F)
+
+
+def relocate_root(root_pos: NDArray[np.floating], ratio: Floats) -> Floats:
+    """Step 1: every frame's ground displacement scaled by ``ratio (N,)``; (N, F, 3)."""
+    root = np.asarray(root_pos, dtype=np.float64)
+    steps = np.diff(root, axis=0)
+    scaled = np.broadcast_to(steps, (len(ratio), *steps.shape)).copy()
+    scaled[..., _HORIZONTAL] *= np.asarray(ratio)[:, None, None]
+    start = np.broadcast_to(root[0], (len(ratio), 1, 3))
+    return np.concatenate([start, start + np.cumsum(scaled, axis=1)], axis=1)
+
+
+def _tile(x: Floats, shift: Floats, copies: int = 3) -> Floats:
+    """A cyclic clip's (..., F, ...) frames repeated ``copies`` times, each copy ``shift`` further.
+
+    ``x (N, F, ..., 3)`` and ``shift (N, 3)``; the middle copy is the original (for copies=3).
+    """
+    middle = copies // 2
+    parts = [x + (k - middle) * shift.reshape(shift.shape[0], 1, *([1] * (x.ndim - 3)), 3)
+             for k in range(copies)]
+    return np.concatenate(parts, axis=1)
+
+
+def foot_targets(source_feet: NDArray[np.floating], source_root: NDArray[np.floating],
+                 new_root: Floats, contacts: NDArray[np.bool_], cyclic: bool = True) -> Floats:
+    """Steps 2 and the swing rule: toe targets (N, F, 4, 3) for every frame of every speed.
+
+    ``cyclic=False`` treats the clip as one piece (plants at its ends are cut there): with
+    ``new_root`` the source root, that pins each plant at its average place (a foot lock).
+    """
+    feet = np.asarray(source_feet, dtype=np.float64)
+    root = np.asarray(source_root, dtype=np.float64)
+    N, F = new_root.shape[:2]
+    copies = 3 if cyclic else 1
+    D = cycle_displacement(root) if cyclic else np.zeros(3)
+    D_new = cycle_displacement(new_root) if cyclic else np.zeros((N, 3))
+    # Three loops back to back: plants over the clip's ends are whole, neighbours exist.
+    feet3 = _tile(np.broadcast_to(feet, (N, *feet.shape)), np.broadcast_to(D, (N, 3)), copies)
+    shift3 = _tile(new_root, D_new, copies) - _tile(np.broadcast_to(root, (N, F, 3)),
+                                                    np.broadcast_to(D, (N, 3)), copies)
+    contacts3 = np.tile(contacts, (copies, 1))
+    targets = feet3.copy()
+    t = np.arange(copies * F)
+    for k in range(contacts.shape[1]):
+        plants = runs(contacts3[:, k])
+        if len(plants) == 0:
+            continue
+        start, stop = plants[:, 0], plants[:, 1]
+        mid = (start + stop - 1) // 2
+        average = np.stack([feet3[:, a:b, k].mean(axis=1) for a, b in plants], axis=1)  # (N, P, 3)
+        # V: along this foot's stride (to its next footprint; the last looks back), sense and
+        # size from the root's shift at the plant's middle frame.
+        footprints = average[0]  # the source's: the same for every speed
+        if len(plants) > 1:
+            ahead = np.diff(footprints, axis=0, append=2 * footprints[-1:] - footprints[-2:-1])
+        else:  # one plant over all three loops: a foot that never lifts
+            ahead = D[None]
+        ahead[:, UP_AXIS] = 0.0
+        direction = ahead / np.maximum(np.linalg.norm(ahead, axis=-1, keepdims=True), 1e-9)  # (P, 3)
+        root_shift = shift3[:, mid]  # (N, P, 3)
+        d_c = np.linalg.norm(root_shift[..., _HORIZONTAL], axis=-1)
+        sense = np.sign(np.sum(root_shift * direction, axis=-1))
+        plant = average + (sense * d_c)[..., None] * direction
+        # The swing's correction runs from where the foot left its last plant to where it meets
+        # the next one (a foot sliding or settling in its source plant would otherwise jump at
+        # lift-off and drop at touchdown: the real dog's paws by 1-5 cm in a frame).
+        lift_off = plant - feet3[:, stop - 1, k]  # (N, P, 3)
+        touch_down = plant - feet3[:, start, k]
+        # Per frame: the plant it is in, or the plants either side of its swing.
+        prev = np.clip(np.searchsorted(start, t, side="right") - 1, 0, len(plants) - 1)
+        nxt = np.clip(prev + 1, 0, len(plants) - 1)
+        inside = (t >= start[prev]) & (t < stop[prev])
+        lo, hi = stop[prev] - 1, start[nxt]
+        u = np.clip((t - lo) / np.maximum(hi - lo, 1), 0.0, 1.0)
+        u = np.where(t < start[0], 1.0, u * u * (3 - 2 * u))  # before the first plant: heading for it
+        blend = (1 - u)[None, :, None] * lift_off[:, prev] + u[None, :, None] * touch_down[:, nxt]
+        swing = feet3[:, :, k] + blend
+        targets[:, :, k] = np.where(inside[None, :, None], plant[:, prev], swing)
+    first = F * (copies // 2)
+    return np.asarray(targets[:, first:first + F])
+
+
+REACH_EASE = 0.25  # of the cycle: a sink is spread over this much around where it is needed
+STRAIGHT = 0.98, 0.999  # legs may straighten to 98% of their reach (more if the source does), never 100%
+
+
+def sink_for_reach(source: Motion, new_root: Floats, rotations: NDArray[np.floating], targets: Floats,
+                   rigs: tuple[ik.LimbRig, ...] | None, ease: int | None = None) -> Floats:
+    """Lower the root where a relocated plant would straighten a leg beyond ``STRAIGHT`` (sped-up
+    strides reach further fore and aft), eased in and out around the loop: no leg stretches,
+    no leg locks fully straight (where the hinge axis is undefined), the body does not bob.
+
+    ``ease``: frames to spread a sink over in a clip that does not loop (default: a cyclic clip,
+    ``REACH_EASE`` of it, around the loop)."""
+    source_max = ik.extension(source.skeleton, source.root_pos, source.rotations, rigs).max(axis=0)
+    limit = np.clip(source_max, *STRAIGHT)
+    sink = ik.sink_to_reach(source.skeleton, new_root, rotations, targets, limit, rigs)
+    frames = max(3, round(REACH_EASE * sink.shape[-1]) if ease is None else ease)
+    mode = "wrap" if ease is None else "nearest"
+    sink = gaussian_filter1d(maximum_filter1d(sink, frames, axis=-1, mode=mode),
+                             frames / 6, axis=-1, mode=mode)  # keeps >99% of a peak
+    lowered = new_root.copy()
+    lowered[..., UP_AXIS] -= sink
+    return lowered
+
+
+def build_speed_map(source: Motion, speeds: Sequence[float] | Floats,
+                    rigs: tuple[ik.LimbRig, ...] | None = None) -> SpeedMap:
+    """A cyclic clip (with its contact annotation) at every speed in ``speeds`` (m/s)."""
+    speeds = np.sort(np.asarray(speeds, dtype=np.float64))
+    if source.speed_mps() <= 1e-6:
+        raise ValueError(f"{source.name}: the clip does not move; a speed map needs a moving cycle")
+    if not source.contacts.any(axis=0).all():
+        raise ValueError(f"{source.name}: every foot must be planted somewhere in the cycle")
+    ratio = speeds / source.speed_mps()
+    new_root = relocate_root(source.root_pos, ratio)
+    targets = foot_targets(source.foot_positions(), source.root_pos, new_root, source.contacts)
+    ground = float(source.foot_positions()[..., UP_AXIS].min())
+    rotations = np.broadcast_to(source.rotations, (len(speeds), *source.rotations.shape))
+    new_root = sink_for_reach(source, new_root, rotations, targets, rigs)
+    # Each frame's hinge side from the source's own pose, kept continuous around the loop.
+    rigs = ik.limb_rigs(source.skeleton) if rigs is None else rigs
+    axes = ik.hinge_axes_over_time(source.skeleton, source.rotations, rigs, cyclic=True)
+    result = ik.solve(source.skeleton, new_root, rotations, targets, rigs, ground=ground, axes=axes)
+    solved = ik.mend_flips(result.rotations, result.wrong_side, rigs, cyclic=True)
+    return SpeedMap(source.gait or source.name, source.skeleton, source.fps, speeds,
+                    new_root.astype(np.float32), solved, source.contacts.copy(),
+                    result.stretch.astype(np.float32), source.speed_mps())

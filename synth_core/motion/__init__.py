@@ -1,0 +1,1 @@
+"""Motion data: quaternions, skeletons and FK, clips, BVH, foot contacts."""

@@ -1,0 +1,238 @@
+"""A batch synthesized in time windows: its first frames come out long before its last are made,
+and every frame is the number :func:`synth_core.runtime.synthesis.synthesize` gives for the whole batch.
+
+Why the windows can be exact:
+
+- the plan of the first frames is the whole plan's (:func:`synth_core.runtime.synthesis.plan` with
+  ``frames``; draws are per character and per decision, :mod:`synth_core.runtime.draws`), so the first
+  window waits only for its own frames' plan; the rest use the whole plan, made meanwhile;
+- a frame's pose is its plan row's, but the foot lock looks further: a planted foot goes to its
+  plant's average position, a swinging one eases between the plants either side, and the root's
+  sink is eased over ``PAD`` frames either side. So each character renders a window over a
+  *context* -- from the start of the plant (or the plant before the swing) ``PAD`` frames before
+  the window, to the end of the plant (or the plant after the swing) ``PAD`` frames after it --
+  and keeps the window's frames. Within the context every plant that matters is whole, so the
+  numbers are the same (tested bit for bit).
+
+The context costs extra frames (a stride or two either side), so after the first window the
+frames are rendered ``RENDER_CHUNKS`` chunks at a time.
+
+The first window is what a client waits for. Its plan and render are small calls the compiled
+kernels hardly speed up on more threads (500 horses: 1.2-1.3x on two), so its characters are
+cut into parts planned and rendered side by side on :mod:`synth_core.compiled.render_pool`, each with a
+one-thread kernel (characters are independent: the same numbers, tested).
+"""
+
+from __future__ import annotations
+
+import functools
+from collections.abc import Iterator
+from dataclasses import dataclass, field, fields
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from synth_core.compiled import kernels, render_pool
+from synth_core.runtime.bank import Bank
+from synth_core.runtime.footlock import PAD
+from synth_core.runtime.synthesis import Options, Plan, compiled_backend, plan, prepare_batch, render
+
+RENDER_CHUNKS = 4  # chunks rendered at once after the first (the context's cost spread over more)
+# The first window's plan reaches this many mean cycles past its lock's pad, then (if a plant runs
+# past that) the next, then the whole. With the horse's gaits at the literature's tempo (mean
+# cycle 42 frames, was 57) its crowd's start-up plants end ~1.6 cycles past it: so 2 first; a
+# slow walk's run to ~5; a standing animal's not before the batch does.
+FIRST_PLAN_STRIDES = (2.0, 5.5)
+MIN_PART = 32  # characters: a first window's part no smaller (a thread hop costs ~0.1 ms)
+
+
+def runs(contacts: NDArray[np.bool_]) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+    """``(start, end)``, each ``(C, T, 4)``: the first frame of the run of equal contact flags each
+    frame is in, and the frame after its last."""
+    C, T, F = contacts.shape
+    t = np.arange(T)[None, :, None]
+    change = np.ones(contacts.shape, bool)
+    change[:, 1:] = contacts[:, 1:] != contacts[:, :-1]
+    start = np.maximum.accumulate(np.where(change, t, 0), axis=1)
+    after = np.full(contacts.shape, T)
+    after[:, :-1] = np.where(change[:, 1:], t[:, 1:], T)  # the next run's first frame, if it is t + 1
+    end = np.minimum.accumulate(after[:, ::-1], axis=1)[:, ::-1]
+    return start, end
+
+
+def lock_context(contacts: NDArray[np.bool_], start: int, stop: int,
+                 run_bounds: tuple[NDArray[np.int64], NDArray[np.int64]] | None = None
+                 ) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+    """Per character ``(begin, end)``: the frames the foot lock of ``[start, stop)`` reads."""
+    C, T, F = contacts.shape
+    first, after = runs(contacts) if run_bounds is None else run_bounds
+    lo, hi = max(start - PAD, 0), min(stop + PAD, T)
+    c, f = np.arange(C)[:, None], np.arange(F)[None, :]
+    # At lo: the plant it is in, or the plant before the swing it is in.
+    run = first[:, lo]
+    before = first[c, np.maximum(run - 1, 0), f]
+    begin = np.where(contacts[:, lo], run, np.where(run > 0, before, 0))
+    # At hi - 1: the plant it is in, or the plant after the swing it is in.
+    run_end = after[:, hi - 1]
+    following = after[c, np.minimum(run_end, T - 1), f]
+    end = np.where(contacts[:, hi - 1], run_end, np.where(run_end < T, following, T))
+    return begin.min(axis=1), end.max(axis=1)
+
+
+@dataclass(frozen=True, eq=False)
+class Window:
+    """Frames ``[start, start + n)`` of every kept character."""
+
+    start: int
+    root_pos: NDArray[np.float32]  # (C, n, 3)
+    rotations: NDArray[np.float32]  # (C, n, J, 4)
+    gait: NDArray[np.int8]  # (C, n)
+    contacts: NDArray[np.bool_]  # (C, n, 4)
+
+    @property
+    def stop(self) -> int:
+        return self.start + int(self.root_pos.shape[1])
+
+
+@dataclass(eq=False)
+class BatchStream:
+    """A batch checked and prepared (as :func:`synthesize` does: errors are raised here), whose
+    motion :meth:`windows` then makes ``chunk_frames`` frames at a time."""
+
+    bank: Bank
+    positions: ArrayLike
+    fps: float | None = None
+    scales: ArrayLike | None = None
+    options: Options = Options()
+    ids: list[str] | None = None
+    seeds: ArrayLike | None = None
+    chunk_frames: int = 30
+    _plan: Plan | None = field(default=None, init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        if not (isinstance(self.chunk_frames, int) and self.chunk_frames >= 1):
+            raise ValueError(f"chunk_frames: must be a positive integer, got {self.chunk_frames!r}")
+        self.prep, self.character_scales, self.keys = prepare_batch(
+            self.bank, self.positions, self.fps, self.scales, self.options, self.ids, self.seeds)
+        self.frames = self.prep.positions.shape[1]
+
+    @property
+    def kept(self) -> NDArray[np.int64]:
+        return self.prep.kept
+
+    @property
+    def rejected(self) -> dict[int, str]:
+        return self.prep.rejected
+
+    @property
+    def warnings(self) -> dict[int, str]:
+        return self.prep.warnings
+
+    @property
+    def resample_rate(self) -> float:
+        return self.prep.resample_rate
+
+    def _whole_plan(self) -> Plan:
+        if self._plan is None:
+            self._plan = plan(self.bank, self.prep, self.character_scales, self.keys, self.options.margin,
+                              compiled=compiled_backend(self.options))
+        return self._plan
+
+    def _context(self, p: Plan, start: int, stop: int,
+                 bounds: tuple[NDArray[np.int64], NDArray[np.int64]] | None = None
+                 ) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+        if compiled_backend(self.options):
+            return kernels.lock_context(p.contacts, start, stop)
+        return lock_context(p.contacts, start, stop, bounds)
+
+    def _render(self, p: Plan, start: int, stop: int,
+                bounds: tuple[NDArray[np.int64], NDArray[np.int64]] | None,
+                context: tuple[NDArray[np.int64], NDArray[np.int64]] | None = None,
+                shared: bool = False) -> Window:
+        """Frames ``[start, stop)`` of plan ``p`` (``context``: their lock contexts, if known;
+        ``shared``: in parts the pool's idle threads may take, see kernels.render_window)."""
+        lock = self.options.foot_lock
+        C = p.yaw.shape[0]
+        if not lock:
+            begin, end = np.full(C, start), np.full(C, stop)
+        else:
+            begin, end = self._context(p, start, stop, bounds) if context is None else context
+        if compiled_backend(self.options):
+            root, rot = kernels.render_window(self.bank, p, start, stop, begin, end, lock,
+                                              share=render_pool.shared if shared else None)
+        else:  # the reference: one context for all, the widest
+            b, e = int(begin.min()), int(end.max())
+            root, rot = render(self.bank, p.window(b, e), lock)
+            root, rot = root[:, start - b:stop - b], rot[:, start - b:stop - b]
+        return Window(start, root, rot, p.gait[:, start:stop], p.contacts[:, start:stop])
+
+    def _first_part(self, rows: slice, stop: int, shared: bool = False) -> tuple[Window, Plan | None]:
+        """Frames ``[0, stop)`` of characters ``rows``, from a plan of just those frames and
+        their lock context's if that is enough; and the part's whole plan if it took it.
+        ``shared``: one of parts side by side on the pool, whose renders the part done first
+        helps finish (the parts' plans and contexts differ: one ended up to 5 ms after the other)."""
+        prep = self.prep.rows(rows)
+        h, keys = self.character_scales[rows], self.keys[rows]
+        compiled, T = compiled_backend(self.options), self.frames
+        margin, lock = self.options.margin, self.options.foot_lock
+        for strides in FIRST_PLAN_STRIDES:
+            reach = stop + PAD + int(strides * self.bank.mean_cycle)
+            early = plan(self.bank, prep, h, keys, margin, frames=reach, compiled=compiled)
+            if early.yaw.shape[1] == T:  # that was all of it
+                return self._render(early, 0, stop, None, shared=shared), early
+            context = self._context(early, 0, stop) if lock else None
+            if context is None or context[1].max() < early.yaw.shape[1]:
+                return self._render(early, 0, stop, None, context, shared), None
+        whole = plan(self.bank, prep, h, keys, margin, compiled=compiled)  # a plant runs past them all
+        return self._render(whole, 0, stop, None, shared=shared), whole
+
+    def _first_window(self, stop: int) -> list[Window]:
+        """Frames ``[0, stop)``: the characters in parts side by side (see the module doc), a
+        window per part."""
+        C = self.prep.positions.shape[0]
+        parts = min(render_pool.size(), C // MIN_PART) if compiled_backend(self.options) else 1
+        if parts <= 1:
+            window, whole = self._first_part(slice(0, C), stop)
+            self._plan = whole if whole is not None else self._plan
+            return [window]
+        cuts = np.linspace(0, C, parts + 1).round().astype(np.int64).tolist()
+        done = render_pool.side_by_side([functools.partial(self._first_part, slice(a, b), stop, True)
+                                         for a, b in zip(cuts[:-1], cuts[1:], strict=True)])
+        plans = [whole for _, whole in done]
+        if all(p is not None for p in plans):  # every part planned whole: that is the whole plan
+            self._plan = Plan(*(np.concatenate([getattr(p, f.name) for p in plans]) for f in fields(Plan)))
+        return [w for w, _ in done]
+
+    def windows(self) -> Iterator[Window]:
+        """The motion, ``chunk_frames`` frames at a time, in order."""
+        for chunk in self.chunks():
+            yield joined(chunk)
+
+    def chunks(self) -> Iterator[list[Window]]:
+        """:meth:`windows`, each as the windows of consecutive characters it was made in: the
+        first in its parts, the others whole. The service packs a chunk's windows side by side
+        (:func:`service.chunk.packed_chunk`): joined first, the first chunk was packed on one
+        thread, ~2 ms of the ~40-50 a client waits for it."""
+        K, T = self.chunk_frames, self.frames
+        first_stop = min(K, T)
+        yield self._first_window(first_stop)
+        if first_stop == T:
+            return
+        whole = self._whole_plan()
+        # The numpy reference finds every frame's run once; the compiled scan needs none.
+        numpy_lock = self.options.foot_lock and not compiled_backend(self.options)
+        bounds = runs(whole.contacts) if numpy_lock else None
+        for a in range(first_stop, T, K * RENDER_CHUNKS):
+            b = min(a + K * RENDER_CHUNKS, T)
+            w = self._render(whole, a, b, bounds)
+            for s in range(a, b, K):
+                n = slice(s - a, min(s + K, b) - a)
+                yield [Window(s, w.root_pos[:, n], w.rotations[:, n], w.gait[:, n], w.contacts[:, n])]
+
+
+def joined(windows: list[Window]) -> Window:
+    """Windows of the same frames of consecutive characters as one window of them all."""
+    if len(windows) == 1:
+        return windows[0]
+    return Window(windows[0].start, *(np.concatenate([getattr(w, f) for w in windows])
+                                      for f in ("root_pos", "rotations", "gait", "contacts")))
