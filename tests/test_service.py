@@ -67,7 +67,11 @@ def running(tmp_path: Path,
     url = f"http://127.0.0.1:{port}"
     try:
         wait_until_live(proc, url)
+        deadline = time.monotonic() + STARTUP_TIMEOUT_S
         while httpx.get(f"{url}/readyz").status_code != 200:
+            if time.monotonic() > deadline:
+                raise AssertionError(f"server not ready within {STARTUP_TIMEOUT_S} s: "
+                                     f"{httpx.get(f'{url}/readyz').text}")
             time.sleep(0.1)
         yield url, proc
     finally:
