@@ -171,13 +171,11 @@ def trajectory_error(exc: TrajectoryError, job: Job) -> ApiError:
                                            f"('resample' of a character faster than the library, or "
                                            f"min_resample_rate); "
                                            f"send fewer characters or frames per request")
-    message = str(exc.args[0]) if exc.args else str(exc)
     if exc.character is None:
-        return ApiError(422, "characters", message)
+        return ApiError(422, "characters", exc.reason)
     index = job.ids.index(str(exc.character)) if str(exc.character) in job.ids else -1
-    reason = message.split(": ", 1)[1] if message.startswith("character ") and ": " in message else message
-    part = "scale" if reason.startswith("scale") else "points"
-    return ApiError(422, f"characters[{index}].{part}", reason.removeprefix("positions: "))
+    part = "scale" if exc.reason.startswith("scale") else "points"
+    return ApiError(422, f"characters[{index}].{part}", exc.reason.removeprefix("positions: "))
 
 
 def open_stream(job: Job, bank: Bank, chunk_frames: int) -> BatchStream:

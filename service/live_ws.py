@@ -41,11 +41,9 @@ def open_live(body: Any, settings: Settings, banks: dict[str, Bank]) -> tuple[Li
 
 def live_error(exc: TrajectoryError, field: str) -> ApiError:
     """422 for ``field`` (``points``, ``characters``), at the character the problem is in."""
-    message = str(exc.args[0]) if exc.args else str(exc)
     if exc.character is None:
-        return ApiError(422, field, message)
-    reason = message.split(": ", 1)[1] if message.startswith("character ") else message
-    return ApiError(422, f"{field}[{exc.character}]", reason.removeprefix(f"{field}: "))
+        return ApiError(422, field, exc.reason)
+    return ApiError(422, f"{field}[{exc.character}]", exc.reason.removeprefix(f"{field}: "))
 
 
 def points(body: dict[str, Any], n_characters: int, settings: Settings) -> NDArray[np.float64]:
