@@ -64,8 +64,8 @@ def _serve(args: argparse.Namespace, extra: list[str]) -> int:
     import uvicorn
 
     from service.cpus import available_cpus
-    from service.libraries import ensure_builtin_libraries, library_dir
     from service.settings import Settings
+    from synth_core.build.library_store import ensure_builtin_libraries, library_dir
 
     if not any(a.split("=")[0] in ("--fd", "--uds") for a in extra):
         _check_port(args.host, args.port)
@@ -207,7 +207,7 @@ def _load_library(animal: str, library: str | None) -> Any:
         return load_library(library)
     if animal not in ("horse", "dog"):
         raise ValueError(f"animal: unknown animal {animal!r} (built-in: horse, dog; or --library FILE)")
-    from service.libraries import builtin_library
+    from synth_core.build.library_store import builtin_library
 
     return builtin_library(animal)
 
