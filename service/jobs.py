@@ -18,13 +18,10 @@ from api_schemas.wire import WireError, unblob
 from service.errors import ApiError, field_path, from_validation
 from service.settings import Settings
 from synth_core.runtime.bank import Bank
+from synth_core.runtime.parallel_render import Cancelled as Cancelled  # deadline passed, client left
 from synth_core.runtime.streaming import BatchStream
 from synth_core.runtime.synthesis import Options, Result
 from synth_core.runtime.trajectory import FrameLimitError, Prepared, TrajectoryError, resampled_frames
-
-
-class Cancelled(Exception):
-    """The request's deadline passed or its client left: stop at the next chunk."""
 
 
 @dataclass
