@@ -42,11 +42,11 @@ def _check_port(host: str, port: int) -> None:
 
 def _compile_kernels() -> None:
     """Kernels into numba's cache first, in a process of their own: every worker then runs the
-    same cached code (see service.app.compile_kernels). A note every 15 s while it runs."""
+    same cached code (see service.warmup.compile_kernels). A note every 15 s while it runs."""
     _step("kernels: compiling into numba's cache (the first start after an install takes 1-2 min; "
           "later starts load them)")
     t0 = time.perf_counter()
-    code = "from service.app import compile_kernels; compile_kernels()"
+    code = "from service.warmup import compile_kernels; compile_kernels()"
     proc = subprocess.Popen([sys.executable, "-c", code])
     while True:
         try:

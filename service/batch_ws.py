@@ -32,7 +32,7 @@ from synth_core.runtime.streaming import BatchStream, Window
 from synth_core.runtime.trajectory import TrajectoryError
 
 if TYPE_CHECKING:
-    from service.app import State
+    from service.state import State
 
 log = logging.getLogger("quadsynth.stream")
 
