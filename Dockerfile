@@ -33,7 +33,7 @@ RUN pip install --no-deps --no-build-isolation /tmp/src && rm -rf /tmp/src
 
 # The libraries (speed maps + motion graph) are built into the image, owned by root and readable by
 # all, each stamped with the code that built it: the service reads them and cannot change them.
-RUN python -c "from pathlib import Path; from service.libraries import ensure_builtin_libraries as e; e(Path('$QUADSYNTH_LIBRARY_DIR'))" \
+RUN python -c "from pathlib import Path; from synth_core.build.library_store import ensure_builtin_libraries as e; e(Path('$QUADSYNTH_LIBRARY_DIR'))" \
     && mkdir -p "$NUMBA_CACHE_DIR" && chown quadsynth: "$NUMBA_CACHE_DIR"
 
 # The kernels compiled into numba's cache by the service user, for the installed package: a start
@@ -41,7 +41,7 @@ RUN python -c "from pathlib import Path; from service.libraries import ensure_bu
 # different CPU model compiles once more at its first start, into the same writable cache).
 USER quadsynth
 WORKDIR /home/quadsynth
-RUN python -c "from service.app import compile_kernels; compile_kernels()"
+RUN python -c "from service.warmup import compile_kernels; compile_kernels()"
 
 ENV PORT=8000
 EXPOSE 8000

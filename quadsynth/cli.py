@@ -9,6 +9,7 @@ import subprocess
 import sys
 import time
 from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -42,11 +43,11 @@ def _check_port(host: str, port: int) -> None:
 
 def _compile_kernels() -> None:
     """Kernels into numba's cache first, in a process of their own: every worker then runs the
-    same cached code (see service.app.compile_kernels). A note every 15 s while it runs."""
+    same cached code (see service.warmup.compile_kernels). A note every 15 s while it runs."""
     _step("kernels: compiling into numba's cache (the first start after an install takes 1-2 min; "
           "later starts load them)")
     t0 = time.perf_counter()
-    code = "from service.app import compile_kernels; compile_kernels()"
+    code = "from service.warmup import compile_kernels; compile_kernels()"
     proc = subprocess.Popen([sys.executable, "-c", code])
     while True:
         try:
@@ -64,8 +65,8 @@ def _serve(args: argparse.Namespace, extra: list[str]) -> int:
     import uvicorn
 
     from service.cpus import available_cpus
-    from service.libraries import ensure_builtin_libraries, library_dir
     from service.settings import Settings
+    from synth_core.build.library_store import ensure_builtin_libraries, library_dir
 
     if not any(a.split("=")[0] in ("--fd", "--uds") for a in extra):
         _check_port(args.host, args.port)
@@ -207,7 +208,7 @@ def _load_library(animal: str, library: str | None) -> Any:
         return load_library(library)
     if animal not in ("horse", "dog"):
         raise ValueError(f"animal: unknown animal {animal!r} (built-in: horse, dog; or --library FILE)")
-    from service.libraries import builtin_library
+    from synth_core.build.library_store import builtin_library
 
     return builtin_library(animal)
 
@@ -239,7 +240,8 @@ def _synth(args: argparse.Namespace, extra: list[str]) -> int:
     from synth_core.export.mesh import standing_rotations
 
     bind = standing_rotations(library.skeleton, library.idle.rotations[0])
-    return _write_herd(args, bank.skeleton, result, ids, traj.ids, bank.fps, bank.hubs, library.animal, bind)
+    return _write_herd(args, _Herd(bank.skeleton, result, ids, traj.ids, bank.fps, bank.hubs, library.animal),
+                       bind)
 
 
 def _client_synth(args: argparse.Namespace, extra: list[str]) -> int:
@@ -263,14 +265,26 @@ def _client_synth(args: argparse.Namespace, extra: list[str]) -> int:
         raise ValueError(f"cannot reach the service at {args.url}: {exc}") from None
     print(f"{herd.requests} request(s) to {args.url}", file=sys.stderr)
     bind = remote.bind_pose(args.url, args.animal, herd.skeleton) if args.glb else None
-    return _write_herd(args, herd.skeleton, herd.result, herd.ids, traj.ids, herd.fps, herd.hubs, args.animal,
-                       bind)
+    return _write_herd(args, _Herd(herd.skeleton, herd.result, herd.ids, traj.ids, herd.fps, herd.hubs,
+                                   args.animal), bind)
 
 
-def _write_herd(args: argparse.Namespace, skeleton: Skeleton, result: Result, ids: list[str],
-                all_ids: list[str], fps: float, hubs: tuple[str, ...], animal: str,
-                bind: np.ndarray | None) -> int:
+@dataclass(frozen=True)
+class _Herd:
+    """A herd's motion as `synth` and `client synth` write it."""
+
+    skeleton: Skeleton
+    result: Result
+    ids: list[str]  # the characters made
+    all_ids: list[str]  # every character asked for (the result's indices)
+    fps: float
+    hubs: tuple[str, ...]
+    animal: str
+
+
+def _write_herd(args: argparse.Namespace, herd: _Herd, bind: np.ndarray | None) -> int:
     """What `synth` and `client synth` write: motion.npz, summary.json, and BVH / glTF / GIF if asked."""
+    skeleton, result, ids, all_ids, fps = herd.skeleton, herd.result, herd.ids, herd.all_ids, herd.fps
     from synth_core.export import write_bvh_files, write_glb
 
     for c, why in sorted(result.rejected.items()):
@@ -280,7 +294,7 @@ def _write_herd(args: argparse.Namespace, skeleton: Skeleton, result: Result, id
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     summary = {"characters": len(ids), "frames": int(result.root_pos.shape[1]), "fps": fps,
-               "resample_rate": result.resample_rate, "animal": animal,
+               "resample_rate": result.resample_rate, "animal": herd.animal,
                "skipped": {all_ids[c]: why for c, why in result.rejected.items()},
                "warnings": {all_ids[c]: why for c, why in result.warnings.items()}}
     np.savez_compressed(out / "motion.npz", root_pos=result.root_pos, rotations=result.rotations,
@@ -292,7 +306,7 @@ def _write_herd(args: argparse.Namespace, skeleton: Skeleton, result: Result, id
     if args.preview:
         from quadsynth.herd_preview import render_herd
 
-        print(render_herd(skeleton, result, args.preview, fps, hubs))
+        print(render_herd(skeleton, result, args.preview, fps, herd.hubs))
     (out / "summary.json").write_text(json.dumps(summary, indent=2))
     print(json.dumps(summary))
     return 0
@@ -399,10 +413,8 @@ def _herd_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--preview", help="write a herd preview FILE.gif")
 
 
-def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="quadsynth", description=__doc__)
-    sub = parser.add_subparsers(dest="command", required=True)
-
+def _add_serve_and_preview(sub: Any) -> None:
+    """`serve` and `preview`."""
     serve = sub.add_parser("serve", help="start the synthesis service (extra arguments go to uvicorn)")
     serve.add_argument("--host", default="127.0.0.1")
     serve.add_argument("--port", type=int, default=8000)
@@ -418,6 +430,9 @@ def build_parser() -> argparse.ArgumentParser:
     preview.add_argument("--gif-fps", type=int, default=30, help="GIF frame rate")
     preview.set_defaults(func=_preview, passthrough=False)
 
+
+def _add_library_commands(sub: Any) -> None:
+    """`library`, `build`, `report`, `export-speedmap`."""
     library = sub.add_parser("library", help="the built-in animals")
     library_sub = library.add_subparsers(dest="library_command", required=True)
     export = library_sub.add_parser("export", help="write every clip as BVH (cm) + contacts.json")
@@ -450,6 +465,9 @@ def build_parser() -> argparse.ArgumentParser:
     exp.add_argument("--out", required=True, help="output directory (created if missing)")
     exp.set_defaults(func=_export_speedmap, passthrough=False)
 
+
+def _add_herd_commands(sub: Any) -> None:
+    """`crowd-sim`, `synth`, `client synth`."""
     sim = sub.add_parser("crowd-sim", help="herd trajectories on a looped path (positions (C, F, 3) .npz)")
     sim.add_argument("--characters", type=int, required=True)
     sim.add_argument("--frames", type=int, required=True)
@@ -479,6 +497,9 @@ def build_parser() -> argparse.ArgumentParser:
     _herd_arguments(csyn)
     csyn.set_defaults(func=_client_synth, passthrough=False)
 
+
+def _add_figures(sub: Any) -> None:
+    """`eval`, `bench`, `bench-service`."""
     ev = sub.add_parser("eval", help="quality figures of the standard scenario or the edge suite (JSON)")
     ev.add_argument("--animal", action="append", choices=["horse", "dog", "mann_dog"],
                     help="repeatable (default: horse)")
@@ -508,6 +529,13 @@ def build_parser() -> argparse.ArgumentParser:
     bs.add_argument("--repeats", type=int, default=4, help="runs per figure; the best counts")
     bs.add_argument("--json", action="store_true", help="one JSON object on one line")
     bs.set_defaults(func=_bench_service, passthrough=False)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="quadsynth", description=__doc__)
+    sub = parser.add_subparsers(dest="command", required=True)
+    for add in (_add_serve_and_preview, _add_library_commands, _add_herd_commands, _add_figures):
+        add(sub)
     return parser
 
 

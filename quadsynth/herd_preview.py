@@ -8,6 +8,7 @@ red, following each one. Frames are sampled to ``gif_fps`` and capped at 20 s.
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import matplotlib
 
@@ -16,6 +17,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from matplotlib.animation import FuncAnimation, PillowWriter  # noqa: E402
+from numpy.typing import NDArray  # noqa: E402
 
 from quadsynth.preview import bone_colors, draw_pose  # noqa: E402
 from synth_core.export.character import character_motion  # noqa: E402
@@ -24,6 +26,31 @@ from synth_core.runtime.synthesis import Result  # noqa: E402
 
 GAIT_COLORS = ["#777777", "#2ca02c", "#1f77b4", "#ff7f0e", "#d62728"]  # static, walk, trot, canter, gallop
 MAX_TOP = 2000  # characters drawn in the top view
+
+
+def _draw_side(ax: Any, skeleton: Skeleton, result: Result, view: tuple[int, NDArray[np.float64], float],
+               colors: Any, hubs: tuple[str, ...], f: int) -> None:
+    """Character ``c``'s close-up at frame ``f``, seen from its side (along its heading), ``half``
+    metres either side of its root; planted feet marked."""
+    c, pos, half = view
+    T = result.root_pos.shape[1]
+    ax.clear()
+    heading = result.root_pos[c, min(f + 1, T - 1)] - result.root_pos[c, max(f - 1, 0)]
+    heading[1] = 0
+    along = heading / n if (n := np.linalg.norm(heading)) > 1e-6 else np.array([1.0, 0.0, 0.0])
+    xy = np.stack([pos[f] @ along, pos[f, :, 1]], axis=-1)
+    draw_pose(ax, xy, skeleton.parents, colors)
+    for k, j in enumerate(skeleton.foot_joints):
+        if result.contacts[c, f, k]:
+            ax.plot(*xy[j], "o", color="#d62728", ms=5)
+    cx, size = xy[0, 0], float(np.ptp(pos[..., 1])) or 1.0
+    ax.axhline(result.path[c, f, 1], color="#888", lw=1)
+    ax.set_xlim(cx - half, cx + half)
+    ax.set_ylim(result.path[c, f, 1] - 0.1 * size, result.path[c, f, 1] + 1.2 * size)
+    ax.set_aspect("equal")
+    ax.set_xticks([])
+    ax.set_yticks([])
+    ax.set_title(f"#{c} {hubs[int(result.gait[c, f])]} h={result.scales[c]:.2f}", fontsize=8)
 
 
 def render_herd(skeleton: Skeleton, result: Result, out: str | Path, fps: float, hubs: tuple[str, ...],
@@ -42,7 +69,6 @@ def render_herd(skeleton: Skeleton, result: Result, out: str | Path, fps: float,
         side.append(pos)
         reach.append(float(np.linalg.norm((pos - pos[:, :1])[..., [0, 2]], axis=-1).max()) * 1.1)
     colors = bone_colors(character_motion(skeleton, result, 0, fps))
-    feet = skeleton.foot_joints
     fig = plt.figure(figsize=(4.5 + 3.2 * len(picks), 3.4), dpi=80)
     grid = fig.add_gridspec(1, 1 + len(picks), width_ratios=[1.4] + [1.0] * len(picks))
     top = fig.add_subplot(grid[0, 0])
@@ -65,23 +91,7 @@ def render_herd(skeleton: Skeleton, result: Result, out: str | Path, fps: float,
         top.set_title(f"frame {f}: " + ", ".join(f"{h} {n}" for h, n in zip(hubs, counts, strict=False) if n),
                       fontsize=8)
         for ax, c, pos, half in zip(axes, picks, side, reach, strict=True):
-            ax.clear()
-            heading = result.root_pos[c, min(f + 1, T - 1)] - result.root_pos[c, max(f - 1, 0)]
-            heading[1] = 0
-            along = heading / n if (n := np.linalg.norm(heading)) > 1e-6 else np.array([1.0, 0.0, 0.0])
-            xy = np.stack([pos[f] @ along, pos[f, :, 1]], axis=-1)
-            draw_pose(ax, xy, skeleton.parents, colors)
-            for k, j in enumerate(feet):
-                if result.contacts[c, f, k]:
-                    ax.plot(*xy[j], "o", color="#d62728", ms=5)
-            cx, size = xy[0, 0], float(np.ptp(pos[..., 1])) or 1.0
-            ax.axhline(result.path[c, f, 1], color="#888", lw=1)
-            ax.set_xlim(cx - half, cx + half)
-            ax.set_ylim(result.path[c, f, 1] - 0.1 * size, result.path[c, f, 1] + 1.2 * size)
-            ax.set_aspect("equal")
-            ax.set_xticks([])
-            ax.set_yticks([])
-            ax.set_title(f"#{c} {hubs[int(result.gait[c, f])]} h={result.scales[c]:.2f}", fontsize=8)
+            _draw_side(ax, skeleton, result, (c, pos, half), colors, hubs, f)
 
     anim = FuncAnimation(fig, draw, frames=frames, interval=1000 / gif_fps)
     out.parent.mkdir(parents=True, exist_ok=True)

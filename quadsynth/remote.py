@@ -132,6 +132,14 @@ def synthesize(url: str, positions: NDArray[np.floating], fps: float, ids: list[
         for one in opened:
             one.close()
 
+    result, made = _assembled(done, positions, rate)
+    return Remote(result, skeleton_of(detail), tuple(HUBS), float(detail["fps"]), made, requests)
+
+
+def _assembled(done: dict[tuple[int, int], Motion], positions: NDArray[np.floating],
+               rate: float) -> tuple[Result, list[str]]:
+    """The pieces' motion as one herd's :class:`Result` (indices in the whole herd), and the ids
+    of the characters made."""
     kept: list[int] = []
     characters: list[CharacterMotion] = []
     rejected: dict[int, str] = {}
@@ -157,5 +165,4 @@ def synthesize(url: str, positions: NDArray[np.floating], fps: float, ids: list[
         scales=np.array([ch.scale for ch in characters]),
         path=resample(np.asarray(positions[kept_idx], np.float64), T),  # the ground under each root
         resample_rate=rate, kept=kept_idx, rejected=rejected, warnings=warnings)
-    return Remote(result, skeleton_of(detail), tuple(HUBS), float(detail["fps"]),
-                  [ch.id for ch in characters], requests)
+    return result, [ch.id for ch in characters]

@@ -18,13 +18,10 @@ from api_schemas.wire import WireError, unblob
 from service.errors import ApiError, field_path, from_validation
 from service.settings import Settings
 from synth_core.runtime.bank import Bank
+from synth_core.runtime.parallel_render import Cancelled as Cancelled  # deadline passed, client left
 from synth_core.runtime.streaming import BatchStream
 from synth_core.runtime.synthesis import Options, Result
 from synth_core.runtime.trajectory import FrameLimitError, Prepared, TrajectoryError, resampled_frames
-
-
-class Cancelled(Exception):
-    """The request's deadline passed or its client left: stop at the next chunk."""
 
 
 @dataclass
@@ -171,13 +168,11 @@ def trajectory_error(exc: TrajectoryError, job: Job) -> ApiError:
                                            f"('resample' of a character faster than the library, or "
                                            f"min_resample_rate); "
                                            f"send fewer characters or frames per request")
-    message = str(exc.args[0]) if exc.args else str(exc)
     if exc.character is None:
-        return ApiError(422, "characters", message)
+        return ApiError(422, "characters", exc.reason)
     index = job.ids.index(str(exc.character)) if str(exc.character) in job.ids else -1
-    reason = message.split(": ", 1)[1] if message.startswith("character ") and ": " in message else message
-    part = "scale" if reason.startswith("scale") else "points"
-    return ApiError(422, f"characters[{index}].{part}", reason.removeprefix("positions: "))
+    part = "scale" if exc.reason.startswith("scale") else "points"
+    return ApiError(422, f"characters[{index}].{part}", exc.reason.removeprefix("positions: "))
 
 
 def open_stream(job: Job, bank: Bank, chunk_frames: int) -> BatchStream:

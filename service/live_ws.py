@@ -1,9 +1,15 @@
 """Live sessions on WebSocket ``/v1/stream``: a ``live`` message opens one (characters and
 options), ``points`` messages bring every character's next trajectory points, ``finish`` ends
-the trajectories. Parsing and checking here; the session loop is :mod:`service.batch_ws`'s."""
+the trajectories. Parsing and checking, and the session's loop (:func:`stream_live`) on the
+connection's :class:`service.ws_session.Session`."""
 
 from __future__ import annotations
 
+import asyncio
+import contextlib
+import functools
+import time
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -11,11 +17,15 @@ from numpy.typing import NDArray
 
 from api_schemas import LiveRequest
 from api_schemas.wire import WireError, unblob
+from service.chunk import packed_chunk
 from service.errors import ApiError
 from service.jobs import validate
+from service.packing import skeleton_id
 from service.settings import Settings
+from service.ws_session import Session
 from synth_core.runtime.bank import Bank
 from synth_core.runtime.live_shards import LiveShards
+from synth_core.runtime.streaming import Window
 from synth_core.runtime.trajectory import TrajectoryError
 
 
@@ -41,11 +51,9 @@ def open_live(body: Any, settings: Settings, banks: dict[str, Bank]) -> tuple[Li
 
 def live_error(exc: TrajectoryError, field: str) -> ApiError:
     """422 for ``field`` (``points``, ``characters``), at the character the problem is in."""
-    message = str(exc.args[0]) if exc.args else str(exc)
     if exc.character is None:
-        return ApiError(422, field, message)
-    reason = message.split(": ", 1)[1] if message.startswith("character ") else message
-    return ApiError(422, f"{field}[{exc.character}]", reason.removeprefix(f"{field}: "))
+        return ApiError(422, field, exc.reason)
+    return ApiError(422, f"{field}[{exc.character}]", exc.reason.removeprefix(f"{field}: "))
 
 
 def points(body: dict[str, Any], n_characters: int, settings: Settings) -> NDArray[np.float64]:
@@ -70,3 +78,118 @@ def points(body: dict[str, Any], n_characters: int, settings: Settings) -> NDArr
         raise ApiError(422, "points", f"{arr.shape[1]} points per character is over the limit of "
                                       f"{settings.max_frames} per message (max_frames)")
     return np.asarray(arr, np.float64)
+
+
+class LiveRun:
+    """One live session on a connection: its synthesizer, the chunk being sent while the next
+    is made, and the scratch pages its chunks are packed into."""
+
+    def __init__(self, s: Session, number: int, req: LiveRequest, synth: LiveShards) -> None:
+        self.s, self.number, self.req, self.synth = s, number, req, synth
+        self.C = len(req.characters)
+        # Windows of at most a segment's frames: a finish (or a long points message) settling
+        # more comes as several chunks, each window rendered and packed over the last's pages
+        # (fresh pages, zeroed by the OS as they are first written, took a fifth of the server's
+        # CPU in a live session: perf) -- and over an earlier session's (see Shelf).
+        self.scratch = s.state.scratches.take()
+        self.stepping = False  # a step may be writing into scratch
+        # A chunk goes out while the next is synthesized (a live tick of 4,000 horses is ~30 MB:
+        # sending it took a third as long as making it, the cores half idle meanwhile).
+        self.sending: asyncio.Future[None] | None = None
+        self.sent = 0
+
+    def step(self, advance: Callable[[], list[Window] | None], index: int) -> tuple[int, memoryview] | None:
+        """In the pool: the next chunk, of the windows ``advance`` gives (then of those left);
+        None when there are none."""
+        windows = advance()
+        while windows is not None and windows[0].stop <= windows[0].start:  # no frame sent in it
+            windows = self.synth.take(self.synth.window_frames)
+        if windows is None:
+            return None
+        # Two buffers in turn: one is sent while the next is packed.
+        return packed_chunk(self.number, index, windows, self.req.encoding, self.scratch,
+                            f"chunk{index % 2}")
+
+    async def made(self, advance: Callable[[], list[Window] | None]) -> tuple[int, memoryview] | None:
+        t0 = time.perf_counter()
+        self.stepping = True
+        try:
+            made: tuple[int, memoryview] | None = await self.s.in_pool(self.step, advance, self.sent)
+        except TrajectoryError as exc:
+            self.stepping = False
+            raise live_error(exc, "points") from None
+        self.stepping = False
+        self.s.state.metrics.synthesis_seconds += time.perf_counter() - t0
+        return made
+
+    async def tick(self, advance: Callable[[], list[Window] | None]) -> None:
+        """One points (or finish) message's chunks, each sent while the next is made."""
+        s = self.s
+        while True:
+            made = await self.made(advance)
+            if self.sending is not None:
+                await self.sending  # in order, and its failure (a slow consumer) raised here
+                self.sending = None
+            if made is None:
+                return
+            await s.wait_for_room(self.sent)
+            s.check()
+            self.sending = asyncio.ensure_future(s.send(made[1]))
+            s.state.metrics.character_frames += self.C * made[0]
+            self.sent += 1
+            advance = functools.partial(self.synth.take, self.synth.window_frames)
+
+    async def run(self) -> None:
+        """Until finish (or the client cancels or leaves)."""
+        s, synth, W = self.s, self.synth, self.synth.window_frames
+        while True:
+            message = await s.next_live()
+            if message is None:  # before its finish: the client cancelled or left
+                s.state.metrics.cancelled += 1
+                return
+            finishing = message.get("type") == "finish"
+            await self.tick(functools.partial(synth.finish, W) if finishing else
+                            functools.partial(synth.append, points(message, self.C, s.settings), W))
+            if finishing:
+                return
+
+    async def settle(self) -> None:
+        """The last chunk's send waited for; on an error, let it finish first (that error wins).
+        The scratch goes back for the next session unless a step or a send may still be using
+        it (this coroutine cancelled while one ran; the pool thread goes on): then left to the GC."""
+        if self.sending is not None:
+            with contextlib.suppress(Exception):
+                await self.sending
+        if not self.stepping and (self.sending is None or self.sending.done()):
+            self.s.state.scratches.give(self.scratch)
+
+
+def _start_message(s: Session, number: int, req: LiveRequest, synth: LiveShards) -> dict[str, Any]:
+    registry = s.state.registry
+    fps = registry.banks[req.animal].fps
+    return {"type": "start", "batch": number, "mode": "live", "animal": req.animal,
+            "skeleton_id": skeleton_id(req.animal, registry.libraries[req.animal].skeleton),
+            "fps": fps / synth.out_step, "library_fps": fps, "encoding": req.encoding,
+            "resample_rate": 1.0, "latency_frames": -(-synth.latency_frames // synth.out_step),
+            "latency_s": synth.latency_frames / fps,
+            "characters": [{"id": c.id, "scale": float(h)}
+                           for c, h in zip(req.characters, synth.scales, strict=True)]}
+
+
+async def stream_live(s: Session, body: dict[str, Any]) -> None:
+    """A ``live`` message: start, frames for the points as they come until finish, end."""
+    number = s.begin()
+    req, synth = open_live(body, s.settings, s.state.registry.banks)
+    await s.send(_start_message(s, number, req, synth))
+    s.started()
+    run = LiveRun(s, number, req, synth)
+    try:
+        await run.run()
+        if run.sending is not None:
+            last, run.sending = run.sending, None
+            await last
+    finally:
+        await run.settle()
+    s.live_open = False
+    s.drop_inbox()
+    await s.end(number, run.sent)

@@ -20,13 +20,8 @@ import pytest
 
 from api_schemas.wire import ENCODING_ERROR, blob, decode_rotations, rotation_angle, unblob
 from synth_core.quality import herd_sim as crowd
-from tests.test_service import running
-
-MSGPACK = "application/vnd.msgpack"
-LIMITS = {"QUADSYNTH_MAX_BODY_BYTES": str(1024 * 1024), "QUADSYNTH_MAX_CHARACTERS": "40",
-          "QUADSYNTH_MAX_FRAMES": "2000", "QUADSYNTH_MAX_CHARACTER_FRAMES": "20000",
-          "QUADSYNTH_MAX_IN_FLIGHT": "1", "QUADSYNTH_MAX_QUEUED": "1", "QUADSYNTH_DEADLINE_S": "20",
-          "QUADSYNTH_TEST_HOOKS": "1"}
+from tests.helpers.requests import LIMITS, MSGPACK, post
+from tests.helpers.servers import metric, running
 
 
 @pytest.fixture(scope="module")
@@ -43,12 +38,6 @@ def herd() -> np.ndarray:
 def batch(herd: np.ndarray, **options: Any) -> dict[str, Any]:
     return {"animal": "horse", "seed": 3, **options,
             "characters": [{"id": f"h{c}", "points": blob(herd[c])} for c in range(len(herd))]}
-
-
-def post(url: str, body: Any, **headers: str) -> httpx.Response:
-    raw = body if isinstance(body, bytes) else msgpack.packb(body, use_bin_type=True)
-    return httpx.post(f"{url}/v1/synthesize", content=raw,
-                      headers={"content-type": MSGPACK, **headers}, timeout=60)
 
 
 def as_json(body: dict[str, Any]) -> str:
@@ -311,14 +300,6 @@ def test_past_the_deadline_gets_504_and_the_worker_is_free_again(tmp_path: Path,
         assert answer.status_code == 200 and len(msgpack.unpackb(answer.content)["characters"]) == 2
         assert 'reason="deadline"} 2' in httpx.get(f"{url}/metrics").text
         assert metric(url, "quadsynth_cancelled_total") == 1  # the held one; the queued one never ran
-
-
-def metric(url: str, name: str) -> float:
-    """The value of a series labelled only by pid, on the /metrics of a one-worker server."""
-    for line in httpx.get(f"{url}/metrics").text.splitlines():
-        if line.startswith(name + "{"):
-            return float(line.rsplit(" ", 1)[1])
-    raise AssertionError(f"{name} not in /metrics")
 
 
 def test_a_client_leaving_mid_answer_stops_the_work(tmp_path: Path) -> None:

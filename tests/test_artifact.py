@@ -62,7 +62,7 @@ def test_the_file_holds_no_pickled_objects(saved: Path) -> None:
         assert all(npz[k].dtype != object for k in npz.files)
 
 
-@pytest.mark.parametrize("change, message", [
+@pytest.mark.parametrize(("change", "message"), [
     ({"version": np.array(2)}, "version: this QuadSynth reads version 1"),
     ({"format": np.array("something-else")}, "format: expected 'quadsynth-library'"),
     ({"map__trot__rotations": None}, "map/trot/rotations: missing"),

@@ -11,7 +11,8 @@ from hypothesis import strategies as st
 
 from synth_core.motion import bvh
 from synth_core.motion.bvh import BVHError
-from tests.conftest import MANN_DIR, MANN_FILES, mann_path, random_motion
+from tests.helpers.mocap import MANN_DIR, MANN_FILES, mann_path
+from tests.helpers.motion import random_motion
 
 ROUND_TRIP_MM = 0.1
 

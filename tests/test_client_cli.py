@@ -18,7 +18,8 @@ from quadsynth.cli import main
 from synth_core.motion import bvh
 from synth_core.quality import herd_sim as crowd
 from synth_core.runtime import trajectory_files as crowd_io
-from tests.test_service import free_port, running
+from tests.helpers.requests import same_motion
+from tests.helpers.servers import free_port, running
 
 LIMITS = {"QUADSYNTH_MAX_CHARACTERS": "8", "QUADSYNTH_MAX_CHARACTER_FRAMES": "20000",
           "QUADSYNTH_TEST_HOOKS": "1"}  # /_test/hold: the worker waits, so requests pile up in flight
@@ -44,15 +45,6 @@ def run(*argv: str, capsys: pytest.CaptureFixture[str]) -> tuple[int, dict[str, 
     out, err = capsys.readouterr()
     lines = out.strip().splitlines()
     return code, json.loads(lines[-1]) if code == 0 else {}, err
-
-
-def same_motion(a: Path, b: Path) -> None:
-    remote, local = np.load(a / "motion.npz"), np.load(b / "motion.npz")
-    assert remote["rotations"].shape == local["rotations"].shape
-    for key in ("gait", "contacts", "ids", "scales"):
-        np.testing.assert_array_equal(remote[key], local[key], err_msg=key)
-    for key in ("root_pos", "rotations"):
-        np.testing.assert_allclose(remote[key], local[key], atol=1e-5, err_msg=key)
 
 
 @pytest.mark.parametrize("resample", [True, False])

@@ -9,7 +9,8 @@ from synth_core import FOOT_NAMES
 from synth_core.motion import bvh
 from synth_core.motion import contacts as C
 from synth_core.motion.clip import Motion
-from tests.conftest import MANN_CYCLES, mann_path, toy_skeleton
+from tests.helpers.mocap import MANN_CYCLES, mann_path
+from tests.helpers.motion import TEMPLATES, synthetic_gait, toy_skeleton
 
 DUTY_TOLERANCE = 0.08  # issue 2: within 0.08 of SOURCE.md
 GAIT_NAMES = {"pace": {"pace"}, "trot": {"trot"}, "walk": {"walk"},
@@ -102,25 +103,6 @@ def test_ranges_and_json_round_trip() -> None:
     assert np.array_equal(C.contacts_from_json(doc, 80), contacts)
     with pytest.raises(ValueError, match="contacts.frames"):
         C.contacts_from_json(doc, 81)
-
-
-def synthetic_gait(phases: dict[str, float], duty: float, stride: int = 40, strides: int = 4) -> np.ndarray:
-    # Start half a stride in, so LH's first touchdown falls inside the clip.
-    frames = np.arange(stride * strides) + stride // 2
-    out = np.zeros((len(frames), 4), bool)
-    for k, foot in enumerate(FOOT_NAMES):
-        out[:, k] = ((frames / stride - phases[foot]) % 1.0) < duty
-    return out
-
-
-TEMPLATES = {
-    "walk": ({"LH": 0.0, "LF": 0.25, "RH": 0.5, "RF": 0.75}, 0.65),
-    "trot": ({"LH": 0.0, "RF": 0.0, "RH": 0.5, "LF": 0.5}, 0.4),
-    "pace": ({"LH": 0.0, "LF": 0.0, "RH": 0.5, "RF": 0.5}, 0.55),
-    "canter-transverse": ({"RH": 0.9, "LH": 0.0, "RF": 0.0, "LF": 0.15}, 0.35),
-    "gallop-transverse": ({"RH": 0.9, "LH": 0.0, "RF": 0.1, "LF": 0.25}, 0.25),
-    "gallop-rotary": ({"RH": 0.85, "LH": 0.0, "LF": 0.15, "RF": 0.3}, 0.25),
-}
 
 
 @pytest.mark.parametrize("gait", TEMPLATES)

@@ -28,7 +28,7 @@ def test_csv_columns_by_header_name_in_any_order(tmp_path: Path) -> None:
     assert np.allclose(traj.positions[0, :, 2], [5.0, 5.5, 6.0])
 
 
-@pytest.mark.parametrize("text, message", [
+@pytest.mark.parametrize(("text", "message"), [
     ("", "empty file"),
     ("id,frame,x,y\na,0,1,2\n", r"lacks column\(s\) \['z'\]"),
     ("id,frame,x,y,z\na,0,1,2,3\na,1,1,oops,3\n", "line 3: not a number"),

@@ -16,7 +16,7 @@ import pytest
 
 from api_schemas.wire import blob
 from synth_core.quality import herd_sim as crowd
-from tests.test_service import free_port, running, start, wait_until_live
+from tests.helpers.servers import free_port, running, start, wait_until_live
 
 MSGPACK = "application/vnd.msgpack"
 
@@ -55,7 +55,7 @@ def test_sigterm_with_two_workers_is_not_ready_at_once_then_refuses_connections(
 
 def wait_for(url: str, name: str, value: float, timeout: float = 60.0) -> None:
     """Until the one-worker server's metric ``name`` reads ``value`` (its state, polled)."""
-    from tests.test_hardening import metric
+    from tests.helpers.servers import metric
 
     deadline = time.monotonic() + timeout
     while metric(url, name) != value:

@@ -89,7 +89,7 @@ def test_a_creep_keeps_its_speed_in_range() -> None:
     assert min(edge.CREEP_SPEEDS) == low and max(edge.CREEP_SPEEDS) == high
 
 
-@pytest.mark.parametrize("name, degrees", [("corner_trot", 90), ("uturn_canter", 180)])
+@pytest.mark.parametrize(("name", "degrees"), [("corner_trot", 90), ("uturn_canter", 180)])
 def test_corners_and_u_turns_have_the_stated_radius_and_angle(name: str, degrees: int) -> None:
     s = scenario(name)
     for c, radius in enumerate(edge.RADII):

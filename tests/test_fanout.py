@@ -8,6 +8,7 @@ import json
 import signal
 import threading
 import time
+from collections.abc import Iterator
 from pathlib import Path
 
 import httpx
@@ -17,12 +18,20 @@ import pytest
 from quadsynth.cli import main
 from synth_core.quality import herd_sim as crowd
 from synth_core.runtime import trajectory_files as crowd_io
-from tests.test_client_cli import same_motion
-from tests.test_nginx import Cluster, cluster, in_flight  # noqa: F401  (cluster: the fixture)
+from tests.helpers.nginx import Cluster, nginx_cluster
+from tests.helpers.requests import same_motion
+from tests.helpers.servers import in_flight
+
+
+@pytest.fixture(scope="module")
+def cluster(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Cluster]:
+    """(nginx URL, the two replicas' own URLs, their processes, nginx's error log)."""
+    with nginx_cluster(tmp_path_factory) as running:
+        yield running
 
 
 def test_a_replica_killed_under_a_fanned_out_herd_loses_no_character(
-        cluster: Cluster, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:  # noqa: F811
+        cluster: Cluster, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     url, replicas, procs, _ = cluster
     herd = crowd.simulate(16, 240, seed=5).astype(np.float32)
     traj = crowd_io.write_npz(tmp_path / "traj.npz", herd, 60.0)

@@ -25,7 +25,7 @@ def test_frames_are_scipys_bit_for_bit(sigma: float) -> None:
 def test_weights_sum_to_one_and_fall_off() -> None:
     w = gaussian.weights(4.0)
     assert len(w) == 17 and abs(w[0] + 2 * w[1:].sum() - 1.0) < 1e-12 and (np.diff(w) < 0).all()
-    with pytest.raises(ValueError):
+    with pytest.raises(ValueError, match="read-only"):
         w[0] = 1.0  # shared by every caller: read-only
 
 

@@ -168,7 +168,7 @@ def test_validator_and_three_take_the_glbs_as_skinned_characters(node_tools: Pat
 
 
 def test_a_bvh_rigs_mesh_is_bound_standing_and_valid(node_tools: Path, tmp_path: Path) -> None:
-    from tests.test_mesh import mann_standing
+    from tests.helpers.mocap import mann_standing
 
     skeleton, standing = mann_standing()
     glb = mesh_glb(skeleton, "mann_dog", standing)

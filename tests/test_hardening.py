@@ -8,7 +8,6 @@ from __future__ import annotations
 import base64
 import json
 import socket
-import time
 from collections.abc import Iterator
 from typing import Any
 
@@ -27,7 +26,7 @@ from api_schemas.wire import (
 )
 from service import budget
 from synth_core.quality import herd_sim as crowd
-from tests.test_service import running
+from tests.helpers.servers import metric, running, wait_for
 
 MSGPACK = "application/vnd.msgpack"
 MB = 1 << 20
@@ -61,21 +60,6 @@ def post(url: str, body: dict[str, Any], as_json: bool = False) -> httpx.Respons
         raw = msgpack.packb(body, use_bin_type=True)
     return httpx.post(f"{url}/v1/synthesize", content=raw, timeout=120,
                       headers={"content-type": "application/json" if as_json else MSGPACK})
-
-
-def metric(url: str, name: str) -> float:
-    for line in httpx.get(f"{url}/metrics").text.splitlines():
-        if line.startswith(name + "{"):
-            return float(line.rsplit(" ", 1)[1])
-    raise AssertionError(f"{name} not in /metrics")
-
-
-def wait_for(url: str, name: str, value: float, timeout: float = 90.0) -> None:
-    """Until the metric ``name`` reads ``value`` (polled: the server's own state, not a sleep)."""
-    deadline = time.monotonic() + timeout
-    while metric(url, name) != value:
-        assert time.monotonic() < deadline, f"{name} never reached {value}: {metric(url, name)}"
-        time.sleep(0.05)
 
 
 def refused(response: httpx.Response, status: int, field: str, *words: str) -> dict[str, Any]:

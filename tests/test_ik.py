@@ -10,7 +10,7 @@ from synth_core.builtin.clips import build_clips
 from synth_core.motion import bvh, quat
 from synth_core.motion.clip import Motion
 from synth_core.motion.skeleton import forward_kinematics
-from tests.conftest import mann_path
+from tests.helpers.mocap import mann_path
 
 _X = np.array([1.0, 0.0, 0.0])
 
@@ -176,7 +176,7 @@ def twisted_leg(frames: int = 80, peak_deg: float = 150.0) -> tuple[Motion, np.n
     of frames (a paw lifted out to the side while turning) up to ``peak_deg`` from the body's
     side and back; the rest of the clip it bends straight to the side. Returns the motion and
     the twist per frame (deg)."""
-    from tests.conftest import toy_skeleton
+    from tests.helpers.motion import toy_skeleton
 
     skeleton = toy_skeleton()
     rig = ik.limb_rigs(skeleton)[2]

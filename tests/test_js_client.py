@@ -20,18 +20,11 @@ import pytest
 from api_schemas.client import Client
 from synth_core.motion.skeleton import Skeleton, forward_kinematics
 from synth_core.quality import herd_sim as crowd
-from tests.test_service import running
+from tests.helpers.node import node_binary
+from tests.helpers.servers import running
 
 REPO = Path(__file__).resolve().parents[1]
 FLAKY = {"QUADSYNTH_WS_WINDOW": "1", "QUADSYNTH_WS_SEND_TIMEOUT_S": "1"}
-
-
-def node_binary() -> str:
-    run = subprocess.run([str(REPO / "scripts" / "ensure-node-deps")], capture_output=True, text=True,
-                         timeout=900)
-    if run.returncode != 0:
-        pytest.skip(f"no node for the JS client's tests: {run.stderr.strip().splitlines()[-1:]}")
-    return run.stdout.strip().splitlines()[-1]
 
 
 @pytest.fixture(scope="module")

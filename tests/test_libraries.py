@@ -6,9 +6,10 @@ from pathlib import Path
 
 import pytest
 
-from service import libraries
-from service.libraries import LibraryRegistry, library_dir, required_animals
+from service.libraries import LibraryRegistry, required_animals
+from synth_core.build import library_store
 from synth_core.build.artifact import SUFFIX
+from synth_core.build.library_store import library_dir
 
 
 def test_library_dir_is_per_user_not_the_working_directory(monkeypatch: pytest.MonkeyPatch,
@@ -52,16 +53,16 @@ def test_a_built_in_library_built_by_other_code_is_built_again_and_the_old_file_
         tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """The library directory outlives a checkout: a built-in file whose stamp names other code
     (or that has none) is rebuilt, the old one moved aside; a current one is left alone."""
-    monkeypatch.setattr(libraries, "BUILTIN_ANIMALS", ("dog",))
-    first = libraries.ensure_builtin_libraries(tmp_path)
+    monkeypatch.setattr(library_store, "BUILTIN_ANIMALS", ("dog",))
+    first = library_store.ensure_builtin_libraries(tmp_path)
     assert [p.name for p in first] == ["dog.qslib.npz"]
     stamp = tmp_path / "dog.qslib.npz.source"
-    assert stamp.read_text().strip() == libraries.builtin_source()
-    assert libraries.ensure_builtin_libraries(tmp_path) == []  # current: not built again
+    assert stamp.read_text().strip() == library_store.builtin_source()
+    assert library_store.ensure_builtin_libraries(tmp_path) == []  # current: not built again
     stamp.write_text("0123456789abcdef\n")  # built by an older version
     old = (tmp_path / "dog.qslib.npz").read_bytes()
-    assert [p.name for p in libraries.ensure_builtin_libraries(tmp_path)] == ["dog.qslib.npz"]
+    assert [p.name for p in library_store.ensure_builtin_libraries(tmp_path)] == ["dog.qslib.npz"]
     assert (tmp_path / "dog.qslib.npz.old").read_bytes() == old
-    assert stamp.read_text().strip() == libraries.builtin_source()
+    assert stamp.read_text().strip() == library_store.builtin_source()
     stamp.unlink()  # no stamp at all (a file from before stamps, or the user's own)
-    assert len(libraries.ensure_builtin_libraries(tmp_path)) == 1 and stamp.exists()
+    assert len(library_store.ensure_builtin_libraries(tmp_path)) == 1 and stamp.exists()

@@ -21,6 +21,7 @@ from synth_core.motion import contacts as C
 from synth_core.motion.clip import Motion
 from synth_core.quality import metrics as M
 from synth_core.runtime.bank import nearest_pose
+from tests.helpers.motion import PEAK_JOINT_SPEED
 
 ANIMALS = ("horse", "dog")
 SPEED_RANGES = {  # m/s; dog: the real dog (SOURCE.md); horse: the literature (issue 3)
@@ -28,12 +29,6 @@ SPEED_RANGES = {  # m/s; dog: the real dog (SOURCE.md); horse: the literature (i
     # gait-reference.md 2a: walk 1.35-2.2, trot 3.25-5.5, canter 3.4-7.0, gallop 9-17
     "horse": {"walk": (1.2, 1.9), "trot": (3.0, 5.0), "canter": (3.4, 7.0), "gallop": (8.9, 17.0)},
 }
-# Fastest any joint may turn (deg/s). The real dog (../shared/mocap, its SOURCE.md cycles) peaks
-# at 1250 walking, 1560-2210 trotting and 1810-2030 in its 3.7-4.2 m/s gallop; our dog gallops
-# faster (4.6 m/s), hence 2500. Joint angular speeds scale with stride frequency: the horse's
-# limit is the dog's times the largest horse-to-dog stride frequency ratio of any gait.
-_FREQUENCY_RATIO = max(GAIT_SPECS["dog"][g].frames / GAIT_SPECS["horse"][g].frames for g in GAITS)
-PEAK_JOINT_SPEED = {"dog": 2500.0, "horse": 2500.0 * _FREQUENCY_RATIO}
 
 
 @pytest.fixture(scope="module")
@@ -60,7 +55,7 @@ def test_every_named_clip_exists(clips: dict[str, dict[str, Motion]]) -> None:
         assert all(m.fps == 60.0 for m in clips[animal].values())
 
 
-@pytest.mark.parametrize("animal, clip", cases())
+@pytest.mark.parametrize(("animal", "clip"), cases())
 def test_planted_feet_hold_and_nothing_goes_under_ground(clips: dict, animal: str, clip: str) -> None:
     motion = clips[animal][clip]
     feet = motion.foot_positions()
@@ -71,7 +66,7 @@ def test_planted_feet_hold_and_nothing_goes_under_ground(clips: dict, animal: st
     assert np.abs(planted_height).max() < 0.005  # planted means on the ground
 
 
-@pytest.mark.parametrize("animal, clip", cases())
+@pytest.mark.parametrize(("animal", "clip"), cases())
 def test_no_joint_turns_faster_than_the_animal_can(clips: dict, animal: str, clip: str) -> None:
     """No pops: a two-link leg near full extension, or a swing too short for its flexion, would
     turn a joint tens of degrees in one frame."""
@@ -81,7 +76,7 @@ def test_no_joint_turns_faster_than_the_animal_can(clips: dict, animal: str, cli
     assert speed.max() <= PEAK_JOINT_SPEED[animal], motion.skeleton.names[int(speed.max(axis=0).argmax())]
 
 
-@pytest.mark.parametrize("animal, clip", cases())
+@pytest.mark.parametrize(("animal", "clip"), cases())
 def test_swing_feet_clear_the_ground(clips: dict, animal: str, clip: str) -> None:
     motion = clips[animal][clip]
     heights = motion.foot_positions()[..., 1]
@@ -94,7 +89,7 @@ def test_swing_feet_clear_the_ground(clips: dict, animal: str, clip: str) -> Non
             assert middle.min() > clearance, f"{FOOT_NAMES[k]} drags in swing {start}-{stop}"
 
 
-@pytest.mark.parametrize("animal, gait", [(a, g) for a in ANIMALS for g in GAITS])
+@pytest.mark.parametrize(("animal", "gait"), [(a, g) for a in ANIMALS for g in GAITS])
 def test_cyclic_clips_loop_seamlessly(clips: dict, animal: str, gait: str) -> None:
     motion = clips[animal][gait]
     two = looped(motion, 2)
@@ -108,7 +103,7 @@ def test_cyclic_clips_loop_seamlessly(clips: dict, animal: str, gait: str) -> No
     assert np.all(wrap <= inner.max(axis=0) + 1e-5)
 
 
-@pytest.mark.parametrize("animal, gait", [(a, g) for a in ANIMALS for g in GAITS])
+@pytest.mark.parametrize(("animal", "gait"), [(a, g) for a in ANIMALS for g in GAITS])
 def test_footfall_order_of_exported_motion_matches_template(clips: dict, animal: str, gait: str,
                                                             tmp_path: Path) -> None:
     motion = clips[animal][gait]
@@ -127,7 +122,7 @@ def test_footfall_order_of_exported_motion_matches_template(clips: dict, animal:
         assert name == ("gallop-transverse" if animal == "horse" else "gallop-rotary")
 
 
-@pytest.mark.parametrize("animal, gait", [(a, g) for a in ANIMALS for g in GAITS])
+@pytest.mark.parametrize(("animal", "gait"), [(a, g) for a in ANIMALS for g in GAITS])
 def test_speeds_in_range(clips: dict, animal: str, gait: str) -> None:
     motion = clips[animal][gait]
     low, high = SPEED_RANGES[animal][gait]
@@ -169,7 +164,7 @@ def test_horse_fetlocks_sink_under_load(clips: dict) -> None:
     assert pastern[mid] > pastern[stance[0]] + 5.0  # the fetlock joint extends under load
 
 
-@pytest.mark.parametrize("animal, clip", [(a, t) for a in ANIMALS for t in TRANSITIONS])
+@pytest.mark.parametrize(("animal", "clip"), [(a, t) for a in ANIMALS for t in TRANSITIONS])
 def test_transitions_keep_the_footfall_sequence_continuous(clips: dict, animal: str, clip: str) -> None:
     """Played between its source and target cycles (as the motion graph will), a transition keeps
     every foot stepping once per stride, and its footfalls go from one gait's order to the other's."""

@@ -9,7 +9,7 @@ from synth_core.builtin import BUILTIN_ANIMALS, build_skeleton, dog_skeleton, ho
 from synth_core.motion import bvh, quat
 from synth_core.motion.clip import Motion
 from synth_core.motion.skeleton import Skeleton, forward_kinematics
-from tests.conftest import mann_path
+from tests.helpers.mocap import mann_path
 
 
 def rest_positions(skel: Skeleton) -> dict[str, np.ndarray]:

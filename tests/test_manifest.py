@@ -13,7 +13,7 @@ from synth_core.build.manifest import ManifestError, build_from_manifest
 from synth_core.build.speed_map import cycle_displacement
 from synth_core.motion import contacts as C
 from synth_core.quality import metrics as M
-from tests.conftest import MANN_DIR
+from tests.helpers.mocap import MANN_DIR
 
 FIXTURE = Path(__file__).parent / "fixtures" / "mann_dog.toml"
 needs_mann = pytest.mark.skipif(not MANN_DIR.is_dir(), reason="real dog mocap not found beside the repo")
@@ -71,7 +71,7 @@ GALLOP = 'file = "D1_010_KAN01_004.bvh"\nframes = "auto"\nsearch = [7, 54]'
 
 
 @needs_mann
-@pytest.mark.parametrize("edit, message", [
+@pytest.mark.parametrize(("edit", "message"), [
     (("D1_009_KAN01_002.bvh", "no_such_file.bvh"), r"gaits\.trot\.file: .*no_such_file\.bvh not found"),
     (("frames = [296, 326]", "frames = [296, 99999]"),
      r"gaits\.trot\.frames: \[296, 99999\] is out of bounds"),
@@ -169,7 +169,7 @@ def test_close_loop_removes_a_strides_drift_and_keeps_its_shape() -> None:
     from synth_core.build.manifest import close_loop, loop_error
     from synth_core.motion import quat
     from synth_core.motion.clip import Motion
-    from tests.conftest import toy_skeleton
+    from tests.helpers.motion import toy_skeleton
 
     skeleton = toy_skeleton()
     F, joint = 40, skeleton.index("LeftUpLeg")

@@ -19,22 +19,15 @@ from synth_core.export.mesh import (
     rest_world_positions,
     standing_rotations,
 )
-from synth_core.motion import bvh
 from synth_core.motion.skeleton import Skeleton, forward_kinematics
-from tests.conftest import mann_path, toy_skeleton
+from tests.helpers.mocap import mann_standing
+from tests.helpers.motion import toy_skeleton
 
 Posed = tuple[Skeleton, np.ndarray | None]  # a skeleton and its bind pose (None: the rest pose)
-MANN_FEET = {"LF": "LeftHand_end", "RF": "RightHand_end", "LH": "LeftFoot_end", "RH": "RightFoot_end"}
 
 
 def skeletons() -> dict[str, Skeleton]:
     return {"horse": build_skeleton("horse"), "dog": build_skeleton("dog"), "toy": toy_skeleton()}
-
-
-def mann_standing() -> tuple[Skeleton, np.ndarray]:
-    """The real dog's skeleton read from BVH (its zero pose lies along +X) and a standing frame."""
-    motion = bvh.read(mann_path("D1_ex01_KAN01_001"), unit="cm")
-    return motion.skeleton.with_feet(MANN_FEET), motion.rotations[20]
 
 
 @pytest.fixture(params=["horse", "dog", "toy", "mann_dog"])

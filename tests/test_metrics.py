@@ -9,8 +9,7 @@ from synth_core import FOOT_NAMES
 from synth_core.motion import quat
 from synth_core.motion.skeleton import forward_kinematics
 from synth_core.quality import metrics as M
-from tests.conftest import toy_skeleton
-from tests.test_contacts import TEMPLATES, synthetic_gait
+from tests.helpers.motion import TEMPLATES, synthetic_gait, toy_skeleton
 
 
 def test_a_foot_sliding_3mm_per_frame_measures_3mm() -> None:
@@ -55,7 +54,7 @@ def test_path_error_is_horizontal_distance_in_cm() -> None:
     assert err.mean_cm == pytest.approx((10 * 1.0 + 5.0) / 20)
 
 
-@pytest.mark.parametrize("gait, template", [
+@pytest.mark.parametrize(("gait", "template"), [
     ("walk", [["LH"], ["LF"], ["RH"], ["RF"]]),
     ("trot", [["LH", "RF"], ["RH", "LF"]]),
 ])
@@ -206,7 +205,7 @@ def test_touchdown_is_the_step_before_a_strict_plant() -> None:
 def _bent_legs(angles_deg: np.ndarray) -> tuple[np.ndarray, object]:
     """World positions of the toy skeleton with every knee (the joint below the limb root) bent
     by ``angles_deg`` per frame about Z."""
-    from tests.conftest import toy_skeleton
+    from tests.helpers.motion import toy_skeleton
 
     toy = toy_skeleton()
     rot = quat.identity((len(angles_deg), toy.n_joints)).astype(np.float64)

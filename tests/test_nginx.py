@@ -11,12 +11,9 @@ pid and temporary paths.
 from __future__ import annotations
 
 import re
-import subprocess
-import tempfile
 import threading
 import time
 from collections.abc import Iterator
-from pathlib import Path
 
 import httpx
 import msgpack
@@ -26,81 +23,15 @@ import pytest
 from api_schemas.client import Client
 from api_schemas.wire import blob
 from synth_core.quality import herd_sim as crowd
-from tests.test_service import free_port, start, wait_until_live
+from tests.helpers.nginx import QUEUED, Cluster, nginx_cluster
+from tests.helpers.servers import in_flight
 
-REPO = Path(__file__).resolve().parents[1]
 MSGPACK = "application/vnd.msgpack"
-QUEUED = 3  # per replica, behind its one request in flight
-REPLICA_ENV = {"QUADSYNTH_MAX_IN_FLIGHT": "1", "QUADSYNTH_MAX_QUEUED": str(QUEUED),
-               "QUADSYNTH_TEST_HOOKS": "1"}
-
-
-def nginx_binary() -> str:
-    run = subprocess.run([str(REPO / "scripts" / "ensure-nginx")], capture_output=True, text=True,
-                         timeout=900)
-    if run.returncode != 0:
-        pytest.skip(f"no nginx for the load-balancer test: {run.stderr.strip().splitlines()[-1:]}")
-    return run.stdout.strip().splitlines()[-1]
-
-
-def local_config(replicas: list[int], port: int, workdir: Path) -> str:
-    """deploy/nginx.conf with the replicas on loopback and everything it writes under `workdir`."""
-    conf = (REPO / "deploy" / "nginx.conf").read_text()
-    servers = "\n".join(f"        server 127.0.0.1:{p} max_fails=3 fail_timeout=5s;" for p in replicas)
-    rewrites = [(r"^\s*server quadsynth:8000 resolve max_fails=3 fail_timeout=5s;.*$", servers),
-                (r"^\s*resolver .*$", ""),
-                (r"^pid .*$", f"pid {workdir}/nginx.pid;"),
-                (r"client_body_temp_path \S+;", f"client_body_temp_path {workdir}/body;"),
-                (r"proxy_temp_path \S+;", f"proxy_temp_path {workdir}/proxy;"),
-                (r"listen 8080;", f"listen 127.0.0.1:{port};")]
-    for pattern, replacement in rewrites:
-        conf, n = re.subn(pattern, replacement, conf, flags=re.MULTILINE)
-        assert n == 1, f"deploy/nginx.conf no longer has {pattern!r}"
-    return conf
-
-
-Cluster = tuple[str, list[str], list[subprocess.Popen[bytes]], Path]
-
-
 @pytest.fixture(scope="module")
 def cluster(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Cluster]:
     """(nginx URL, the two replicas' own URLs, their processes, nginx's error log)."""
-    nginx = nginx_binary()
-    ports = [free_port(), free_port()]
-    procs = [start(["--port", str(p), "--log-level", "warning"], tmp_path_factory.mktemp(f"replica{i}"),
-                   REPLICA_ENV) for i, p in enumerate(ports)]
-    urls = [f"http://127.0.0.1:{p}" for p in ports]
-    # nginx's workers drop root to `nobody`: its directory must be theirs to enter (pytest's is not).
-    workdir = Path(tempfile.mkdtemp(prefix="quadsynth-nginx-"))
-    workdir.chmod(0o755)
-    front = free_port()
-    (workdir / "nginx.conf").write_text(local_config(ports, front, workdir))
-    balancer = subprocess.Popen([nginx, "-p", str(workdir), "-c", str(workdir / "nginx.conf"),
-                                 "-e", str(workdir / "error.log"), "-g", "daemon off;"],
-                                stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
-    try:
-        for proc, url in zip(procs, urls, strict=True):
-            wait_until_live(proc, url)
-            while httpx.get(f"{url}/readyz").status_code != 200:
-                time.sleep(0.1)
-        url = f"http://127.0.0.1:{front}"
-        deadline = time.monotonic() + 10
-        while True:
-            assert balancer.poll() is None, balancer.stdout.read().decode()  # type: ignore[union-attr]
-            try:
-                httpx.get(f"{url}/livez", timeout=1)
-                break
-            except httpx.TransportError:
-                assert time.monotonic() < deadline, "nginx did not answer"
-                time.sleep(0.1)
-        yield url, urls, procs, workdir / "error.log"
-    finally:
-        balancer.terminate()
-        balancer.wait(timeout=10)
-        for proc in procs:
-            if proc.poll() is None:
-                proc.terminate()
-                proc.wait(timeout=30)
+    with nginx_cluster(tmp_path_factory) as running:
+        yield running
 
 
 @pytest.fixture(scope="module")
@@ -158,13 +89,6 @@ def test_an_oversized_body_is_refused_by_nginx_in_the_services_format(cluster: C
     assert response.status_code == 413
     assert response.json()["error"] == {"status": 413, "field": "body",
                                         "message": "more than the limit of 8388608 bytes (max_body_bytes)"}
-
-
-def in_flight(url: str) -> int:
-    """Requests running or queued in this replica (its own /metrics)."""
-    found = re.search(r"^quadsynth_in_flight{.*} (\d+)$", httpx.get(f"{url}/metrics").text, re.MULTILINE)
-    assert found
-    return int(found[1])
 
 
 class Filled:

@@ -13,7 +13,8 @@ from quadsynth.cli import main
 from quadsynth.preview import load_for_preview, render
 from synth_core.motion import bvh
 from synth_core.motion.contacts import contacts_json
-from tests.conftest import mann_path, random_motion
+from tests.helpers.mocap import mann_path
+from tests.helpers.motion import random_motion
 
 
 def test_png_contact_sheet_of_a_real_dog(tmp_path: Path) -> None:

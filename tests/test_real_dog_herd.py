@@ -21,7 +21,7 @@ from synth_core.quality import herd_sim as crowd
 from synth_core.quality.evaluate import world_positions
 from synth_core.runtime.bank import Bank, build_bank
 from synth_core.runtime.synthesis import Options, Result, synthesize
-from tests.conftest import MANN_DIR
+from tests.helpers.mocap import MANN_DIR
 
 FIXTURE = Path(__file__).parent / "fixtures" / "mann_dog.toml"
 pytestmark = pytest.mark.skipif(not MANN_DIR.is_dir(), reason="real dog mocap not found beside the repo "

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import pytest
 
-from tests.test_service import running
+from tests.helpers.servers import running
 
 HOOKS = Path(__file__).with_name("schemathesis_hooks.py")
 LIMITS = {"QUADSYNTH_MAX_CHARACTERS": "4", "QUADSYNTH_MAX_FRAMES": "400",

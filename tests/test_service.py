@@ -2,14 +2,11 @@
 
 from __future__ import annotations
 
-import os
 import signal
 import socket
 import subprocess
-import sys
 import time
 from collections.abc import Iterator
-from contextlib import contextmanager
 from pathlib import Path
 
 import httpx
@@ -19,65 +16,7 @@ import pytest
 
 from api_schemas.wire import blob
 from service.cpus import available_cpus
-
-STARTUP_TIMEOUT_S = 120.0  # the first start after an empty numba cache compiles the kernels (~30 s here)
-
-
-def free_port() -> int:
-    with socket.socket() as sock:
-        sock.bind(("127.0.0.1", 0))
-        return int(sock.getsockname()[1])
-
-
-def quadsynth_command() -> list[str]:
-    script = Path(sys.executable).with_name("quadsynth")
-    return [str(script)] if script.exists() else [sys.executable, "-m", "quadsynth.cli"]
-
-
-def start(args: list[str], tmp_path: Path, env: dict[str, str] | None = None,
-          workers: int | None = 1) -> subprocess.Popen[bytes]:
-    """`quadsynth serve` with `args`; one worker process unless told (tests that hold the workers or
-    count requests need them all in one process); workers=None keeps serve's default."""
-    env = {**os.environ, "QUADSYNTH_LIBRARY_DIR": str(tmp_path / "library"), **(env or {})}
-    env.pop("WEB_CONCURRENCY", None)
-    more = [] if workers is None else ["--workers", str(workers)]
-    return subprocess.Popen([*quadsynth_command(), "serve", *more, *args], env=env,
-                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
-
-
-def wait_until_live(proc: subprocess.Popen[bytes], url: str) -> None:
-    deadline = time.monotonic() + STARTUP_TIMEOUT_S
-    while time.monotonic() < deadline:
-        if proc.poll() is not None:
-            raise AssertionError(f"server exited early: {proc.stdout.read().decode()}")  # type: ignore[union-attr]
-        try:
-            if httpx.get(f"{url}/livez", timeout=1.0).status_code == 200:
-                return
-        except httpx.TransportError:
-            time.sleep(0.1)
-    raise AssertionError(f"server did not answer /livez within {STARTUP_TIMEOUT_S} s")
-
-
-@contextmanager
-def running(tmp_path: Path,
-            env: dict[str, str] | None = None) -> Iterator[tuple[str, subprocess.Popen[bytes]]]:
-    """A `quadsynth serve` (one worker) on a free port, ready (/readyz 200): (url, process)."""
-    port = free_port()
-    proc = start(["--port", str(port), "--log-level", "warning"], tmp_path, env)
-    url = f"http://127.0.0.1:{port}"
-    try:
-        wait_until_live(proc, url)
-        deadline = time.monotonic() + STARTUP_TIMEOUT_S
-        while httpx.get(f"{url}/readyz").status_code != 200:
-            if time.monotonic() > deadline:
-                raise AssertionError(f"server not ready within {STARTUP_TIMEOUT_S} s: "
-                                     f"{httpx.get(f'{url}/readyz').text}")
-            time.sleep(0.1)
-        yield url, proc
-    finally:
-        if proc.poll() is None:
-            proc.terminate()
-            proc.wait(timeout=30)
+from tests.helpers.servers import free_port, start, wait_until_live
 
 
 @pytest.fixture(scope="module")

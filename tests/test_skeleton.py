@@ -10,7 +10,7 @@ from hypothesis import strategies as st
 from synth_core import FOOT_NAMES
 from synth_core.motion import quat
 from synth_core.motion.skeleton import Skeleton, forward_kinematics, guess_feet
-from tests.conftest import random_motion, toy_skeleton
+from tests.helpers.motion import random_motion, toy_skeleton
 
 
 def test_fk_of_a_bent_chain_is_known() -> None:

@@ -20,7 +20,7 @@ from synth_core.build.speed_map import (
     relocate_root,
 )
 from synth_core.motion import quat
-from tests.test_library_clips import PEAK_JOINT_SPEED
+from tests.helpers.motion import PEAK_JOINT_SPEED
 
 ANIMALS = ("horse", "dog")
 

@@ -22,8 +22,8 @@ from api_schemas.wire import blob, unblob
 from synth_core.quality import herd_sim as crowd
 from synth_core.runtime.bank import Bank
 from synth_core.runtime.live import LiveSynth
-from tests.test_api import LIMITS, metric, post
-from tests.test_service import free_port, running, start, wait_until_live
+from tests.helpers.requests import LIMITS, post
+from tests.helpers.servers import free_port, metric, running, start, wait_until_live
 
 STREAM_LIMITS = {**LIMITS, "QUADSYNTH_WS_WINDOW": "2", "QUADSYNTH_WS_SEND_TIMEOUT_S": "1.5"}
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from service.libraries import builtin_library
+from synth_core.build.library_store import builtin_library
 from synth_core.compiled import kernels
 from synth_core.motion.skeleton import forward_kinematics
 from synth_core.quality import evaluate

@@ -128,7 +128,7 @@ def test_smoothing_removes_jitter_but_keeps_the_ends() -> None:
     assert np.allclose(out[0, [0, -1], 2], path[0, [0, -1], 2], atol=0.05)
 
 
-@pytest.mark.parametrize("edit, message", [
+@pytest.mark.parametrize(("edit", "message"), [
     (lambda p: p.__setitem__((1, 5, 0), np.nan), r"character b: positions: NaN or Inf at frame 5"),
     (lambda p: p.__setitem__((2, slice(50, None), 2), 100.0),
      r"character c: positions: jumps .* m between frames 49 and 50"),

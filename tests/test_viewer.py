@@ -11,7 +11,7 @@ from urllib.parse import urljoin
 import httpx
 import pytest
 
-from tests.test_service import running
+from tests.helpers.servers import running
 
 IMPORT = re.compile(r"""(?:^|[;\s])(?:import|export)\s[^'"]*?from\s*['"]([^'"]+)['"]"""  # static
                     r"""|import\(\s*['"]([^'"]+)['"]\s*\)""", re.MULTILINE)  # dynamic

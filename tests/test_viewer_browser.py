@@ -14,8 +14,8 @@ from pathlib import Path
 
 import pytest
 
-from tests.test_js_client import node_binary
-from tests.test_service import running
+from tests.helpers.node import node_binary
+from tests.helpers.servers import running
 
 REPO = Path(__file__).resolve().parents[1]
 

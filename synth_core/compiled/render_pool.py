@@ -1,6 +1,6 @@
 """Threads that each run the compiled render on one core, for work cut into parts run side by
 side: a live session's shards (:mod:`synth_core.runtime.live_shards`), a batch's chunks
-(:func:`ordered`, used by :func:`service.answer.produce`).
+(:func:`ordered`, used by :mod:`synth_core.runtime.parallel_render`).
 
 Between render calls there is numpy on one core -- planning, packing -- while, with the render
 fanned out to every core, the other cores wait for it. Parts of the work each in its own

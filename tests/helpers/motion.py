@@ -1,0 +1,78 @@
+"""Test motion: a toy quadruped, random motion on it, synthetic footfall patterns, joint speed limits."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from synth_core import FOOT_NAMES
+from synth_core.builtin.clips import GAITS
+from synth_core.builtin.gaits import GAIT_SPECS
+from synth_core.motion import quat
+from synth_core.motion.clip import Motion
+from synth_core.motion.skeleton import Skeleton
+
+
+def toy_skeleton() -> Skeleton:
+    """A small quadruped: hips, spine, head, and four 3-bone legs ending in end sites (metres)."""
+    names, parents, offsets, ends = [], [], [], []
+
+    def add(name: str, parent: int, offset: tuple[float, float, float], end: bool = False) -> int:
+        names.append(name)
+        parents.append(parent)
+        offsets.append(offset)
+        ends.append(end)
+        return len(names) - 1
+
+    hips = add("Hips", -1, (0, 0, 0))
+    chest = add("Chest", hips, (0.5, 0.0, 0.0))
+    head = add("Head", chest, (0.2, 0.2, 0.0))
+    add("Head_end", head, (0.15, 0.0, 0.0), end=True)
+    for side, z in (("Left", 0.1), ("Right", -0.1)):
+        for limb, root, kind in (("Arm", chest, "Hand"), ("UpLeg", hips, "Foot")):
+            upper = add(f"{side}{limb}", root, (0.0, -0.05, z))
+            lower = add(f"{side}{limb}Lower", upper, (0.0, -0.2, 0.0))
+            foot = add(f"{side}{kind}", lower, (0.0, -0.2, 0.0))
+            add(f"{side}{kind}_end", foot, (0.03, -0.05, 0.0), end=True)
+    skel = Skeleton(tuple(names), np.array(parents), np.array(offsets, np.float32),
+                    np.array(ends), name="toy")
+    return skel.with_feet({"LF": "LeftHand_end", "RF": "RightHand_end",
+                           "LH": "LeftFoot_end", "RH": "RightFoot_end"})
+
+
+def random_motion(rng: np.random.Generator, frames: int = 40, skeleton: Skeleton | None = None,
+                  spread: float = 0.6) -> Motion:
+    skeleton = skeleton or toy_skeleton()
+    J = skeleton.n_joints
+    rot = quat.from_rotvec(rng.normal(scale=spread, size=(frames, J, 3)))
+    rot[:, skeleton.end_site] = quat.identity()
+    root = np.cumsum(rng.normal(scale=0.02, size=(frames, 3)), axis=0) + [0, 0.5, 0]
+    return Motion(skeleton, root, rot, fps=60.0, name="random")
+
+
+def synthetic_gait(phases: dict[str, float], duty: float, stride: int = 40, strides: int = 4) -> np.ndarray:
+    # Start half a stride in, so LH's first touchdown falls inside the clip.
+    frames = np.arange(stride * strides) + stride // 2
+    out = np.zeros((len(frames), 4), bool)
+    for k, foot in enumerate(FOOT_NAMES):
+        out[:, k] = ((frames / stride - phases[foot]) % 1.0) < duty
+    return out
+
+
+TEMPLATES = {
+    "walk": ({"LH": 0.0, "LF": 0.25, "RH": 0.5, "RF": 0.75}, 0.65),
+    "trot": ({"LH": 0.0, "RF": 0.0, "RH": 0.5, "LF": 0.5}, 0.4),
+    "pace": ({"LH": 0.0, "LF": 0.0, "RH": 0.5, "RF": 0.5}, 0.55),
+    "canter-transverse": ({"RH": 0.9, "LH": 0.0, "RF": 0.0, "LF": 0.15}, 0.35),
+    "gallop-transverse": ({"RH": 0.9, "LH": 0.0, "RF": 0.1, "LF": 0.25}, 0.25),
+    "gallop-rotary": ({"RH": 0.85, "LH": 0.0, "LF": 0.15, "RF": 0.3}, 0.25),
+}
+
+
+# Fastest any joint may turn (deg/s). The real dog (../shared/mocap, its SOURCE.md cycles) peaks
+# at 1250 walking, 1560-2210 trotting and 1810-2030 in its 3.7-4.2 m/s gallop; our dog gallops
+# faster (4.6 m/s), hence 2500. Joint angular speeds scale with stride frequency: the horse's
+# limit is the dog's times the largest horse-to-dog stride frequency ratio of any gait.
+_FREQUENCY_RATIO = max(GAIT_SPECS["dog"][g].frames / GAIT_SPECS["horse"][g].frames for g in GAITS)
+
+
+PEAK_JOINT_SPEED = {"dog": 2500.0, "horse": 2500.0 * _FREQUENCY_RATIO}
