@@ -87,10 +87,11 @@ def test_the_herd_stands_on_the_ground(herd: tuple[Bank, Result, np.ndarray]) ->
     assert heights.min(axis=-1)[slow].max() <= 0.01
 
 
-@pytest.mark.xfail(strict=True, reason="synthesis (lead's files): a stitch fades out a finished "
-                   "transition's frozen last pose (paws 14 cm); canter and gallop lift-offs and "
-                   "touchdowns jump 9-11 cm in the herd where the library's clips jump at most 7.7; "
-                   "and the real dog's own gallop jumps 6.4-7.8 cm (second difference)")
+@pytest.mark.xfail(strict=True, reason="run time (the planner's): 14.3 cm at worst; of the 1807 "
+                   "dog-frames over 6 cm, 1563 are steady gallop (only 109 within 6 frames of a "
+                   "stitch), where the gallop clips themselves stay within 1.1 x the source's own "
+                   "7.1 cm (test below): the excess is in how the gallop is played; and the real "
+                   "dog's own gallop jumps 7.1 cm by this measure (docs/edge_suite.md)")
 def test_the_herd_has_no_paw_jump_over_6_cm(herd: tuple[Bank, Result, np.ndarray]) -> None:
     bank, _, positions = herd
     assert paw_jumps(positions[..., bank.skeleton.foot_joints, :]).max() <= JUMP_M
