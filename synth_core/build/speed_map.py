@@ -277,17 +277,25 @@ REACH_EASE = 0.25  # of the cycle: a sink is spread over this much around where 
 STRAIGHT = 0.98, 0.999  # legs may straighten to 98% of their reach (more if the source does), never 100%
 
 
+def reach_limit(source: Motion, rigs: tuple[ik.LimbRig, ...] | None) -> Floats:
+    """(4,) how straight each leg may be: ``STRAIGHT``, or the source's own straightest."""
+    source_max = ik.extension(source.skeleton, source.root_pos, source.rotations, rigs).max(axis=0)
+    return np.asarray(np.clip(source_max, *STRAIGHT))
+
+
 def sink_for_reach(source: Motion, new_root: Floats, rotations: NDArray[np.floating], targets: Floats,
-                   rigs: tuple[ik.LimbRig, ...] | None, ease: int | None = None) -> Floats:
+                   rigs: tuple[ik.LimbRig, ...] | None, ease: int | None = None,
+                   most: float | None = None) -> Floats:
     """Lower the root where a relocated plant would straighten a leg beyond ``STRAIGHT`` (sped-up
     strides reach further fore and aft), eased in and out around the loop: no leg stretches,
     no leg locks fully straight (where the hinge axis is undefined), the body does not bob.
 
     ``ease``: frames to spread a sink over in a clip that does not loop (default: a cyclic clip,
-    ``REACH_EASE`` of it, around the loop)."""
-    source_max = ik.extension(source.skeleton, source.root_pos, source.rotations, rigs).max(axis=0)
-    limit = np.clip(source_max, *STRAIGHT)
+    ``REACH_EASE`` of it, around the loop). ``most``: the deepest sink (m; default: none)."""
+    limit = reach_limit(source, rigs)
     sink = ik.sink_to_reach(source.skeleton, new_root, rotations, targets, limit, rigs)
+    if most is not None:
+        sink = np.minimum(sink, most)
     frames = max(3, round(REACH_EASE * sink.shape[-1]) if ease is None else ease)
     mode = "wrap" if ease is None else "nearest"
     sink = gaussian_filter1d(maximum_filter1d(sink, frames, axis=-1, mode=mode),
