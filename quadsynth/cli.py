@@ -410,7 +410,8 @@ def _herd_arguments(parser: argparse.ArgumentParser) -> None:
                         "and DIR/<id>.contacts.json (gaits and foot contacts)")
     parser.add_argument("--glb", help="write the herd as one glTF 2.0 binary FILE.glb: a skinned mesh per "
                         "character, one animation, gaits and contacts in each mesh node's extras")
-    parser.add_argument("--preview", help="write a herd preview FILE.gif")
+    parser.add_argument("--preview", help="write a herd preview: FILE.gif (animated) or FILE.png "
+                        "(a contact sheet)")
 
 
 def _add_serve_and_preview(sub: Any) -> None:

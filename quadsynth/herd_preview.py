@@ -55,7 +55,10 @@ def _draw_side(ax: Any, skeleton: Skeleton, result: Result, view: tuple[int, NDA
 
 def render_herd(skeleton: Skeleton, result: Result, out: str | Path, fps: float, hubs: tuple[str, ...],
                 close_ups: int = 3, gif_fps: int = 15) -> Path:
+    """A GIF (``out`` ending .gif), or a PNG contact sheet (.png, :func:`herd_sheet`)."""
     out = Path(out)
+    if out.suffix.lower() == ".png":
+        return herd_sheet(skeleton, result, out, fps, hubs)
     if gif_fps <= 0:
         raise ValueError(f"gif_fps: must be positive, got {gif_fps}")
     C, T = result.root_pos.shape[:2]
@@ -96,5 +99,51 @@ def render_herd(skeleton: Skeleton, result: Result, out: str | Path, fps: float,
     anim = FuncAnimation(fig, draw, frames=frames, interval=1000 / gif_fps)
     out.parent.mkdir(parents=True, exist_ok=True)
     anim.save(out, writer=PillowWriter(fps=max(1, round(fps / step))))
+    plt.close(fig)
+    return out
+
+
+SHEET_ROWS = 6  # characters on a contact sheet
+SHEET_COLUMNS = 8  # moments
+
+
+def herd_sheet(skeleton: Skeleton, result: Result, out: str | Path, fps: float, hubs: tuple[str, ...],
+               rows: int = SHEET_ROWS, columns: int = SHEET_COLUMNS) -> Path:
+    """A PNG contact sheet: ``rows`` characters spread over the herd, each drawn from the side
+    (along its own heading) at ``columns`` moments spread over the run, planted feet red, the
+    ground under it grey; each panel titled with the time, gait and the character's size."""
+    out = Path(out)
+    C, T = result.root_pos.shape[:2]
+    picks = np.unique(np.linspace(0, C - 1, min(rows, C)).astype(int))
+    frames = np.linspace(0, T - 1, columns + 2).astype(int)[1:-1]
+    colors = bone_colors(character_motion(skeleton, result, 0, fps))
+    fig, axes = plt.subplots(len(picks), columns, figsize=(2.6 * columns, 1.6 * len(picks)), dpi=80,
+                             squeeze=False)
+    fig.subplots_adjust(left=0.01, right=0.99, top=0.95, bottom=0.01, wspace=0.04, hspace=0.3)
+    for row, c in zip(axes, picks, strict=True):
+        pos = character_motion(skeleton, result, int(c), fps).positions().astype(np.float64)
+        size = float(np.ptp(pos[..., 1])) or 1.0
+        half = float(np.linalg.norm((pos - pos[:, :1])[..., [0, 2]], axis=-1).max()) * 1.1
+        for ax, f in zip(row, frames, strict=True):
+            heading = result.root_pos[c, min(f + 3, T - 1)] - result.root_pos[c, max(f - 3, 0)]
+            heading[1] = 0.0
+            norm = float(np.linalg.norm(heading))
+            along = heading / norm if norm > 1e-6 else np.array([1.0, 0.0, 0.0])
+            xy = np.stack([pos[f] @ along, pos[f, :, 1]], axis=-1)
+            draw_pose(ax, xy, skeleton.parents, colors, lw=1.6)
+            for k, j in enumerate(skeleton.foot_joints):
+                if result.contacts[c, f, k]:
+                    ax.plot(*xy[j], "o", color="#d62728", ms=4)
+            ground = float(result.path[c, f, 1])
+            ax.axhline(ground, color="#888", lw=1)
+            ax.set_xlim(xy[0, 0] - half, xy[0, 0] + half)
+            ax.set_ylim(ground - 0.1 * size, ground + 1.1 * size)
+            ax.set_aspect("equal")
+            ax.set_xticks([])
+            ax.set_yticks([])
+            ax.set_title(f"#{c} {f / fps:.1f}s {hubs[int(result.gait[c, f])]} h={result.scales[c]:.2f}",
+                         fontsize=7)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(out)
     plt.close(fig)
     return out

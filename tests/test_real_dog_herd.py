@@ -12,14 +12,14 @@ import pytest
 
 from synth_core import UP_AXIS
 from synth_core.build import ik
-from synth_core.build.animals import map_positions
+from synth_core.build.animals import clip_glide, map_positions
 from synth_core.build.artifact import Library
 from synth_core.build.manifest import build_from_manifest, gait_cycles
 from synth_core.build.speed_map import cycle_displacement
 from synth_core.motion import contacts as C
 from synth_core.quality import herd_sim as crowd
 from synth_core.quality.evaluate import world_positions
-from synth_core.runtime.bank import Bank, build_bank
+from synth_core.runtime.bank import Bank, build_bank, library_ground
 from synth_core.runtime.synthesis import Options, Result, synthesize
 from tests.helpers.mocap import MANN_DIR
 
@@ -87,10 +87,11 @@ def test_the_herd_stands_on_the_ground(herd: tuple[Bank, Result, np.ndarray]) ->
     assert heights.min(axis=-1)[slow].max() <= 0.01
 
 
-@pytest.mark.xfail(strict=True, reason="synthesis (lead's files): a stitch fades out a finished "
-                   "transition's frozen last pose (paws 14 cm); canter and gallop lift-offs and "
-                   "touchdowns jump 9-11 cm in the herd where the library's clips jump at most 7.7; "
-                   "and the real dog's own gallop jumps 6.4-7.8 cm (second difference)")
+@pytest.mark.xfail(strict=True, reason="run time (the planner's): 14.3 cm at worst; of the 1807 "
+                   "dog-frames over 6 cm, 1563 are steady gallop (only 109 within 6 frames of a "
+                   "stitch), where the gallop clips themselves stay within 1.1 x the source's own "
+                   "7.1 cm (test below): the excess is in how the gallop is played; and the real "
+                   "dog's own gallop jumps 7.1 cm by this measure (docs/edge_suite.md)")
 def test_the_herd_has_no_paw_jump_over_6_cm(herd: tuple[Bank, Result, np.ndarray]) -> None:
     bank, _, positions = herd
     assert paw_jumps(positions[..., bank.skeleton.foot_joints, :]).max() <= JUMP_M
@@ -145,3 +146,14 @@ def test_speed_map_touchdowns_drop_no_further_than_the_source(mann: Library) -> 
         heights = map_positions(speed_map)[:, :, mann.skeleton.foot_joints, UP_AXIS]
         got = np.stack([touchdown_drops(h, speed_map.contacts) for h in heights])
         assert np.all(got <= want + 0.001), (gait, got.max(axis=0), want)
+
+
+def test_speed_map_paws_do_not_skim_the_ground(mann: Library) -> None:
+    """Issue 27's glide bar (0.10) for every clip of every speed map, over the ground the
+    synthesis stands the clips on. The slowest pace clips slid their paws along the ground at
+    0.18 of the body's speed (now 0.095; trot 0.13 -> 0.10): the swing kept the source's ground speed near the
+    ground at a third of the source's speed, and sank by the paw's late-stance rise."""
+    ground = library_ground(mann)
+    for gait, speed_map in mann.maps.items():
+        glide = clip_glide(speed_map, ground)
+        assert glide.max() <= 0.10, (gait, glide.max(), int(glide.argmax()))

@@ -8,7 +8,14 @@ import numpy as np
 import pytest
 
 from synth_core.build import ik
-from synth_core.build.animals import build_builtin, footfall_gaps, map_positions, report, sync_frames
+from synth_core.build.animals import (
+    build_builtin,
+    clip_glide,
+    footfall_gaps,
+    map_positions,
+    report,
+    sync_frames,
+)
 from synth_core.build.artifact import Library
 from synth_core.build.motion_graph import HUBS, MotionGraph, Transition
 from synth_core.build.speed_map import (
@@ -20,6 +27,7 @@ from synth_core.build.speed_map import (
     relocate_root,
 )
 from synth_core.motion import quat
+from synth_core.runtime.bank import library_ground
 from tests.helpers.motion import PEAK_JOINT_SPEED
 
 ANIMALS = ("horse", "dog")
@@ -187,3 +195,18 @@ def test_graph_rejects_bad_hubs_and_reports_a_broken_route(libraries: dict[str, 
     assert not broken.connected("static", "trot")
     with pytest.raises(ValueError, match="no transition from walk toward trot"):
         broken.route("static", "trot")
+
+
+GLIDE_BAR = 0.10  # issue 27: near-ground glide, the real MANN dog's 0.066-0.106
+
+
+def test_the_dogs_slowed_clips_do_not_skim_the_ground(libraries: dict[str, Library]) -> None:
+    """Issue 27: feet leave and reach the ground like the real dog's at every speed of the speed
+    maps. A slowed stride used to keep its source's ground speed near the ground (the built-in
+    dog's slowest canter and gallop clips glided 0.117 and 0.121); now its near-ground speed
+    shrinks with the step, and no clip of either animal glides more than the real dog does."""
+    for animal, lib in libraries.items():
+        ground = library_ground(lib)
+        for gait, speed_map in lib.maps.items():
+            glide = clip_glide(speed_map, ground)
+            assert glide.max() <= GLIDE_BAR, (animal, gait, glide.max(), int(glide.argmax()))

@@ -48,6 +48,17 @@ def map_positions(speed_map: SpeedMap) -> np.ndarray:
     return np.asarray(pos)
 
 
+def clip_glide(speed_map: SpeedMap, ground: float) -> np.ndarray:
+    """Per clip (N,), the near-ground glide ratio (:func:`metrics.near_ground_glide`) of its
+    feet after FK, three loops back to back (the root carried on), heights over ``ground``."""
+    feet = map_positions(speed_map)[:, :, speed_map.skeleton.foot_joints]
+    advance = np.stack([cycle_displacement(r) for r in speed_map.root_pos])
+    looped = np.concatenate([feet + k * advance[:, None, None] for k in range(3)], axis=1)
+    root = np.concatenate([speed_map.root_pos + k * advance[:, None] for k in range(3)], axis=1)
+    return np.array([M.near_ground_glide(f, f[..., UP_AXIS] - ground, r).ratio
+                     for f, r in zip(looped, root, strict=True)])  # per clip: a ratio of means
+
+
 def footfall_gaps(speed_map: SpeedMap, positions: np.ndarray) -> np.ndarray:
     """Per clip, the largest change (in frames) of any two feet's touchdown phase gap.
 

@@ -399,6 +399,21 @@ def sink_to_reach(skeleton: Skeleton, root_pos: NDArray[np.floating], rotations:
     return np.asarray(np.maximum(sink, 0.0).max(axis=-1))
 
 
+def within_reach(skeleton: Skeleton, root_pos: NDArray[np.floating], rotations: NDArray[np.floating],
+                 targets: NDArray[np.floating], limit: NDArray[np.floating],
+                 rigs: tuple[LimbRig, ...] | None = None) -> Floats:
+    """Toe targets ``(..., 4, 3)`` pulled towards their limb roots where reaching them would
+    straighten a leg beyond ``limit (4,)`` of its reach (see :func:`extension`): the foot then
+    falls short of its target rather than locking the leg straight (no bend side)."""
+    rigs = limb_rigs(skeleton) if rigs is None else rigs
+    upper, ankle, toe, reach = _limb_geometry(skeleton, root_pos, rotations, rigs)
+    to_ankle = np.asarray(targets, np.float64) - (toe - ankle) - upper
+    distance = np.linalg.norm(to_ankle, axis=-1)
+    allowed = np.asarray(limit, np.float64) * reach
+    scale = np.minimum(1.0, allowed / np.maximum(distance, _EPS))
+    return np.asarray(upper + to_ankle * scale[..., None] + (toe - ankle))
+
+
 def stretched_offsets(skeleton: Skeleton, rigs: tuple[LimbRig, ...],
                       stretch: NDArray[np.floating]) -> NDArray[np.float64]:
     """Rest offsets (..., J, 3) with each leg's thigh and shin bones scaled by ``stretch (..., 4)``."""

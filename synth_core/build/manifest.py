@@ -63,6 +63,7 @@ from synth_core.build.speed_map import (
     cycle_displacement,
     default_ranges,
     foot_targets,
+    reach_limit,
     sink_for_reach,
 )
 from synth_core.motion import bvh, quat
@@ -447,6 +448,9 @@ def _best_shift(first: NDArray[np.bool_], second: NDArray[np.bool_], W: int, str
 
 
 REACH_EASE_FRAMES = 9  # a transition's sink eases in and out over this many frames (as the foot lock's)
+MAX_SINK = 0.15  # of the leg length, the most a transition's root is lowered: a plant joined over
+# a blend's switch lies between the two clips' footprints, and reaching it crouched the real
+# dog's generated canter2gallop 15 cm (a third of its leg) for 8 frames
 SWITCH_GAP = 2  # frames: a gap this short where a blend switches contacts joins the plants
 
 
@@ -502,7 +506,11 @@ def _hold_plants(motion: Motion) -> Motion:
     rigs = ik.limb_rigs(motion.skeleton)
     # As in the speed maps, the root sinks where a plant would lock a leg straight (a straight
     # leg has no bend side; the synthesis's foot lock would then pick one frame by frame).
-    root = sink_for_reach(motion, root, motion.rotations, targets, rigs, ease=REACH_EASE_FRAMES)
+    root = sink_for_reach(motion, root, motion.rotations, targets, rigs, ease=REACH_EASE_FRAMES,
+                          most=MAX_SINK * motion.skeleton.leg_length())
+    # Deeper than that, the foot falls short of its plant (slides a little) instead.
+    targets = ik.within_reach(motion.skeleton, root, motion.rotations, targets,
+                              reach_limit(motion, rigs), rigs)
     axes = ik.hinge_axes_over_time(motion.skeleton, motion.rotations, rigs)
     solved = ik.solve(motion.skeleton, root, motion.rotations, targets, rigs,
                       ground=float(feet[..., UP_AXIS].min()), axes=axes)

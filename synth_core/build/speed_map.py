@@ -16,8 +16,12 @@ For each target speed ``s' = s + k * delta`` the source clip is changed in the p
    swings' between them), so all frames and all speeds are solved at once, and every foot is
    pinned to its new plant for the plant's whole duration (the contact annotation is the
    source's, unchanged: the footfall order cannot change). Between two plants the swinging
-   foot follows its source path plus a correction blended (smoothstep) from the previous
-   plant's shift to the next one's - the paper is silent on swings.
+   foot follows its source path plus a correction blended from the previous plant's shift to
+   the next one's - the paper is silent on swings. Along the ground the blend follows the
+   source foot's own progress where the step shortens (:func:`swing_progress`: near the ground
+   the foot then moves at the source's share of the body's speed), and time (smoothstep) where
+   it lengthens (the extra ground is covered mid-swing, foot high); heights take the plants'
+   offsets only near lift-off and touchdown, the source's lift and descent in between.
 
 Speeds are in m/s here (the paper's ``s = l / n`` is per frame).
 
@@ -154,6 +158,45 @@ def _tile(x: Floats, shift: Floats, copies: int = 3) -> Floats:
     return np.concatenate(parts, axis=1)
 
 
+HEIGHT_EDGE = 0.3  # of a swing: its first and last such share carry the plants' height offsets
+
+
+def _smoothstep(x: Floats) -> Floats:
+    x = np.clip(x, 0.0, 1.0)
+    return np.asarray(x * x * (3 - 2 * x))
+
+
+PROGRESS_STEP_M = 0.01, 0.03  # a source swing shorter than the first (m) is eased in time, longer
+# than the second by its own progress, blended between
+
+
+def swing_progress(feet: Floats, lo: NDArray[np.int64], hi: NDArray[np.int64],
+                   t: NDArray[np.int64]) -> Floats:
+    """How far each frame ``t`` is through its swing, 0 at lift-off (frame ``lo``: the plant's
+    last) to 1 at touchdown (``hi``), as the source foot ``feet (N, T, 3)`` covers the ground
+    between them (its horizontal progress along lo -> hi, never going back) -> ``(T,)``.
+
+    A shortened swing's correction is blended by this, not by time: the new foot then covers
+    each frame the source's share of the step, so its ground speed scales with the new step.
+    Eased by time (smoothstep), a slowed stride kept the source's full ground speed while the foot is still
+    low after lift-off and again before touchdown, where the smoothstep hardly moves: the real
+    dog's slowest pace clips slid along the ground at 0.27 of the body's speed (its source,
+    0.09). A source swing that hardly covers ground (a foot lifted in place) has no progress to
+    read and keeps the smoothstep."""
+    ground = np.asarray(feet[0], np.float64)[:, _HORIZONTAL]
+    step = ground[hi] - ground[lo]
+    length2 = np.sum(step * step, axis=-1)
+    along = np.sum((ground[t] - ground[lo]) * step, axis=-1) / np.maximum(length2, 1e-12)
+    along = np.where(t > lo, np.clip(along, 0.0, 1.0), 0.0)
+    # Never back: a running max within each swing (swings are told apart by their lift-off).
+    along = np.maximum.accumulate(along + 2.0 * lo) - 2.0 * lo
+    along = np.clip(along, 0.0, 1.0)
+    timed = _smoothstep((t - lo) / np.maximum(hi - lo, 1))
+    a, b = PROGRESS_STEP_M
+    trust = np.clip((np.sqrt(length2) - a) / (b - a), 0.0, 1.0)
+    return np.asarray(trust * along + (1 - trust) * timed)
+
+
 def foot_targets(source_feet: NDArray[np.floating], source_root: NDArray[np.floating],
                  new_root: Floats, contacts: NDArray[np.bool_], cyclic: bool = True) -> Floats:
     """Steps 2 and the swing rule: toe targets (N, F, 4, 3) for every frame of every speed.
@@ -204,9 +247,26 @@ def foot_targets(source_feet: NDArray[np.floating], source_root: NDArray[np.floa
         nxt = np.clip(prev + 1, 0, len(plants) - 1)
         inside = (t >= start[prev]) & (t < stop[prev])
         lo, hi = stop[prev] - 1, start[nxt]
-        u = np.clip((t - lo) / np.maximum(hi - lo, 1), 0.0, 1.0)
-        u = np.where(t < start[0], 1.0, u * u * (3 - 2 * u))  # before the first plant: heading for it
-        blend = (1 - u)[None, :, None] * lift_off[:, prev] + u[None, :, None] * touch_down[:, nxt]
+        # A shortened step is eased by the source's progress (its ground speed scaled down
+        # evenly); a lengthened one in time, the extra ground covered mid-swing, foot high.
+        shorter = (np.linalg.norm((plant[:, nxt] - plant[:, prev])[..., _HORIZONTAL], axis=-1)
+                   < np.linalg.norm((feet3[:, hi, k] - feet3[:, lo, k])[..., _HORIZONTAL], axis=-1))
+        u = np.where(shorter, swing_progress(feet3[:, :, k], lo, hi, t)[None],
+                     _smoothstep((t - lo) / np.maximum(hi - lo, 1))[None])
+        u = np.where(t < start[0], 1.0, u)  # before the first plant: heading for it
+        blend = (1 - u)[..., None] * lift_off[:, prev] + u[..., None] * touch_down[:, nxt]
+        # Heights: the plant's offset fades out soon after lift-off and in just before touchdown,
+        # the source's own lift and descent in between. A mocap paw's end site rises 0.5-2 cm as
+        # it rolls through late stance; pinned at the plant's average, the whole swing sank by
+        # that much and skimmed the ground (the real dog's hind paws came in 1 cm lower).
+        # (From the swing's first frame to its last: each rises from, and lands on, its plant
+        # as the source's does, so touchdowns drop no further than the source's.)
+        s = np.clip((t - lo - 1) / np.maximum(hi - lo - 2, 1), 0.0, 1.0)
+        w_lo = 1.0 - _smoothstep(s / HEIGHT_EDGE)
+        w_hi = _smoothstep((s - 1.0 + HEIGHT_EDGE) / HEIGHT_EDGE)
+        w_lo, w_hi = np.where(t < start[0], 0.0, w_lo), np.where(t < start[0], 1.0, w_hi)
+        blend[..., UP_AXIS] = (w_lo[None] * lift_off[:, prev, UP_AXIS]
+                               + w_hi[None] * touch_down[:, nxt, UP_AXIS])
         swing = feet3[:, :, k] + blend
         targets[:, :, k] = np.where(inside[None, :, None], plant[:, prev], swing)
     first = F * (copies // 2)
@@ -217,17 +277,25 @@ REACH_EASE = 0.25  # of the cycle: a sink is spread over this much around where 
 STRAIGHT = 0.98, 0.999  # legs may straighten to 98% of their reach (more if the source does), never 100%
 
 
+def reach_limit(source: Motion, rigs: tuple[ik.LimbRig, ...] | None) -> Floats:
+    """(4,) how straight each leg may be: ``STRAIGHT``, or the source's own straightest."""
+    source_max = ik.extension(source.skeleton, source.root_pos, source.rotations, rigs).max(axis=0)
+    return np.asarray(np.clip(source_max, *STRAIGHT))
+
+
 def sink_for_reach(source: Motion, new_root: Floats, rotations: NDArray[np.floating], targets: Floats,
-                   rigs: tuple[ik.LimbRig, ...] | None, ease: int | None = None) -> Floats:
+                   rigs: tuple[ik.LimbRig, ...] | None, ease: int | None = None,
+                   most: float | None = None) -> Floats:
     """Lower the root where a relocated plant would straighten a leg beyond ``STRAIGHT`` (sped-up
     strides reach further fore and aft), eased in and out around the loop: no leg stretches,
     no leg locks fully straight (where the hinge axis is undefined), the body does not bob.
 
     ``ease``: frames to spread a sink over in a clip that does not loop (default: a cyclic clip,
-    ``REACH_EASE`` of it, around the loop)."""
-    source_max = ik.extension(source.skeleton, source.root_pos, source.rotations, rigs).max(axis=0)
-    limit = np.clip(source_max, *STRAIGHT)
+    ``REACH_EASE`` of it, around the loop). ``most``: the deepest sink (m; default: none)."""
+    limit = reach_limit(source, rigs)
     sink = ik.sink_to_reach(source.skeleton, new_root, rotations, targets, limit, rigs)
+    if most is not None:
+        sink = np.minimum(sink, most)
     frames = max(3, round(REACH_EASE * sink.shape[-1]) if ease is None else ease)
     mode = "wrap" if ease is None else "nearest"
     sink = gaussian_filter1d(maximum_filter1d(sink, frames, axis=-1, mode=mode),
