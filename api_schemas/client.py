@@ -23,7 +23,7 @@ import msgpack
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from api_schemas.wire import MSGPACK, Encoding, blob, decode_rotations, unblob
+from api_schemas.wire import MSGPACK, blob, rotations_of, unblob
 
 log = logging.getLogger("quadsynth.client")
 
@@ -66,7 +66,7 @@ class Chunk:
     index: int
     start: int
     root: NDArray[np.float32]  # (C, n, 3)
-    rotations: NDArray[np.float32]  # (C, n, J, 4) xyzw, whatever the encoding
+    rotations: NDArray[np.float32]  # (C, n, J, 4) xyzw, whatever the encoding (LOD: identity where not sent)
     gait: NDArray[np.int8]  # (C, n)
     contacts: NDArray[np.bool_]  # (C, n, 4)
 
@@ -75,7 +75,7 @@ def decode_chunk(header: dict[str, Any], message: dict[str, Any]) -> Chunk:
     rot = message["rotations"]
     bits = unblob(**message["contacts"])
     return Chunk(header, message["chunk"], message["start"], unblob(**message["root"]),
-                 decode_rotations(unblob(rot["dtype"], rot["shape"], rot["data"]), rot["encoding"]),
+                 rotations_of(rot, header.get("joints"), len(header.get("characters", [])) or None),
                  unblob(**message["gait"]), (bits[..., None] >> np.arange(4)) & 1 == 1)
 
 
@@ -99,11 +99,10 @@ def decode_response(content: bytes | bytearray) -> Motion:
     characters = []
     for ch in body["characters"]:
         rot = ch["rotations"]
-        encoding: Encoding = rot["encoding"]
         bits = unblob(**ch["contacts"])
         characters.append(CharacterMotion(
             id=ch["id"], scale=ch["scale"], root=unblob(**ch["root"]),
-            rotations=decode_rotations(unblob(rot["dtype"], rot["shape"], rot["data"]), encoding),
+            rotations=rotations_of(rot, body.get("joints")),
             gait=unblob(**ch["gait"]), contacts=(bits[:, None] >> np.arange(4)) & 1 == 1))
     return Motion(body["animal"], body["skeleton_id"], body["fps"], body["resample_rate"], characters,
                   body.get("skipped", []), body.get("warnings", []))

@@ -62,14 +62,15 @@ class DeltaError(ValueError):
     """A delta stream that cannot be decoded."""
 
 
-def joint_steps(parents: NDArray[np.integer], offsets: NDArray[np.floating], scale: float = 1.0,
+def joint_steps(parents: NDArray[np.integer], offsets: NDArray[np.floating],
+                scale: float | NDArray[np.floating] = 1.0,
                 max_error_m: float = MAX_ERROR_M) -> NDArray[np.uint8]:
     """Per joint its step code (``step = 2 ** (-code / 8)`` rad): the coarsest step whose rotation
     error, times the joint's lever arm (its farthest descendant, at least ``MIN_LEVER_M``, at
     ``scale``), is within its share of ``max_error_m`` (1/d, d the rotating joints on its
-    deepest chain)."""
+    deepest chain). ``scale`` a float: ``(J,)``; an array of C scales: ``(C, J)``."""
     parents = np.asarray(parents, np.int64)
-    bone = np.linalg.norm(np.asarray(offsets, np.float64), axis=-1) * scale
+    bone = np.linalg.norm(np.asarray(offsets, np.float64), axis=-1)
     J = len(parents)
     depth = np.ones(J, np.int64)
     for j in range(1, J):  # parents come first
@@ -80,9 +81,10 @@ def joint_steps(parents: NDArray[np.integer], offsets: NDArray[np.floating], sca
         p = parents[j]
         lever[p] = max(lever[p], lever[j] + bone[j])
         chain[p] = max(chain[p], chain[j])
-    lever = np.maximum(lever, MIN_LEVER_M * scale)
-    step = max_error_m / (chain * lever) * (2.0 / math.sqrt(3.0))
-    code = np.ceil(-8.0 * np.log2(step))
+    lever = np.maximum(lever, MIN_LEVER_M)
+    step = max_error_m / (chain * lever) * (2.0 / math.sqrt(3.0))  # at scale 1; lever grows with it
+    h = np.asarray(scale, np.float64)
+    code = np.ceil(-8.0 * np.log2(step) + 8.0 * np.log2(h)[..., None])
     return np.clip(code, 0, MAX_CODE).astype(np.uint8)
 
 

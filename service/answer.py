@@ -25,9 +25,9 @@ from typing import Any
 import msgpack
 import numpy as np
 
+from api_schemas.packing import contact_bits, pack_rotations
 from api_schemas.wire import BYTES_PER_JOINT_FRAME, Encoding, packed_dtype
-from service import jobs
-from service.packing import contact_bits, pack_rotations
+from service import encode, jobs
 from synth_core.compiled import render_pool
 from synth_core.compiled.scratch import Scratch
 from synth_core.runtime.bank import Bank
@@ -233,6 +233,10 @@ def produce(job: jobs.Job, bank: Bank, meta: dict[str, Any], emit: Callable[[Any
     J = bank.skeleton.n_joints
     frames = jobs.output_frames(job, T, prep.kept)
     encoding: Encoding = req.encoding
+    p = encode.packing(encoding, req.lod.frame_step, req.lod.detail,
+                       [req.characters[c].detail for c in prep.kept], bank.skeleton, h)
+    if not p.plain:
+        return produce_detailed(job, bank, meta, emit, as_json, prep, h, keys, options, frames, p)
     packer = None if as_json else msgpack.Packer(use_bin_type=True)
     characters = [character(packer, job.ids[c], float(h[i]), n, J, encoding)
                   for i, (c, n) in enumerate(zip(prep.kept, frames, strict=True))]
@@ -269,4 +273,55 @@ def produce(job: jobs.Job, bank: Bank, meta: dict[str, Any], emit: Callable[[Any
         if job.cancel.is_set():
             raise jobs.Cancelled
         emit(made)
+    return sum(frames)
+
+
+def produce_detailed(job: jobs.Job, bank: Bank, meta: dict[str, Any], emit: Callable[[Any], None],
+                     as_json: bool, prep: Any, h: Any, keys: Any, options: Any, frames: list[int],
+                     p: encode.Packing) -> int:
+    """:func:`produce` of an answer whose size is known only once it is packed (delta) or that
+    leaves frames or joints out (a level of detail): every chunk rendered and packed first --
+    the packed answer is a fraction of the float32 one -- then its length and bytes sent."""
+    C, T = prep.positions.shape[:2]
+    J = bank.skeleton.n_joints
+    k = p.frame_step
+
+    def piece(first: int) -> list[tuple[dict[str, Any], list[np.ndarray]]]:
+        if job.cancel.is_set():
+            raise jobs.Cancelled
+        sl = slice(first, min(first + characters_per_piece(T, J), C))
+        chunk = render_chunk(bank, prep, h, keys, options, sl, _scratch())
+        bits = contact_bits(chunk.plan.contacts)
+        out = []
+        for i in range(sl.stop - sl.start):
+            c = sl.start + i
+            sent = slice(0, frames[c], k)
+            detail = p.details[c]
+            joints = None if detail == "full" else p.joints(detail)
+            packed, rot = encode.rotations(chunk.rotations[i:i + 1, sent], p, np.array([c]), joints)
+            if p.encoding == "delta":
+                rot["decoded_shape"] = rot["decoded_shape"][1:]
+            else:
+                packed = packed[0]
+                rot["shape"] = rot["shape"][1:]
+            n = len(range(*sent.indices(T)))
+            # Copies: the chunk lives in this thread's scratch pages, which its next chunk reuses.
+            arrays = [np.array(a, order="C") for a in (chunk.root[i, sent], packed,
+                                                        chunk.plan.gait[i, sent], bits[i, sent])]
+            rot["data"] = Hole(arrays[1].nbytes)
+            out.append(({"id": job.ids[prep.kept[c]], "scale": float(h[c]), "frames": n,
+                         "root": hole_blob("<f4", [n, 3], 4), "rotations": rot,
+                         "gait": hole_blob("|i1", [n], 1), "contacts": hole_blob("|u1", [n], 1)}, arrays))
+        return out
+
+    made = [one for part in render_pool.ordered(piece, range(0, C, characters_per_piece(T, J)))
+            for one in part]
+    if job.cancel.is_set():
+        raise jobs.Cancelled
+    head = {**meta, "fps": meta["fps"] / k, "frame_step": k, "joints": J}
+    whole = {**head, "resample_rate": prep.resample_rate, "characters": [m[0] for m in made],
+             "skipped": jobs.skipped(job, prep), "warnings": jobs.warned(job, prep)}
+    parts = json_template(whole) if as_json else template(whole)
+    emit(sum(q.size if isinstance(q, Hole) else len(q) for q in parts))
+    emit(b"".join(filled(parts, [a for m in made for a in m[1]])))
     return sum(frames)

@@ -38,7 +38,7 @@ from api_schemas import (
     SynthesizeRequest,
     SynthesizeResponse,
 )
-from api_schemas.wire import BYTES_PER_JOINT_FRAME, MSGPACK
+from api_schemas.wire import BYTES_PER_JOINT_FRAME, DELTA_BYTES_PER_JOINT_FRAME, MSGPACK
 from service import answer, body, budget, jobs, memory, web
 from service import batch_ws as stream
 from service.admission import Admission
@@ -154,7 +154,9 @@ class State:
         end = loop.time() + self.settings.deadline_s
         estimate = functools.partial(
             budget.answer_bytes, joints=bank.skeleton.n_joints,
-            bytes_per_joint_frame=BYTES_PER_JOINT_FRAME[job.request.encoding], as_json=as_json,
+            bytes_per_joint_frame=BYTES_PER_JOINT_FRAME.get(job.request.encoding,
+                                                            int(DELTA_BYTES_PER_JOINT_FRAME)),
+            as_json=as_json,
             buffer_bytes=self.settings.answer_buffer_bytes, input_bytes=input_bytes)
         reservation = self.memory.reserve(estimate(len(job.lengths), job.out_frames))
         pipe = Pipe(loop, self.settings.answer_buffer_bytes)
@@ -297,7 +299,7 @@ def warm_up(registry: LibraryRegistry) -> None:
     request does not pay for it."""
     import numpy as np
 
-    from service.packing import pack_rotations
+    from api_schemas.packing import pack_rotations
     from synth_core.runtime.live import LiveSynth
     from synth_core.runtime.streaming import BatchStream
     from synth_core.runtime.synthesis import synthesize

@@ -23,7 +23,7 @@ from typing import TYPE_CHECKING, Any
 import msgpack
 from starlette.websockets import WebSocket, WebSocketDisconnect, WebSocketState
 
-from service import jobs
+from service import encode, jobs
 from service import live_ws as live
 from service.chunk import packed_chunk
 from service.errors import ApiError, error_body
@@ -253,9 +253,13 @@ class Session:
         count = -(-stream.frames // chunk_frames)
         chunks: Iterator[list[Window]] = stream.chunks()
 
+        p = encode.packing(req.encoding, req.lod.frame_step, req.lod.detail,
+                           [req.characters[c].detail for c in stream.kept], bank.skeleton,
+                           stream.character_scales)
+
         def next_chunk(index: int) -> tuple[int, memoryview]:
             # A chunk's windows (the first's parts) are packed side by side.
-            return packed_chunk(number, index, next(chunks), req.encoding)
+            return packed_chunk(number, index, next(chunks), req.encoding, p=p)
 
         self.acked, sent = -1, 0
         self.state.metrics.syntheses += 1
@@ -267,7 +271,9 @@ class Session:
             await self.send({
                 "type": "start", "batch": number, "animal": req.animal,
                 "skeleton_id": skeleton_id(req.animal, registry.libraries[req.animal].skeleton),
-                "fps": bank.fps, "encoding": req.encoding, "resample_rate": stream.resample_rate,
+                "fps": bank.fps / p.frame_step, "frame_step": p.frame_step, "encoding": req.encoding,
+                "details": list(p.details), "joints": bank.skeleton.n_joints,
+                "resample_rate": stream.resample_rate,
                 "frames": stream.frames, "chunk_frames": chunk_frames, "chunks": count,
                 "characters": [{"id": i, "scale": float(h), "frames": n}
                                for i, h, n in zip(ids, stream.character_scales, frames, strict=True)],
@@ -325,11 +331,14 @@ class Session:
         req, synth = live.open_live(body, settings, registry.banks)
         bank = registry.banks[req.animal]
         C = len(req.characters)
-        out_fps = bank.fps / synth.out_step
+        p = encode.packing(req.encoding, req.lod.frame_step, req.lod.detail,
+                           [c.detail for c in req.characters], bank.skeleton, synth.scales)
+        out_fps = bank.fps / synth.out_step / p.frame_step
         await self.send({
             "type": "start", "batch": number, "mode": "live", "animal": req.animal,
             "skeleton_id": skeleton_id(req.animal, registry.libraries[req.animal].skeleton),
-            "fps": out_fps, "library_fps": bank.fps, "encoding": req.encoding, "resample_rate": 1.0,
+            "fps": out_fps, "library_fps": bank.fps, "frame_step": p.frame_step, "encoding": req.encoding,
+            "details": list(p.details), "joints": bank.skeleton.n_joints, "resample_rate": 1.0,
             "latency_frames": -(-synth.latency_frames // synth.out_step),
             "latency_s": synth.latency_frames / bank.fps,
             "characters": [{"id": c.id, "scale": float(h)} for c, h in zip(req.characters, synth.scales,
@@ -355,7 +364,7 @@ class Session:
             if windows is None:
                 return None
             # Two buffers in turn: one is sent while the next is packed.
-            return packed_chunk(number, index, windows, req.encoding, scratch, f"chunk{index % 2}")
+            return packed_chunk(number, index, windows, req.encoding, scratch, f"chunk{index % 2}", p)
 
         # A chunk goes out while the next is synthesized (a live tick of 4,000 horses is ~30 MB:
         # sending it took a third as long as making it, the cores half idle meanwhile).
