@@ -24,7 +24,7 @@ from synth_core.runtime.synthesis import Options, Result, synthesize
 
 
 def unit(q: np.ndarray) -> np.ndarray:
-    return (q / np.linalg.norm(q, axis=-1, keepdims=True)).astype(np.float32)
+    return np.asarray(q / np.linalg.norm(q, axis=-1, keepdims=True), np.float32)
 
 
 @pytest.fixture(scope="module", params=["horse", "dog"])
