@@ -138,7 +138,7 @@ def live_bytes(server: str, points: np.ndarray, details: list[str | None] | None
         assert header["type"] == "start"
         ws.send(msgpack.packb({"type": "points", "points": blob(points)}))
         ws.send(msgpack.packb({"type": "finish"}))
-        size, chunks = 0, []
+        size, chunks = 0, list[dict[str, Any]]()
         while True:
             raw = ws.recv()
             message = msgpack.unpackb(raw)
