@@ -108,7 +108,7 @@ class LeanSocket:
                 code = int.from_bytes(body[:2], "big") if n >= 2 else 1005
                 raise ConnectionError(f"the server closed the session: {code} {bytes(body[2:])!r}")
             elif opcode == _BINARY:
-                return _leading_fields(body)
+                return {**_leading_fields(body), "_bytes": n}  # the message's size on the wire
 
 
 def _leading_fields(message: memoryview) -> dict[str, Any]:
