@@ -137,7 +137,7 @@ class Session:
                                                                 "cancel it before the next"))
                 self.live_open = True
             self.requests.put_nowait(body)
-        elif kind in ("points", "finish"):
+        elif kind in ("points", "finish", "lod"):
             if not self.live_open:
                 raise Closing(POLICY, ApiError(422, "type", f"{kind} without a live session: send "
                                                             "{type: live, characters: [...]} first"))
@@ -146,14 +146,14 @@ class Session:
                 waiting = f"{self.inbox.qsize()} points messages ({self.inbox_bytes} bytes)"
                 why = f"{waiting} wait, at most {LIVE_INBOX} and {room} bytes: sent faster than made"
                 raise Closing(TRY_LATER, ApiError(503, "points", why))
-            self.live_open = kind == "points"
+            self.live_open = kind != "finish"
             self.inbox_bytes += len(raw)
             body["_bytes"] = len(raw)
             self.inbox.put_nowait(body)
         else:
             raise Closing(INVALID_DATA, ApiError(422, "type", f"unknown message type {kind!r}; expected "
-                                                              "synthesize, live, points, finish, ack, ping "
-                                                              "or cancel"))
+                                                              "synthesize, live, points, lod, finish, ack, "
+                                                              "ping or cancel"))
 
     # --- writing -------------------------------------------------------------------------------
 
@@ -375,6 +375,9 @@ class Session:
                 if message is None:  # before its finish: the client cancelled or left
                     self.state.metrics.cancelled += 1
                     break
+                if message.get("type") == "lod":  # the characters' details from the next chunk on
+                    p = live.new_details(p, message)
+                    continue
                 finishing = message.get("type") == "finish"
                 advance = (functools.partial(synth.finish, W) if finishing else
                            functools.partial(synth.append, live.points(message, C, settings), W))

@@ -54,8 +54,11 @@ def detailed_chunk(batch: int, index: int, windows: Sequence[Window],
     bits = contact_bits(np.concatenate([w.contacts[:, sent] for w in windows]))
     rows, joints = encode.chunk_rows(p)
     everyone = len(rows) == len(p.details)
-    q = np.concatenate([w.rotations[:, sent] for w in windows])
-    packed, rot = encode.rotations(q if everyone else q[rows], p, rows, joints)
+    # Only the rows sent are copied out of each window (a far character's rotations never are).
+    edges = np.cumsum([0, *(w.root_pos.shape[0] for w in windows)])
+    q = np.concatenate([w.rotations[rows[(rows >= a) & (rows < b)] - a][:, sent]
+                        for w, a, b in zip(windows, edges[:-1], edges[1:], strict=True)])
+    packed, rot = encode.rotations(q, p, rows, joints)
     if not everyone:
         rot["characters"] = rows.tolist()
     rot["data"] = packed.tobytes()

@@ -29,6 +29,7 @@ class Packing:
     details: tuple[Detail, ...]
     skeleton: Skeleton
     scales: NDArray[np.floating]  # (C,) each character's scale: delta's steps depend on it
+    default: Detail = "full"  # the request's lod.detail (a character's None)
 
     @property
     def plain(self) -> bool:
@@ -47,7 +48,7 @@ def packing(encoding: Encoding, frame_step: int, default: Detail, own: Sequence[
             skeleton: Skeleton, scales: NDArray[np.floating]) -> Packing:
     """``own``: each character's detail, None for the request's ``default``."""
     return Packing(encoding, frame_step, tuple(default if d is None else d for d in own), skeleton,
-                   np.asarray(scales, np.float64))
+                   np.asarray(scales, np.float64), default)
 
 
 def sent_frames(start: int, n: int, step: int) -> tuple[slice, int]:

@@ -4,13 +4,16 @@ the trajectories. Parsing and checking here; the session loop is :mod:`service.b
 
 from __future__ import annotations
 
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from api_schemas import LiveRequest
+from api_schemas.models import DETAILS
 from api_schemas.wire import WireError, unblob
+from service.encode import Packing
 from service.errors import ApiError
 from service.jobs import validate
 from service.settings import Settings
@@ -37,6 +40,21 @@ def open_live(body: Any, settings: Settings, banks: dict[str, Bank]) -> tuple[Li
     except TrajectoryError as exc:
         raise live_error(exc, "characters") from None
     return req, live
+
+
+def new_details(p: Packing, body: dict[str, Any]) -> Packing:
+    """A ``lod`` message's ``details``: every character's level of detail from the next chunk on
+    (None: the session's ``lod.detail``); 422 naming the field for anything else."""
+    details = body.get("details")
+    C = len(p.details)
+    if not isinstance(details, list) or len(details) != C:
+        raise ApiError(422, "details", f"a lod message needs `details`: a list of {C} levels of detail "
+                                       f"(one per character, null for the session's), got {details!r:.80}")
+    for i, d in enumerate(details):
+        if d is not None and d not in DETAILS:
+            raise ApiError(422, f"details[{i}]",
+                           f"must be one of {', '.join(DETAILS)} or null, got {d!r:.40}")
+    return replace(p, details=tuple(p.default if d is None else d for d in details))
 
 
 def live_error(exc: TrajectoryError, field: str) -> ApiError:
