@@ -170,3 +170,28 @@ def test_live_far_characters_cost_the_link_a_fraction(server: str, bank: Bank) -
     assert all(m["rotations"]["characters"] == [0] for m in mixed_chunks)
     within_budget(bank, root[:1], want[:1], near[:1], scales[:1])
     assert (near[1:, ..., 3] == 1).all()
+
+
+def test_a_live_lod_message_changes_the_details_from_the_next_chunk_on(server: str) -> None:
+    points = crowd.simulate(3, 240, seed=8, fps=30.0).astype(np.float32)
+    url = server.replace("http://", "ws://") + "/v1/stream"
+    with connect(url, compression=None, max_size=None) as ws:
+        ws.send(msgpack.packb({"type": "live", "fps": 30, "encoding": "delta",
+                               "characters": [{"id": f"c{c}"} for c in range(3)]}))
+        assert msgpack.unpackb(ws.recv())["type"] == "start"
+        ws.send(msgpack.packb({"type": "points", "points": blob(points[:, :200])}))
+        ws.send(msgpack.packb({"type": "lod", "details": [None, "root_gait", "legs_spine"]}))
+        ws.send(msgpack.packb({"type": "points", "points": blob(points[:, 200:])}))
+        ws.send(msgpack.packb({"type": "finish"}))
+        rows = []
+        while (message := msgpack.unpackb(ws.recv()))["type"] == "chunk":
+            rows.append(message["rotations"].get("characters"))
+            ws.send(msgpack.packb({"type": "ack", "chunk": message["chunk"]}))
+        assert message["type"] == "end"
+    assert rows[0] is None and rows[-1] == [0, 2]  # all three before, then the far one left out
+    with connect(url, compression=None) as ws:
+        ws.send(msgpack.packb({"type": "live", "characters": [{"id": "a"}, {"id": "b"}]}))
+        assert msgpack.unpackb(ws.recv())["type"] == "start"
+        ws.send(msgpack.packb({"type": "lod", "details": ["full", "near"]}))
+        error = msgpack.unpackb(ws.recv())
+        assert error["type"] == "error" and error["error"]["field"] == "details[1]", error
