@@ -172,7 +172,7 @@ def live(url: str, characters: int = LIVE_CHARACTERS, seconds: float = LIVE_SECO
             if message["type"] == "chunk":
                 frames += message["frames"]
                 if wire is not None:
-                    wire["bytes"] = wire.get("bytes", 0) + message["_bytes"]
+                    wire["bytes"] = wire.get("bytes", 0) + ws.last_bytes
                     wire["frames"] = frames
                 # From sending the point of this chunk's last frame to having its pose.
                 sent = sent_at[min((frames - 1) // LIVE_TICK, len(sent_at) - 1)]
