@@ -149,7 +149,7 @@ def test_bad_input_is_refused_naming_the_field(server: str, herd: np.ndarray) ->
         (batch(nan), 422, "characters[1].points", "NaN or Inf at frame 7"),
         (batch(jump), 422, "characters[0].points", "teleport"),
         ({"characters": [{"id": "a", "points": blob(herd[0] * 50)}]}, 422, "characters[0].points", "m/s"),
-        ({"encoding": "png", "characters": [{"id": "a", "points": ok}]}, 422, "encoding", "'f32', 'i16' or 's48'"),
+        ({"encoding": "png", "characters": [{"id": "a", "points": ok}]}, 422, "encoding", "'f32', 'i16', 's48' or 'delta'"),
         ({"fps": -1, "characters": [{"id": "a", "points": ok}]}, 422, "fps", "greater than 0"),
         ({"characters": [{"id": "a", "points": ok}], "colour": "red"}, 422, "colour", "Extra inputs"),
     ]
