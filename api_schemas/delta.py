@@ -13,10 +13,11 @@ measured figures). One *block* holds one character's ``n`` frames of ``J`` joint
    half above the hoof, gets a fine step and the pastern a coarse one; each joint on a chain of
    ``d`` rotating joints gets 1/d of the budget ``max_error_m``, so the sum along any chain -- the
    world position error of every joint, the hoof's included -- stays within it.
-3. Along time each integer track is predicted from its last two values (``2 v[t-1] - v[t-2]``;
-   the second frame from the first): motion is smooth, so the residuals are small; they are
-   zig-zag mapped to unsigned and Rice coded, each track with the parameter ``k`` that makes it
-   shortest. A track whose residuals are all zero (an end site, a still joint) stores none.
+3. Along time each integer track is stored as its first value, its first change (``v[1] -
+   v[0]``), then residuals of the prediction from the last two values (``2 v[t-1] - v[t-2]``):
+   motion is smooth, so they are small; zig-zag mapped to unsigned and Rice coded, each track
+   with the parameter ``k`` that makes it shortest. A track whose residuals are all zero (an
+   end site, a still joint) stores none.
 
 The integers are exact: decoding gives back ``v``, so the only error is step 1's rounding.
 
@@ -24,9 +25,10 @@ Block layout, little-endian; bit ``i`` of a bit section is bit ``i % 8`` of its 
 
     u8 version (1) | u8 0 | u16 frames n | u16 joints J | u32 block bytes | u32 unary offset
     J x u8 step code: step = 2 ** (-code / 8) radians
-    bit section A (from byte 14 + J): per track (joint-major, x y z): k (5 bits, 31: no
-        residuals); W (6 bits); per track its first value, zig-zag, W bits; then, track by
-        track, each residual's low k bits (an escaped one: its whole zig-zag value, 32 bits)
+    bit section A (from byte 14 + J): per track (joint-major, x y z): k (5 bits; 31: no
+        residuals), W0 and W1 (5 bits each); per track its first value and first change,
+        zig-zag, in W0 and W1 bits; then, track by track, each residual's low k bits (an
+        escaped one: its whole zig-zag value, 32 bits)
     bit section B (from the unary offset): per residual its quotient u >> k in unary
         (that many 0 bits, then a 1); quotient 24 is the escape: the value is in A, 32 bits
 
@@ -149,12 +151,27 @@ def _zigzag(r: int) -> int:  # pragma: no cover - compiled
 
 
 def _residuals(v: Any, res: Any) -> None:  # pragma: no cover - compiled
-    """``v (n, T)`` int64 -> ``res (n - 1, T)`` zig-zag residuals of the second-order prediction."""
+    """``v (n, T)`` int64 -> ``res (n - 2, T)``: zig-zag residuals of frames 2.. predicted from
+    the two before (``2 v[t-1] - v[t-2]``)."""
     n, T = v.shape
-    for t in range(1, n):
+    for t in range(2, n):
         for i in range(T):
-            pred = v[t - 1, i] if t == 1 else 2 * v[t - 1, i] - v[t - 2, i]
-            res[t - 1, i] = _zigzag(v[t, i] - pred)
+            res[t - 2, i] = _zigzag(v[t, i] - 2 * v[t - 1, i] + v[t - 2, i])
+
+
+def _width(z: int) -> int:  # pragma: no cover - compiled
+    w = 0
+    while z >> w:
+        w += 1
+    return w
+
+
+def _heads(v: Any, i: int) -> tuple[int, int, int, int]:  # pragma: no cover - compiled
+    """Track ``i``'s first value and first change, zig-zag, and their widths in bits."""
+    n = v.shape[0]
+    z0 = _zigzag(v[0, i]) if n > 0 else 0
+    z1 = _zigzag(v[1, i] - v[0, i]) if n > 1 else 0
+    return z0, _width(z0), z1, _width(z1)
 
 
 def _cost(res: Any, i: int, k: int) -> int:  # pragma: no cover - compiled
@@ -186,53 +203,52 @@ def _choose_k(res: Any, i: int) -> int:  # pragma: no cover - compiled
     return best_k
 
 
-def _plan_block(v: Any, ks: Any) -> tuple[int, int, int]:  # pragma: no cover - compiled
-    """Each track's Rice parameter into ``ks``; the block's (first-value width, unary offset,
-    length in bytes) -- so that every block's place is known before any is written."""
+def _plan_block(v: Any, ks: Any) -> tuple[int, int]:  # pragma: no cover - compiled
+    """Each track's Rice parameter into ``ks``; the block's (unary offset, length in bytes) --
+    so that every block's place is known before any is written."""
     n, T = v.shape
-    res = np.zeros((max(n - 1, 0), T), np.int64)
+    res = np.zeros((max(n - 2, 0), T), np.int64)
     _residuals(v, res)
-    wmax = 0
-    bits_a = 8 * (HEADER + T // 3) + 5 * T + 6
+    bits_a = 8 * (HEADER + T // 3) + 15 * T
     bits_b = 0
     for i in range(T):
-        z = _zigzag(v[0, i]) if n else 0
-        w = 0
-        while z >> w:
-            w += 1
-        wmax = max(wmax, w)
-        k = _choose_k(res, i) if n > 1 else NO_RESIDUALS
+        _, w0, _, w1 = _heads(v, i)
+        bits_a += w0 + w1
+        k = _choose_k(res, i) if n > 2 else NO_RESIDUALS
         ks[i] = k
         if k != NO_RESIDUALS:
-            for t in range(n - 1):
+            for t in range(n - 2):
                 q = res[t, i] >> k
                 bits_a += 32 if q >= ESCAPE else k
                 bits_b += min(q, ESCAPE) + 1
-    bits_a += wmax * T
     unary = (bits_a + 7) >> 3
-    return wmax, unary, unary + ((bits_b + 7) >> 3)
+    return unary, unary + ((bits_b + 7) >> 3)
 
 
-def _write_block(v: Any, codes: Any, ks: Any, wmax: int, unary: int, size: int,
+def _write_block(v: Any, codes: Any, ks: Any, unary: int, size: int,
                  out: Any) -> None:  # pragma: no cover - compiled
     """One block of ``v (n, J * 3)`` int64 into ``out`` (zeroed, ``size`` bytes), as planned."""
     n, T = v.shape
     J = T // 3
-    res = np.zeros((max(n - 1, 0), T), np.int64)
+    res = np.zeros((max(n - 2, 0), T), np.int64)
     _residuals(v, res)
     for j in range(J):
         out[HEADER + j] = codes[j]
     pos = 8 * (HEADER + J)
     for i in range(T):
+        _, w0, _, w1 = _heads(v, i)
         pos = _put(out, pos, ks[i], 5)
-    pos = _put(out, pos, wmax, 6)
+        pos = _put(out, pos, w0, 5)
+        pos = _put(out, pos, w1, 5)
     for i in range(T):
-        pos = _put(out, pos, _zigzag(v[0, i]), wmax)
+        z0, w0, z1, w1 = _heads(v, i)
+        pos = _put(out, pos, z0, w0)
+        pos = _put(out, pos, z1, w1)
     for i in range(T):
         k = ks[i]
         if k == NO_RESIDUALS:
             continue
-        for t in range(n - 1):
+        for t in range(n - 2):
             u = res[t, i]
             if (u >> k) >= ESCAPE:
                 pos = _put(out, pos, u, 32)
@@ -243,7 +259,7 @@ def _write_block(v: Any, codes: Any, ks: Any, wmax: int, unary: int, size: int,
         k = ks[i]
         if k == NO_RESIDUALS:
             continue
-        for t in range(n - 1):
+        for t in range(n - 2):
             pos += min(res[t, i] >> k, ESCAPE)  # zeros: the buffer is zeroed
             pos = _put(out, pos, 1, 1)
     out[0] = VERSION
@@ -256,29 +272,31 @@ def _write_block(v: Any, codes: Any, ks: Any, wmax: int, unary: int, size: int,
 
 def _plan_all(v: Any, ks: Any, plans: Any) -> None:  # pragma: no cover - compiled
     for c in numba.prange(v.shape[0]):
-        plans[c, 0], plans[c, 1], plans[c, 2] = _plan_block(v[c], ks[c])
+        plans[c, 0], plans[c, 1] = _plan_block(v[c], ks[c])
 
 
 def _write_all(v: Any, codes: Any, ks: Any, plans: Any, starts: Any, out: Any) -> None:  # pragma: no cover
     for c in numba.prange(v.shape[0]):
-        _write_block(v[c], codes[c], ks[c], plans[c, 0], plans[c, 1], plans[c, 2],
-                     out[starts[c]:starts[c] + plans[c, 2]])
+        _write_block(v[c], codes[c], ks[c], plans[c, 0], plans[c, 1],
+                     out[starts[c]:starts[c] + plans[c, 1]])
 
 
 def _plan_all_py(v: Any, ks: Any, plans: Any) -> None:
     for c in range(v.shape[0]):
-        plans[c, 0], plans[c, 1], plans[c, 2] = _plan_block(v[c], ks[c])
+        plans[c, 0], plans[c, 1] = _plan_block(v[c], ks[c])
 
 
 def _write_all_py(v: Any, codes: Any, ks: Any, plans: Any, starts: Any, out: Any) -> None:
     for c in range(v.shape[0]):
-        _write_block(v[c], codes[c], ks[c], plans[c, 0], plans[c, 1], plans[c, 2],
-                     out[starts[c]:starts[c] + plans[c, 2]])
+        _write_block(v[c], codes[c], ks[c], plans[c, 0], plans[c, 1],
+                     out[starts[c]:starts[c] + plans[c, 1]])
 
 
 if numba is not None:
     _put = numba.njit(cache=True, nogil=True, inline="always")(_put)
     _zigzag = numba.njit(cache=True, nogil=True, inline="always")(_zigzag)
+    _width = numba.njit(cache=True, nogil=True, inline="always")(_width)
+    _heads = numba.njit(cache=True, nogil=True)(_heads)
     _residuals = numba.njit(cache=True, nogil=True)(_residuals)
     _cost = numba.njit(cache=True, nogil=True)(_cost)
     _choose_k = numba.njit(cache=True, nogil=True)(_choose_k)
@@ -318,9 +336,9 @@ def encode(q: NDArray[np.floating], codes: NDArray[np.uint8],
     else:
         v = np.ascontiguousarray(quantize(q, codes))
     ks = np.zeros((C, 3 * J), np.int64)
-    plans = np.zeros((C, 3), np.int64)  # per block: first-value width, unary offset, length
+    plans = np.zeros((C, 2), np.int64)  # per block: unary offset, length
     (_plan_all if compiled else _plan_all_py)(v, ks, plans)
-    starts = np.concatenate([[0], np.cumsum(plans[:, 2])]).astype(np.int64)
+    starts = np.concatenate([[0], np.cumsum(plans[:, 1])]).astype(np.int64)
     out = np.zeros(int(starts[-1]), np.uint8)
     (_write_all if compiled else _write_all_py)(v, codes, ks, plans, starts, out)
     return out, starts
@@ -361,14 +379,15 @@ def decode_block(data: NDArray[np.uint8], field: str = "rotations") -> tuple[NDA
     T = 3 * J
     a = block[:unary]
     pos = 8 * (HEADER + J)
-    ks = _bits(a, pos + 5 * np.arange(T, dtype=np.int64), np.full(T, 5, np.int64))
-    pos += 5 * T
-    w = int(_bits(a, np.array([pos]), np.array([6]))[0])
-    pos += 6
-    first = _unzigzag(_bits(a, pos + w * np.arange(T, dtype=np.int64), np.full(T, w, np.int64)))
-    pos += w * T
+    heads = _bits(a, pos + 5 * np.arange(3 * T, dtype=np.int64), np.full(3 * T, 5, np.int64)).reshape(T, 3)
+    ks, w0, w1 = heads[:, 0], heads[:, 1], heads[:, 2]
+    pos += 15 * T
+    widths = np.stack([w0, w1], 1).reshape(-1)
+    at = pos + np.concatenate([[0], np.cumsum(widths)[:-1]])
+    pos += int(widths.sum())
+    firsts = _unzigzag(_bits(a, at, widths)).reshape(T, 2)
     stored = np.flatnonzero(ks != NO_RESIDUALS)
-    m = max(n - 1, 0)
+    m = max(n - 2, 0)
     count = len(stored) * m
     ones = np.flatnonzero(np.unpackbits(block[unary:], bitorder="little"))
     if len(ones) < count:
@@ -383,13 +402,17 @@ def decode_block(data: NDArray[np.uint8], field: str = "rotations") -> tuple[NDA
         raise DeltaError(f"{field}: the delta block's remainders run past their section")
     low = _bits(a, starts, width)
     u = np.where(escaped, low, (quotient << k) | low)
-    res = np.zeros((T, m), np.int64)
-    res[stored] = _unzigzag(u).reshape(len(stored), m)
+    changes = np.zeros((T, max(n - 1, 0)), np.int64)  # v[t] - v[t-1], t = 1..n-1
+    if n > 1:
+        changes[:, 0] = firsts[:, 1]
+        res = np.zeros((T, m), np.int64)
+        res[stored] = _unzigzag(u).reshape(len(stored), m)
+        # r_t = v_t - 2 v_{t-1} + v_{t-2}: each change is the last plus the residual
+        changes[:, 1:] = firsts[:, 1:2] + np.cumsum(res, axis=1)
     v = np.empty((T, n), np.int64)
     if n:
-        v[:, 0] = first
-        # r1 = v1 - v0; r_t = v_t - 2 v_{t-1} + v_{t-2}: the deltas are the running sum of the residuals
-        v[:, 1:] = first[:, None] + np.cumsum(np.cumsum(res, axis=1), axis=1)
+        v[:, 0] = firsts[:, 0]
+        v[:, 1:] = firsts[:, :1] + np.cumsum(changes, axis=1)
     r = v.T.reshape(n, J, 3) * step_of(codes)[None, :, None]
     return quaternions(r), size
 

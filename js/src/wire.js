@@ -154,34 +154,39 @@ function decodeDeltaBlock(bytes, field) {
   if (!(HEADER + J <= unary && unary <= size && size <= bytes.length)) {
     throw new WireError(`a delta block of ${size} bytes (unary at ${unary}) does not fit the ${bytes.length} bytes given`, field);
   }
-  const T = 3 * J, m = Math.max(n - 1, 0);
+  const T = 3 * J;
   let pos = 8 * (HEADER + J);
-  const ks = new Array(T);
-  for (let i = 0; i < T; i++, pos += 5) ks[i] = bitsAt(bytes, pos, 5);
-  const w = bitsAt(bytes, pos, 6);
-  pos += 6;
+  const ks = new Array(T), w0 = new Array(T), w1 = new Array(T);
+  for (let i = 0; i < T; i++, pos += 15) {
+    ks[i] = bitsAt(bytes, pos, 5); w0[i] = bitsAt(bytes, pos + 5, 5); w1[i] = bitsAt(bytes, pos + 10, 5);
+  }
   const v = new Float64Array(T * n);  // track-major: v[i * n + t]
-  for (let i = 0; i < T; i++, pos += w) if (n) v[i * n] = unzigzag(bitsAt(bytes, pos, w));
+  const first = new Float64Array(T);  // each track's first change, v[1] - v[0]
+  for (let i = 0; i < T; i++) {
+    if (n) v[i * n] = unzigzag(bitsAt(bytes, pos, w0[i]));
+    pos += w0[i];
+    first[i] = unzigzag(bitsAt(bytes, pos, w1[i]));
+    pos += w1[i];
+  }
   let upos = 8 * unary;
   const end = 8 * size;
   for (let i = 0; i < T; i++) {
     const k = ks[i];
-    if (k === NO_RESIDUALS) {  // all residuals zero: the track holds its first value
-      for (let t = 1; t < n; t++) v[i * n + t] = v[i * n];
-      continue;
-    }
-    let delta = 0;
-    for (let t = 1; t <= m; t++) {
-      let q = 0;
-      while (!((bytes[upos >> 3] >> (upos & 7)) & 1)) {
-        q++; upos++;
-        if (upos >= end) throw new WireError('the delta block ends before its residuals', field);
+    let delta = first[i];
+    if (n > 1) v[i * n + 1] = v[i * n] + delta;
+    for (let t = 2; t < n; t++) {
+      if (k !== NO_RESIDUALS) {  // none stored: every residual is zero
+        let q = 0;
+        while (!((bytes[upos >> 3] >> (upos & 7)) & 1)) {
+          q++; upos++;
+          if (upos >= end) throw new WireError('the delta block ends before its residuals', field);
+        }
+        upos++;
+        let u;
+        if (q >= ESCAPE) { u = bitsAt(bytes, pos, 32); pos += 32; } else { u = q * 2 ** k + bitsAt(bytes, pos, k); pos += k; }
+        if (pos > 8 * unary) throw new WireError("the delta block's remainders run past their section", field);
+        delta += unzigzag(u);  // r_t = v_t - 2 v_(t-1) + v_(t-2): the change grows by the residual
       }
-      upos++;
-      let u;
-      if (q >= ESCAPE) { u = bitsAt(bytes, pos, 32); pos += 32; } else { u = q * 2 ** k + bitsAt(bytes, pos, k); pos += k; }
-      if (pos > 8 * unary) throw new WireError("the delta block's remainders run past their section", field);
-      delta += unzigzag(u);  // r1 = v1 - v0; r_t = v_t - 2 v_(t-1) + v_(t-2): deltas are running sums
       v[i * n + t] = v[i * n + t - 1] + delta;
     }
   }

@@ -51,8 +51,8 @@ test('contacts bit mask in foot order LF, RF, LH, RH', () => {
 });
 
 test('delta: the worked example (one joint turning 0, 10, 20, 30 degrees about Y)', () => {
-  const bytes = Uint8Array.from([0x01, 0x00, 0x04, 0x00, 0x01, 0x00, 0x15, 0x00, 0x00, 0x00, 0x14, 0x00, 0x00, 0x00,
-    0x40, 0x9f, 0x7c, 0x40, 0x43, 0x00, 0xe0]);
+  const bytes = Uint8Array.from([0x01, 0x00, 0x04, 0x00, 0x01, 0x00, 0x17, 0x00, 0x00, 0x00, 0x16, 0x00, 0x00, 0x00,
+    0x40, 0x1f, 0x00, 0x00, 0xce, 0x07, 0x40, 0x0b, 0x12]);
   const { rotations: q, blocks, frames, joints } = decodeDelta(bytes);
   assert.deepEqual([blocks, frames, joints], [1, 4, 1]);
   const step = 2 ** (-64 / 8); // the joint's step code 0x40: 1/256 rad
@@ -62,7 +62,7 @@ test('delta: the worked example (one joint turning 0, 10, 20, 30 degrees about Y
     assert.ok(Math.abs(q[t * 4]) < 1e-7 && Math.abs(q[t * 4 + 2]) < 1e-7);
   });
   // The same bytes as a response's rotations map; a level of detail's joints filled in.
-  const rot = { dtype: '|u1', shape: [21], data: bytes, encoding: 'delta', decoded_shape: [4, 1, 4], joints: [2] };
+  const rot = { dtype: '|u1', shape: [23], data: bytes, encoding: 'delta', decoded_shape: [4, 1, 4], joints: [2] };
   const full = decodeRotations(rot, 'rotations', { joints: 3 });
   assert.equal(full.length, 4 * 3 * 4);
   assert.deepEqual(Array.from(full.subarray(0, 8)), [0, 0, 0, 1, 0, 0, 0, 1]); // joints 0 and 1: identity
@@ -70,12 +70,12 @@ test('delta: the worked example (one joint turning 0, 10, 20, 30 degrees about Y
 });
 
 test('delta: a cut or altered block is refused, not misread', () => {
-  const bytes = Uint8Array.from([0x01, 0x00, 0x04, 0x00, 0x01, 0x00, 0x15, 0x00, 0x00, 0x00, 0x14, 0x00, 0x00, 0x00,
-    0x40, 0x9f, 0x7c, 0x40, 0x43, 0x00, 0xe0]);
-  assert.throws(() => decodeDelta(bytes.subarray(0, 18)), WireError);
+  const bytes = Uint8Array.from([0x01, 0x00, 0x04, 0x00, 0x01, 0x00, 0x17, 0x00, 0x00, 0x00, 0x16, 0x00, 0x00, 0x00,
+    0x40, 0x1f, 0x00, 0x00, 0xce, 0x07, 0x40, 0x0b, 0x12]);
+  assert.throws(() => decodeDelta(bytes.subarray(0, 20)), WireError);
   const other = bytes.slice();
   other[0] = 2;
   assert.throws(() => decodeDelta(other), /version 2/);
-  assert.throws(() => decodeRotations({ dtype: '|u1', shape: [21], data: bytes, encoding: 'delta', decoded_shape: [5, 1, 4] }),
+  assert.throws(() => decodeRotations({ dtype: '|u1', shape: [23], data: bytes, encoding: 'delta', decoded_shape: [5, 1, 4] }),
     (e) => e instanceof WireError && e.field === 'rotations.decoded_shape');
 });
