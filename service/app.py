@@ -299,6 +299,7 @@ def warm_up(registry: LibraryRegistry) -> None:
     request does not pay for it."""
     import numpy as np
 
+    from api_schemas import delta
     from api_schemas.packing import pack_rotations
     from synth_core.runtime.live import LiveSynth
     from synth_core.runtime.streaming import BatchStream
@@ -314,6 +315,7 @@ def warm_up(registry: LibraryRegistry) -> None:
         result = synthesize(bank, path)
         for encoding in ("s48", "i16"):
             pack_rotations(result.rotations, encoding)
+        delta.encode(result.rotations, delta.joint_steps(bank.skeleton.parents, bank.skeleton.offsets))
         for _ in BatchStream(bank, path, chunk_frames=10).windows():
             pass
         live = LiveSynth(bank, 2, 30.0)

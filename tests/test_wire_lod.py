@@ -6,6 +6,7 @@ the field."""
 
 from __future__ import annotations
 
+import base64
 from collections.abc import Iterator
 from typing import Any
 
@@ -56,6 +57,10 @@ def test_rest_delta_is_the_f32_motion_within_a_tenth_of_a_mm(server: str, herd: 
            for k, r in (("s48", s48), ("delta", delta))}
     assert len(rot["delta"]["data"]) * 3 <= len(rot["s48"]["data"])  # <= 2 bytes against 6
     assert rot["delta"]["decoded_shape"] == [240, bank.skeleton.n_joints, 4]
+    as_json = post(server, {"animal": "horse", "seed": 2, "encoding": "delta",
+                            "characters": [{"id": "a", "points": blob(herd[0])}]}, accept="application/json")
+    text = as_json.json()["characters"][0]["rotations"]
+    assert base64.b64decode(text["data"]) == rot["delta"]["data"]  # JSON: the same bytes, base64
 
 
 def test_rest_levels_of_detail(server: str, herd: np.ndarray, bank: Bank) -> None:
