@@ -19,6 +19,7 @@ from api_schemas.models import (
     Limits,
     LiveCharacter,
     LiveRequest,
+    Lod,
     PackedRotations,
     Readiness,
     Skipped,
@@ -29,5 +30,5 @@ from api_schemas.models import (
 __all__ = ["Blob", "CharacterIn", "CharacterOut", "CharacterWarning", "ErrorDetail", "ErrorResponse",
            "GaitRange", "Health", "LibrariesResponse", "LibraryDetail", "LibraryStatus", "LibrarySummary",
            "Limits", "LiveCharacter",
-           "LiveRequest", "PackedRotations", "Readiness",
+           "LiveRequest", "Lod", "PackedRotations", "Readiness",
            "Skipped", "SynthesizeRequest", "SynthesizeResponse"]

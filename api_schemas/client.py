@@ -23,7 +23,7 @@ import msgpack
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from api_schemas.wire import MSGPACK, Encoding, blob, decode_rotations, unblob
+from api_schemas.wire import MSGPACK, blob, rotations_of, unblob
 
 log = logging.getLogger("quadsynth.client")
 
@@ -66,7 +66,7 @@ class Chunk:
     index: int
     start: int
     root: NDArray[np.float32]  # (C, n, 3)
-    rotations: NDArray[np.float32]  # (C, n, J, 4) xyzw, whatever the encoding
+    rotations: NDArray[np.float32]  # (C, n, J, 4) xyzw, whatever the encoding (LOD: identity where not sent)
     gait: NDArray[np.int8]  # (C, n)
     contacts: NDArray[np.bool_]  # (C, n, 4)
 
@@ -75,14 +75,16 @@ def decode_chunk(header: dict[str, Any], message: dict[str, Any]) -> Chunk:
     rot = message["rotations"]
     bits = unblob(**message["contacts"])
     return Chunk(header, message["chunk"], message["start"], unblob(**message["root"]),
-                 decode_rotations(unblob(rot["dtype"], rot["shape"], rot["data"]), rot["encoding"]),
+                 rotations_of(rot, header.get("joints"), len(header.get("characters", [])) or None),
                  unblob(**message["gait"]), (bits[..., None] >> np.arange(4)) & 1 == 1)
 
 
 def request_body(positions: ArrayLike, ids: Sequence[str] | None = None,
-                 scales: Sequence[float | None] | None = None, **options: Any) -> bytes:
+                 scales: Sequence[float | None] | None = None,
+                 details: Sequence[str | None] | None = None, **options: Any) -> bytes:
     """The msgpack body for ``positions``: an array (C, F, 3) or a list of (F_c, 3) arrays
-    (``options`` may carry ``type`` and ``chunk_frames`` too: a WebSocket ``synthesize``)."""
+    (``options`` may carry ``type`` and ``chunk_frames`` too: a WebSocket ``synthesize``);
+    ``details``: each character's level of detail (None: the request's ``lod``)."""
     paths = [np.asarray(p, np.float32) for p in positions]  # type: ignore[union-attr]
     ids = list(ids) if ids is not None else [str(c) for c in range(len(paths))]
     characters = []
@@ -90,6 +92,8 @@ def request_body(positions: ArrayLike, ids: Sequence[str] | None = None,
         entry: dict[str, Any] = {"id": ids[c], "points": blob(path)}
         if scales is not None and scales[c] is not None:
             entry["scale"] = float(scales[c])  # type: ignore[arg-type]
+        if details is not None and details[c] is not None:
+            entry["detail"] = details[c]
         characters.append(entry)
     return bytes(msgpack.packb({**options, "characters": characters}, use_bin_type=True))
 
@@ -99,11 +103,10 @@ def decode_response(content: bytes | bytearray) -> Motion:
     characters = []
     for ch in body["characters"]:
         rot = ch["rotations"]
-        encoding: Encoding = rot["encoding"]
         bits = unblob(**ch["contacts"])
         characters.append(CharacterMotion(
             id=ch["id"], scale=ch["scale"], root=unblob(**ch["root"]),
-            rotations=decode_rotations(unblob(rot["dtype"], rot["shape"], rot["data"]), encoding),
+            rotations=rotations_of(rot, body.get("joints")),
             gait=unblob(**ch["gait"]), contacts=(bits[:, None] >> np.arange(4)) & 1 == 1))
     return Motion(body["animal"], body["skeleton_id"], body["fps"], body["resample_rate"], characters,
                   body.get("skipped", []), body.get("warnings", []))
@@ -278,14 +281,18 @@ class Client:
     def live(self, ids: Sequence[str], fps: float = 60.0, scales: Sequence[float | None] | None = None,
              **options: Any) -> Iterator[LiveSession]:
         """Open a live session for characters ``ids`` whose points come at ``fps``; ``options``:
-        animal, seed, sigma, encoding, foot_lock, heading, scale_min, scale_max."""
+        animal, seed, sigma, encoding, lod, foot_lock, heading, scale_min, scale_max; ``details``:
+        each character's level of detail (None: the session's ``lod``)."""
         from websockets.sync.client import connect
 
         url = str(self._http.base_url).rstrip("/").replace("http", "ws", 1) + "/v1/stream"
         characters: list[dict[str, Any]] = [{"id": i} for i in ids]
-        for entry, scale in zip(characters, scales or [None] * len(ids), strict=True):
+        details = options.pop("details", None) or [None] * len(ids)
+        for entry, scale, detail in zip(characters, scales or [None] * len(ids), details, strict=True):
             if scale is not None:
                 entry["scale"] = float(scale)
+            if detail is not None:
+                entry["detail"] = detail
         with connect(url, compression=None, max_size=None) as ws:
             ws.send(msgpack.packb({"type": "live", "fps": fps, **options, "characters": characters},
                                   use_bin_type=True))

@@ -72,9 +72,31 @@ class Blob(BaseModel):
 
 
 class PackedRotations(Blob):
-    """Local joint rotations ``(frames, joints, 4)`` (f32, i16) or ``(frames, joints, 6)`` bytes (s48)."""
+    """Local joint rotations ``(frames, joints, 4)`` (f32, i16), ``(frames, joints, 6)`` bytes
+    (s48) or ``(nbytes,)`` bytes of delta blocks (decoding to ``decoded_shape``)."""
 
-    encoding: Encoding = Field(description="f32, i16 or s48 (docs/wire-format.md)")
+    encoding: Encoding = Field(description="f32, i16, s48 or delta (docs/wire-format.md)")
+    decoded_shape: list[int] | None = Field(
+        default=None, description="delta only: the shape the blocks decode to, (frames, joints, 4)")
+    joints: list[int] | None = Field(
+        default=None, description="level of detail: the joints sent, in order (absent: all); the "
+                                  "others keep the identity rotation")
+
+
+Detail = Literal["full", "legs_spine", "root_gait"]
+DETAILS: tuple[Detail, ...] = ("full", "legs_spine", "root_gait")
+DETAIL_DOC = ("level of detail: 'full' every joint; 'legs_spine' the root, spine and the four legs' "
+              "joints (head, neck and tail keep the identity rotation); 'root_gait' no rotations at "
+              "all: root, gait and contacts only (docs/wire-format.md)")
+
+
+class Lod(BaseModel):
+    """How much of the motion a client needs (docs/wire-format.md, level of detail)."""
+
+    model_config = _STRICT
+    detail: Detail = Field(default="full", description=DETAIL_DOC)
+    frame_step: int = Field(default=1, ge=1, le=8,
+                            description="send every frame_step-th frame (the output fps divided by it)")
 
 
 SizeMatching = Literal["froude", "geometric"]
@@ -97,6 +119,8 @@ class CharacterIn(BaseModel):
     seed: int | None = Field(default=None, ge=0, le=2**63 - 1,
                              description="this character's own seed: its motion then depends on it "
                                          "alone (default: from the request's seed and its index)")
+    detail: Detail | None = Field(default=None, description="this character's level of detail "
+                                                            "(default: the request's lod.detail)")
 
 
 class SynthesizeRequest(BaseModel):
@@ -106,6 +130,8 @@ class SynthesizeRequest(BaseModel):
     seed: int = Field(default=0, ge=0, le=2**63 - 1, description="same input and seed: same bytes out")
     sigma: float = Field(default=4.0, ge=0, le=100, description="Gaussian smoothing of the paths, frames")
     encoding: Encoding = Field(default="s48", description=f"rotation encoding: {', '.join(ENCODINGS)}")
+    lod: Lod = Field(default_factory=Lod, description="level of detail of every character (each may "
+                                                      "override its detail)")
     skip_invalid: bool = Field(default=False, description="drop bad characters (reported in 'skipped') "
                                                           "instead of refusing the request")
     scale_min: float = Field(default=0.8, gt=0, le=100)
@@ -135,6 +161,7 @@ class LiveCharacter(BaseModel):
     id: str = Field(min_length=1, max_length=128)
     scale: float | None = Field(default=None, gt=0, le=100, description="as in SynthesizeRequest")
     seed: int | None = Field(default=None, ge=0, le=2**63 - 1, description="as in SynthesizeRequest")
+    detail: Detail | None = Field(default=None, description="as in SynthesizeRequest's characters")
 
 
 class LiveRequest(BaseModel):
@@ -150,6 +177,7 @@ class LiveRequest(BaseModel):
     seed: int = Field(default=0, ge=0, le=2**63 - 1)
     sigma: float = Field(default=4.0, ge=0, le=100)
     encoding: Encoding = Field(default="s48")
+    lod: Lod = Field(default_factory=Lod, description="as in SynthesizeRequest")
     scale_min: float = Field(default=0.8, gt=0, le=100)
     scale_max: float = Field(default=1.2, gt=0, le=100)
     foot_lock: bool = Field(default=True)
@@ -188,6 +216,7 @@ class SynthesizeResponse(BaseModel):
     skeleton_id: str = Field(description="identifies the joint layout; GET /v1/libraries/{animal}")
     fps: float = Field(description="frame rate of the output (the library's)")
     encoding: Encoding
+    frame_step: int = Field(default=1, description="lod.frame_step: fps is the library's divided by it")
     resample_rate: float = Field(description="r >= 1: every path was resampled to r times its frames "
                                              "('resample', or min_resample_rate, asked for it)")
     characters: list[CharacterOut]

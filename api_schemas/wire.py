@@ -4,7 +4,7 @@ An array travels as ``{"dtype": "<f4", "shape": [F, 3], "data": <bytes>}`` -- ms
 in msgpack bodies, base64 text in JSON ones (:mod:`api_schemas.models` does that switch). Only
 the dtypes in ``DTYPES`` are accepted; ``data`` must hold exactly ``prod(shape)`` items.
 
-Rotations (unit quaternions, xyzw) in one of three encodings, chosen per request:
+Rotations (unit quaternions, xyzw) in one of four encodings, chosen per request:
 
 - ``f32``: xyzw float32, 16 bytes per joint-frame, lossless.
 - ``i16``: xyzw as normalized int16 (``round(x * 32767)``, glTF's normalized SHORT,
@@ -13,6 +13,9 @@ Rotations (unit quaternions, xyzw) in one of three encodings, chosen per request
   q and -q are one rotation) and rebuilt from unit norm; bits 0-1 say which it was, bits 2-16,
   17-31, 32-46 the other three in order, each mapped from [-1/sqrt 2, 1/sqrt 2] to 0 .. 32767;
   bit 47 is 0. Stored as the low 6 bytes of that little-endian 48-bit integer.
+- ``delta``: time-axis deltas of per-joint quantized rotation vectors, Rice coded, ~1.3-1.9
+  bytes, every joint's world position within 0.1 mm (:mod:`api_schemas.delta`): ``|u1 (nbytes,)``,
+  one block per character; the blob's ``decoded_shape`` says what it decodes to.
 
 i16 decoding renormalizes; s48 rebuilds a unit quaternion. ``ENCODING_ERROR`` is the measured worst case
 (:func:`worst_error`, on a million random rotations; ``tests/test_wire.py`` checks it).
@@ -27,9 +30,12 @@ import numpy as np
 from numpy.typing import NDArray
 
 MSGPACK = "application/vnd.msgpack"  # the media type of msgpack bodies (two aliases also accepted)
-Encoding = Literal["f32", "i16", "s48"]
-ENCODINGS: tuple[Encoding, ...] = ("f32", "i16", "s48")
+Encoding = Literal["f32", "i16", "s48", "delta"]
+ENCODINGS: tuple[Encoding, ...] = ("f32", "i16", "s48", "delta")
+FIXED_ENCODINGS: tuple[Encoding, ...] = ("f32", "i16", "s48")  # a fixed size per joint-frame
 BYTES_PER_JOINT_FRAME = {"f32": 16, "i16": 8, "s48": 6}
+# delta's size depends on the motion: measured 1.34-1.92 (bench/bench_wire.py); budgets use this.
+DELTA_BYTES_PER_JOINT_FRAME = 2.0
 DTYPES = ("<f4", "<f8", "<i2", "<i4", "|i1", "|u1")
 S48_MAX = 32767  # 15 bits
 _SQRT_HALF = 1.0 / math.sqrt(2.0)
@@ -77,7 +83,8 @@ def unblob(dtype: str, shape: list[int], data: bytes, field: str = "") -> NDArra
 # --- rotation encodings -------------------------------------------------------------------------
 
 def encode_rotations(q: NDArray[np.floating], encoding: Encoding) -> NDArray[Any]:
-    """``q (..., 4)`` unit xyzw -> f32 ``(..., 4)``, i16 ``(..., 4)`` or s48 ``(..., 6)`` uint8."""
+    """``q (..., 4)`` unit xyzw -> f32 ``(..., 4)``, i16 ``(..., 4)`` or s48 ``(..., 6)`` uint8.
+    (delta needs each character's joint steps: :func:`api_schemas.delta.encode`.)"""
     q = np.asarray(q, dtype=np.float32)
     if encoding == "f32":
         return q
@@ -97,11 +104,54 @@ def decode_rotations(packed: NDArray[Any], encoding: Encoding) -> NDArray[np.flo
         return _unit(q)
     if encoding == "s48":
         return _unpack_s48(np.asarray(packed, dtype=np.uint8))
+    if encoding == "delta":
+        from api_schemas import delta
+
+        try:
+            blocks = delta.decode(np.asarray(packed, np.uint8).reshape(-1))
+        except (delta.DeltaError, ValueError) as exc:
+            raise WireError(str(exc), "rotations") from None
+        try:
+            return np.stack(blocks) if blocks else np.zeros((0, 0, 0, 4), np.float32)
+        except ValueError:
+            raise WireError("delta blocks of different frames or joints", "rotations") from None
     raise WireError(f"must be one of {', '.join(ENCODINGS)}, got {encoding!r}", "encoding")
 
 
 def packed_dtype(encoding: Encoding) -> str:
-    return {"f32": "<f4", "i16": "<i2", "s48": "|u1"}[encoding]
+    return {"f32": "<f4", "i16": "<i2", "s48": "|u1", "delta": "|u1"}[encoding]
+
+
+def rotations_of(rotations: dict[str, Any], n_joints: int | None = None, n_characters: int | None = None,
+                 field: str = "rotations") -> NDArray[np.float32]:
+    """A response's ``rotations`` map (blob + ``encoding``, delta's ``decoded_shape``) -> unit
+    xyzw float32: ``(frames, joints, 4)`` of a REST character, ``(C, n, joints, 4)`` of a chunk.
+    A level of detail's map sends some ``joints`` (of ``n_joints``) and, in a chunk, some
+    ``characters`` (rows, of ``n_characters``): given the counts, the rest are filled in with
+    the identity rotation."""
+    encoding = rotations.get("encoding")
+    if encoding not in ENCODINGS:
+        raise WireError(f"must be one of {', '.join(ENCODINGS)}, got {encoding!r}", f"{field}.encoding")
+    packed = unblob(rotations["dtype"], rotations["shape"], rotations["data"], field)
+    q = decode_rotations(packed, encoding)
+    if encoding == "delta":
+        shape = rotations.get("decoded_shape")
+        if not isinstance(shape, list) or math.prod(shape) != q.size:
+            raise WireError(f"decoded_shape {shape!r} does not hold the {q.shape} decoded",
+                            f"{field}.decoded_shape")
+        q = q.reshape(shape)
+    joints, rows = rotations.get("joints"), rotations.get("characters")
+    if joints is not None and n_joints is not None:
+        full = np.zeros((*q.shape[:-2], n_joints, 4), np.float32)
+        full[..., 3] = 1.0
+        full[..., joints, :] = q
+        q = full
+    if rows is not None and n_characters is not None:
+        full = np.zeros((n_characters, *q.shape[1:]), np.float32)
+        full[..., 3] = 1.0
+        full[rows] = q
+        q = full
+    return q
 
 
 def _unit(q: NDArray[np.float32]) -> NDArray[np.float32]:

@@ -18,7 +18,13 @@ directory) and stops it after. Figures (500 horses, crowd-sim, seed 0, msgpack, 
   ``live_latency_s_max``: with 70% of that many (at most 4,000) fed in real time, the longest
   from sending a frame's point to receiving its pose: the planner's look-ahead (bounded by the
   session's ``latency_frames``) plus the processing;
-- ``bytes_per_joint_frame``: s48, measured on the answer.
+- ``bytes_per_joint_frame``: s48, measured on the answer;
+- ``encodings`` (:func:`encodings`; alone: ``--encodings``, a minute): per rotation encoding the
+  REST answer's rotation bytes per joint-frame (100 horses x 300 frames), and per encoding and
+  level-of-detail mix a short live session's (1,000 horses, 4 s of 30 fps points, unpaced)
+  bytes on the wire: per joint-frame and per character-frame (whole chunk messages: root, gait
+  and contacts included), per second per character at 30 fps, and per second for 100,000 horses
+  at 30 fps at that cost (``link_MB_s_100k_at_30fps``: the figure to hold against a 1 Gbit/s link's 125).
 """
 
 from __future__ import annotations
@@ -28,7 +34,7 @@ import socket
 import subprocess
 import sys
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
@@ -126,19 +132,22 @@ def tick(paths: np.ndarray, i: int) -> np.ndarray:
 
 
 def live(url: str, characters: int = LIVE_CHARACTERS, seconds: float = LIVE_SECONDS,
-         paced: bool = False) -> tuple[float, float]:
+         paced: bool = False, options: dict[str, Any] | None = None,
+         wire: dict[str, float] | None = None) -> tuple[float, float]:
     """A live session of ``characters`` fed ``seconds`` of 30 fps points, LIVE_TICK at a time --
     as fast as the service takes them, or ``paced`` as a simulation makes them -- acking every
     chunk, reading it as a game client would, into one buffer, not decoding it
     (:mod:`quadsynth.bench_ws`: the client must not take the cores it measures). Returns
-    (characters it keeps at 30 fps, the longest from sending a frame's point to getting its pose)."""
+    (characters it keeps at 30 fps, the longest from sending a frame's point to getting its pose).
+    ``options``: the live message's (encoding, lod, characters' details); ``wire``: filled with
+    the chunks' bytes and frames."""
     F = int(seconds * 30) + 1
     paths = crowd.simulate(characters, F, seed=0, fps=30.0).astype(np.float32)
     ticks = [msgpack.packb({"type": "points", "points": blob(tick(paths, i))},
                            use_bin_type=True)
              for i in range(0, F, LIVE_TICK)]
     opening = {"type": "live", "fps": 30, "seed": 1, "encoding": "s48",
-               "characters": [{"id": f"h{c}"} for c in range(characters)]}
+               "characters": [{"id": f"h{c}"} for c in range(characters)], **(options or {})}
     sent_at: list[float] = []
     worst, frames = 0.0, 0
     with LeanSocket(url.replace("http://", "ws://") + "/v1/stream") as ws:
@@ -162,6 +171,9 @@ def live(url: str, characters: int = LIVE_CHARACTERS, seconds: float = LIVE_SECO
                 continue
             if message["type"] == "chunk":
                 frames += message["frames"]
+                if wire is not None:
+                    wire["bytes"] = wire.get("bytes", 0) + ws.last_bytes
+                    wire["frames"] = frames
                 # From sending the point of this chunk's last frame to having its pose.
                 sent = sent_at[min((frames - 1) // LIVE_TICK, len(sent_at) - 1)]
                 worst = max(worst, time.perf_counter() - sent)
@@ -176,10 +188,54 @@ def live(url: str, characters: int = LIVE_CHARACTERS, seconds: float = LIVE_SECO
     return characters * (F / 30) / wall, worst
 
 
-def run(url: str | None = None, repeats: int = REPEATS) -> dict[str, Any]:
+ENCODING_CHARACTERS, ENCODING_SECONDS = 1000, 4.0
+# Level-of-detail mixes of a live herd: name -> the live message's options for C characters.
+MIXES: dict[str, Callable[[int], dict[str, Any]]] = {
+    "full": lambda C: {},
+    "tenth_full_rest_root_gait": lambda C: {
+        "lod": {"detail": "root_gait"},
+        "characters": [{"id": f"h{c}"} | ({"detail": "full"} if c % 10 == 0 else {}) for c in range(C)]},
+    "all_legs_spine": lambda C: {"lod": {"detail": "legs_spine"}},
+}
+
+
+def encodings(url: str) -> dict[str, Any]:
+    """Bytes per joint-frame and per second for each encoding (and, live, level-of-detail mix)."""
+    with httpx.Client(base_url=url, timeout=300) as client:
+        joints = len(client.get("/v1/libraries/horse").json()["joint_names"])
+    paths = crowd.simulate(100, 300, seed=0).astype(np.float32)
+    out: dict[str, Any] = {"rest": {}, "live": {}}
+    for enc in ("f32", "i16", "s48", "delta"):
+        body = {"seed": 1, "encoding": enc,
+                "characters": [{"id": f"h{c}", "points": blob(p)} for c, p in enumerate(paths)]}
+        seconds, content = rest(url, body, 1)
+        answer = msgpack.unpackb(content)
+        rot = sum(len(ch["rotations"]["data"]) for ch in answer["characters"])
+        cf = sum(ch["frames"] for ch in answer["characters"])
+        out["rest"][enc] = {"bytes_per_joint_frame": round(rot / (cf * joints), 3),
+                            "answer_bytes_per_char_frame": round(len(content) / cf, 1),
+                            "seconds": round(seconds, 3)}
+    for enc, mix in (("s48", "full"), ("delta", "full"), ("delta", "tenth_full_rest_root_gait"),
+                     ("delta", "all_legs_spine")):
+        wire: dict[str, float] = {}
+        C = ENCODING_CHARACTERS
+        live(url, C, ENCODING_SECONDS, options={"encoding": enc, **MIXES[mix](C)}, wire=wire)
+        per_char_frame = wire["bytes"] / (wire["frames"] * C)
+        # Bytes only: a 4 s session's speed says nothing (most of its frames wait for the finish).
+        out["live"][f"{enc}/{mix}"] = {
+            "wire_bytes_per_joint_frame": round(per_char_frame / joints, 3),
+            "wire_bytes_per_char_frame": round(per_char_frame, 1),
+            "wire_bytes_per_s_per_character_30fps": round(per_char_frame * 30),
+            "link_MB_s_100k_at_30fps": round(per_char_frame * 30 * 100_000 / 1e6, 1)}
+    return out
+
+
+def run(url: str | None = None, repeats: int = REPEATS, only_encodings: bool = False) -> dict[str, Any]:
     if url is None:
         with local_service() as local:
-            return run(local, repeats)
+            return run(local, repeats, only_encodings)
+    if only_encodings:
+        return {"encodings": encodings(url)}
     paths = crowd.simulate(CHARACTERS, FRAMES, seed=0).astype(np.float32)
     body = {"seed": 1, "encoding": "s48",
             "characters": [{"id": f"h{c}", "points": blob(p)} for c, p in enumerate(paths)]}
@@ -198,4 +254,5 @@ def run(url: str | None = None, repeats: int = REPEATS) -> dict[str, Any]:
             "live_characters_30fps": round(live_rate),
             "live_paced_characters": paced, "live_latency_s_max": round(live_latency, 3),
             "bytes_per_joint_frame": len(rotations["data"]) / (frames * joints),
-            "rest_seconds": round(seconds, 3), "response_bytes": len(content)}
+            "rest_seconds": round(seconds, 3), "response_bytes": len(content),
+            "encodings": encodings(url)}

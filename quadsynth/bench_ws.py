@@ -34,6 +34,7 @@ class LeanSocket:
     def __init__(self, url: str, timeout: float = 300.0) -> None:
         parts = urlsplit(url)
         self.sock = socket.create_connection((parts.hostname, parts.port or 80), timeout=timeout)
+        self.last_bytes = 0  # the size of the last message recv_head read
         key = base64.b64encode(os.urandom(16)).decode()
         self.sock.sendall((f"GET {parts.path or '/'} HTTP/1.1\r\nHost: {parts.netloc}\r\n"
                            "Upgrade: websocket\r\nConnection: Upgrade\r\n"
@@ -108,6 +109,7 @@ class LeanSocket:
                 code = int.from_bytes(body[:2], "big") if n >= 2 else 1005
                 raise ConnectionError(f"the server closed the session: {code} {bytes(body[2:])!r}")
             elif opcode == _BINARY:
+                self.last_bytes = n  # the message's size on the wire
                 return _leading_fields(body)
 
 

@@ -379,7 +379,7 @@ def _bench(args: argparse.Namespace, extra: list[str]) -> int:
 def _bench_service(args: argparse.Namespace, extra: list[str]) -> int:
     from quadsynth.bench_service import run
 
-    figures = run(args.url, args.repeats)
+    figures = run(args.url, args.repeats, args.encodings)
     print(json.dumps(figures) if args.json else json.dumps(figures, indent=2))
     return 0
 
@@ -529,6 +529,8 @@ def _add_figures(sub: Any) -> None:
     bs.add_argument("--url", default=None, help="a running service (default: start one on a free port)")
     bs.add_argument("--repeats", type=int, default=4, help="runs per figure; the best counts")
     bs.add_argument("--json", action="store_true", help="one JSON object on one line")
+    bs.add_argument("--encodings", action="store_true",
+                    help="only the bytes per joint-frame and per second of each encoding and LOD mix")
     bs.set_defaults(func=_bench_service, passthrough=False)
 
 

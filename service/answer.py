@@ -19,14 +19,14 @@ import math
 import struct
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, NamedTuple
 
 import msgpack
 import numpy as np
 
+from api_schemas.packing import contact_bits, pack_rotations
 from api_schemas.wire import BYTES_PER_JOINT_FRAME, Encoding, packed_dtype
-from service import jobs
-from service.packing import contact_bits, pack_rotations
+from service import encode, jobs
 from synth_core.compiled.scratch import Scratch
 from synth_core.runtime.bank import Bank
 from synth_core.runtime.parallel_render import render_in_order
@@ -209,18 +209,15 @@ def produce(job: jobs.Job, bank: Bank, meta: dict[str, Any], emit: Callable[[Any
     numpy around the render runs on every core too (a 500 x 500 answer in-process: 0.26-0.28
     -> 0.18-0.20 s; over HTTP, interleaved: best 0.226 -> 0.204 s, median 0.273 -> 0.230)."""
     req = job.request
-    scales, seeds = jobs.character_scales_and_seeds(req)
-    options = jobs.options(req, job.max_character_frames)
-    try:
-        prep, h, keys = prepare_batch(bank, job.positions, req.fps, scales, options, job.ids, seeds)
-    except TrajectoryError as exc:
-        raise jobs.trajectory_error(exc, job) from None
+    batch = _prepare(job, bank, prepared)
+    prep, h, keys, options, frames = batch
     C, T = prep.positions.shape[:2]
-    if prepared is not None:
-        prepared(C, T)
     J = bank.skeleton.n_joints
-    frames = jobs.output_frames(job, T, prep.kept)
     encoding: Encoding = req.encoding
+    p = encode.packing(encoding, req.lod.frame_step, req.lod.detail,
+                       [req.characters[c].detail for c in prep.kept], bank.skeleton, h)
+    if not p.plain:
+        return produce_detailed(job, bank, meta, emit, as_json, batch, p)
     packer = None if as_json else msgpack.Packer(use_bin_type=True)
     characters = [character(packer, job.ids[c], float(h[i]), n, J, encoding)
                   for i, (c, n) in enumerate(zip(prep.kept, frames, strict=True))]
@@ -251,4 +248,77 @@ def produce(job: jobs.Job, bank: Bank, meta: dict[str, Any], emit: Callable[[Any
 
     for made in render_in_order(bank, prep, h, keys, options, per_chunk, piece, job.cancel):
         emit(made)
+    return sum(frames)
+
+
+class _Batch(NamedTuple):
+    """A prepared batch (:func:`prepare_batch`) and its characters' output frames."""
+    prep: Any
+    h: Any
+    keys: Any
+    options: Any
+    frames: list[int]
+
+
+def _prepare(job: jobs.Job, bank: Bank, prepared: Callable[[int, int], None] | None) -> _Batch:
+    """The job's batch prepared (422 for a bad trajectory), its size told to ``prepared``."""
+    req = job.request
+    scales, seeds = jobs.character_scales_and_seeds(req)
+    options = jobs.options(req, job.max_character_frames)
+    try:
+        prep, h, keys = prepare_batch(bank, job.positions, req.fps, scales, options, job.ids, seeds)
+    except TrajectoryError as exc:
+        raise jobs.trajectory_error(exc, job) from None
+    C, T = prep.positions.shape[:2]
+    if prepared is not None:
+        prepared(C, T)
+    return _Batch(prep, h, keys, options, jobs.output_frames(job, T, prep.kept))
+
+
+def produce_detailed(job: jobs.Job, bank: Bank, meta: dict[str, Any], emit: Callable[[Any], None],
+                     as_json: bool, batch: _Batch, p: encode.Packing) -> int:
+    """:func:`produce` of an answer whose size is known only once it is packed (delta) or that
+    leaves frames or joints out (a level of detail): every chunk rendered and packed first --
+    the packed answer is a fraction of the float32 one -- then its length and bytes sent."""
+    prep, h, keys, options, frames = batch
+    C, T = prep.positions.shape[:2]
+    J = bank.skeleton.n_joints
+    k = p.frame_step
+
+    def piece(chunk: Rendered, scratch: Scratch) -> list[tuple[dict[str, Any], list[np.ndarray]]]:
+        sl = chunk.characters
+        bits = contact_bits(chunk.plan.contacts)
+        out = []
+        for i in range(sl.stop - sl.start):
+            c = sl.start + i
+            sent = slice(0, frames[c], k)
+            detail = p.details[c]
+            joints = None if detail == "full" else p.joints(detail)
+            packed, rot = encode.rotations(chunk.rotations[i:i + 1, sent], p, np.array([c]), joints)
+            if p.encoding == "delta":
+                rot["decoded_shape"] = rot["decoded_shape"][1:]
+            else:
+                packed = packed[0]
+                rot["shape"] = rot["shape"][1:]
+            n = len(range(*sent.indices(T)))
+            # Copies: the chunk lives in this thread's scratch pages, which its next chunk reuses.
+            arrays = [np.array(a, order="C") for a in (chunk.root[i, sent], packed,
+                                                        chunk.plan.gait[i, sent], bits[i, sent])]
+            rot["data"] = Hole(arrays[1].nbytes)
+            out.append(({"id": job.ids[prep.kept[c]], "scale": float(h[c]), "frames": n,
+                         "root": hole_blob("<f4", [n, 3], 4), "rotations": rot,
+                         "gait": hole_blob("|i1", [n], 1), "contacts": hole_blob("|u1", [n], 1)}, arrays))
+        return out
+
+    made = [one for part in render_in_order(bank, prep, h, keys, options, characters_per_piece(T, J),
+                                            piece, job.cancel)
+            for one in part]
+    if job.cancel.is_set():
+        raise jobs.Cancelled
+    head = {**meta, "fps": meta["fps"] / k, "frame_step": k, "joints": J}
+    whole = {**head, "resample_rate": prep.resample_rate, "characters": [m[0] for m in made],
+             "skipped": jobs.skipped(job, prep), "warnings": jobs.warned(job, prep)}
+    parts = json_template(whole) if as_json else template(whole)
+    emit(sum(q.size if isinstance(q, Hole) else len(q) for q in parts))
+    emit(b"".join(filled(parts, [a for m in made for a in m[1]])))
     return sum(frames)

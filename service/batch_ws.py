@@ -12,7 +12,7 @@ from typing import Any
 
 from fastapi import WebSocket
 
-from service import jobs, live_ws, ws_session
+from service import encode, jobs, live_ws, ws_session
 from service.chunk import packed_chunk
 from service.errors import ApiError
 from service.packing import skeleton_id
@@ -46,13 +46,15 @@ async def _open(s: Session, job: jobs.Job, chunk_frames: int) -> BatchStream:
 
 
 def _start(s: Session, number: int, job: jobs.Job, stream: BatchStream, chunk_frames: int,
-           count: int) -> dict[str, Any]:
+           count: int, p: encode.Packing) -> dict[str, Any]:
     req, registry = job.request, s.state.registry
     frames = jobs.output_frames(job, stream.frames, stream.kept)
     ids = [job.ids[c] for c in stream.kept]
     return {"type": "start", "batch": number, "animal": req.animal,
             "skeleton_id": skeleton_id(req.animal, registry.libraries[req.animal].skeleton),
-            "fps": registry.banks[req.animal].fps, "encoding": req.encoding,
+            "fps": registry.banks[req.animal].fps / p.frame_step, "frame_step": p.frame_step,
+            "encoding": req.encoding, "details": list(p.details),
+            "joints": registry.banks[req.animal].skeleton.n_joints,
             "resample_rate": stream.resample_rate, "frames": stream.frames, "chunk_frames": chunk_frames,
             "chunks": count,
             "characters": [{"id": i, "scale": float(h), "frames": n}
@@ -69,10 +71,14 @@ async def stream_batch(s: Session, body: dict[str, Any]) -> None:
     stream = await _open(s, job, chunk_frames)
     count = -(-stream.frames // chunk_frames)
     chunks: Iterator[list[Window]] = stream.chunks()
+    req, bank = job.request, s.state.registry.banks[job.request.animal]
+    p = encode.packing(req.encoding, req.lod.frame_step, req.lod.detail,
+                       [req.characters[c].detail for c in stream.kept], bank.skeleton,
+                       stream.character_scales)
 
     def next_chunk(index: int) -> tuple[int, memoryview]:
         # A chunk's windows (the first's parts) are packed side by side.
-        return packed_chunk(number, index, next(chunks), job.request.encoding)
+        return packed_chunk(number, index, next(chunks), req.encoding, p=p)
 
     s.started()
     # The first chunk is made while `start` goes out (a client waits for that chunk).
@@ -81,7 +87,7 @@ async def stream_batch(s: Session, body: dict[str, Any]) -> None:
         s.in_pool(next_chunk, 0)) if count else None
     sent = 0
     try:
-        await s.send(_start(s, number, job, stream, chunk_frames, count))
+        await s.send(_start(s, number, job, stream, chunk_frames, count, p))
         while sent < count:
             if making is None:  # chunks after the first: made when the window has room
                 await s.wait_for_room(sent)

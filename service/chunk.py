@@ -16,11 +16,13 @@ import functools
 from collections.abc import Sequence
 from typing import Any
 
+import msgpack
 import numpy as np
 
+from api_schemas.packing import contact_bits, pack_rotations
 from api_schemas.wire import BYTES_PER_JOINT_FRAME, Encoding, blob, packed_dtype
+from service import encode
 from service.answer import Hole, hole_blob, template
-from service.packing import contact_bits, pack_rotations
 from synth_core.compiled import render_pool
 from synth_core.compiled.scratch import Scratch
 from synth_core.runtime.streaming import Window
@@ -38,12 +40,43 @@ def chunk_message(batch: int, index: int, window: Window, encoding: Encoding) ->
             "gait": blob(window.gait), "contacts": blob(contact_bits(window.contacts))}
 
 
+def detailed_chunk(batch: int, index: int, windows: Sequence[Window],
+                   p: encode.Packing) -> tuple[int, memoryview]:
+    """:func:`packed_chunk` of a chunk whose size is known only once packed (delta) or that
+    leaves out frames (``frame_step``: ``start`` and ``frames`` count the frames sent) or
+    characters' rotations (a level of detail: ``rotations.characters`` lists the rows sent,
+    ``rotations.joints`` the joints, when not all)."""
+    first = windows[0]
+    n = first.stop - first.start
+    sent, start = encode.sent_frames(first.start, n, p.frame_step)
+    root = np.concatenate([w.root_pos[:, sent] for w in windows])
+    gait = np.concatenate([w.gait[:, sent] for w in windows])
+    bits = contact_bits(np.concatenate([w.contacts[:, sent] for w in windows]))
+    rows, joints = encode.chunk_rows(p)
+    everyone = len(rows) == len(p.details)
+    # Only the rows sent are copied out of each window (a far character's rotations never are).
+    edges = np.cumsum([0, *(w.root_pos.shape[0] for w in windows)])
+    q = np.concatenate([w.rotations[rows[(rows >= a) & (rows < b)] - a][:, sent]
+                        for w, a, b in zip(windows, edges[:-1], edges[1:], strict=True)])
+    packed, rot = encode.rotations(q, p, rows, joints)
+    if not everyone:
+        rot["characters"] = rows.tolist()
+    rot["data"] = packed.tobytes()
+    message = {"type": "chunk", "batch": batch, "chunk": index, "start": start, "frames": root.shape[1],
+               "root": blob(root), "rotations": rot, "gait": blob(gait), "contacts": blob(bits)}
+    return n, memoryview(msgpack.packb(message, use_bin_type=True))
+
+
 def packed_chunk(batch: int, index: int, windows: Sequence[Window], encoding: Encoding,
-                 scratch: Scratch | None = None, name: str = "chunk") -> tuple[int, memoryview]:
+                 scratch: Scratch | None = None, name: str = "chunk",
+                 p: encode.Packing | None = None) -> tuple[int, memoryview]:
     """The frame count and the packed chunk message of ``windows`` (the same frames of
     consecutive characters; one window: all of them): ``msgpack.packb`` of
     :func:`chunk_message` of them joined, made in the pool (CPU work the event loop must not do).
-    ``scratch``: packed on its buffer ``name`` (the message then holds until that is used again)."""
+    ``scratch``: packed on its buffer ``name`` (the message then holds until that is used again);
+    ``p``: the request's encoding and level of detail, where they are not the plain case."""
+    if p is not None and not p.plain:
+        return detailed_chunk(batch, index, windows, p)
     first = windows[0]
     n = first.stop - first.start
     C = sum(w.root_pos.shape[0] for w in windows)
@@ -87,11 +120,9 @@ def packed_chunk(batch: int, index: int, windows: Sequence[Window], encoding: En
     if len(windows) == 1:
         fill(first, 0)
     else:
-        # A live session's shards' windows, each filled on a render-pool thread (one-thread packer).
-        # Packed here with the compiled packer's own two threads, a 4,000-horse session took
-        # 1.92-1.94 s in-process, this way 1.59-1.64 (medians), though either packing alone
-        # takes the same 11-12 ms a chunk; why, not pinned down (not the thread team spinning:
-        # OMP_WAIT_POLICY=passive changed nothing).
+        # A live session's shards' windows, each filled on a render-pool thread (one-thread
+        # packer): faster in a whole session than the compiled packer's own two threads, though
+        # either packs a chunk alone as fast (why is not pinned down; not the thread team spinning).
         render_pool.side_by_side([functools.partial(fill, w, row)
                                   for w, row in zip(windows, rows[:-1], strict=True)])
     return n, memoryview(buf)  # type: ignore[arg-type]

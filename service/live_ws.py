@@ -10,14 +10,18 @@ import contextlib
 import functools
 import time
 from collections.abc import Callable
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from api_schemas import LiveRequest
+from api_schemas.models import DETAILS
 from api_schemas.wire import WireError, unblob
+from service import encode
 from service.chunk import packed_chunk
+from service.encode import Packing
 from service.errors import ApiError
 from service.jobs import validate
 from service.packing import skeleton_id
@@ -47,6 +51,21 @@ def open_live(body: Any, settings: Settings, banks: dict[str, Bank]) -> tuple[Li
     except TrajectoryError as exc:
         raise live_error(exc, "characters") from None
     return req, live
+
+
+def new_details(p: Packing, body: dict[str, Any]) -> Packing:
+    """A ``lod`` message's ``details``: every character's level of detail from the next chunk on
+    (None: the session's ``lod.detail``); 422 naming the field for anything else."""
+    details = body.get("details")
+    C = len(p.details)
+    if not isinstance(details, list) or len(details) != C:
+        raise ApiError(422, "details", f"a lod message needs `details`: a list of {C} levels of detail "
+                                       f"(one per character, null for the session's), got {details!r:.80}")
+    for i, d in enumerate(details):
+        if d is not None and d not in DETAILS:
+            raise ApiError(422, f"details[{i}]",
+                           f"must be one of {', '.join(DETAILS)} or null, got {d!r:.40}")
+    return replace(p, details=tuple(p.default if d is None else d for d in details))
 
 
 def live_error(exc: TrajectoryError, field: str) -> ApiError:
@@ -84,8 +103,8 @@ class LiveRun:
     """One live session on a connection: its synthesizer, the chunk being sent while the next
     is made, and the scratch pages its chunks are packed into."""
 
-    def __init__(self, s: Session, number: int, req: LiveRequest, synth: LiveShards) -> None:
-        self.s, self.number, self.req, self.synth = s, number, req, synth
+    def __init__(self, s: Session, number: int, req: LiveRequest, synth: LiveShards, p: Packing) -> None:
+        self.s, self.number, self.req, self.synth, self.p = s, number, req, synth, p
         self.C = len(req.characters)
         # Windows of at most a segment's frames: a finish (or a long points message) settling
         # more comes as several chunks, each window rendered and packed over the last's pages
@@ -108,7 +127,7 @@ class LiveRun:
             return None
         # Two buffers in turn: one is sent while the next is packed.
         return packed_chunk(self.number, index, windows, self.req.encoding, self.scratch,
-                            f"chunk{index % 2}")
+                            f"chunk{index % 2}", self.p)
 
     async def made(self, advance: Callable[[], list[Window] | None]) -> tuple[int, memoryview] | None:
         t0 = time.perf_counter()
@@ -147,6 +166,9 @@ class LiveRun:
             if message is None:  # before its finish: the client cancelled or left
                 s.state.metrics.cancelled += 1
                 return
+            if message.get("type") == "lod":  # the characters' details from the next chunk on
+                self.p = new_details(self.p, message)
+                continue
             finishing = message.get("type") == "finish"
             await self.tick(functools.partial(synth.finish, W) if finishing else
                             functools.partial(synth.append, points(message, self.C, s.settings), W))
@@ -164,13 +186,16 @@ class LiveRun:
             self.s.state.scratches.give(self.scratch)
 
 
-def _start_message(s: Session, number: int, req: LiveRequest, synth: LiveShards) -> dict[str, Any]:
+def _start_message(s: Session, number: int, req: LiveRequest, synth: LiveShards,
+                   p: Packing) -> dict[str, Any]:
     registry = s.state.registry
     fps = registry.banks[req.animal].fps
     return {"type": "start", "batch": number, "mode": "live", "animal": req.animal,
             "skeleton_id": skeleton_id(req.animal, registry.libraries[req.animal].skeleton),
-            "fps": fps / synth.out_step, "library_fps": fps, "encoding": req.encoding,
-            "resample_rate": 1.0, "latency_frames": -(-synth.latency_frames // synth.out_step),
+            "fps": fps / synth.out_step / p.frame_step, "library_fps": fps,
+            "frame_step": p.frame_step, "encoding": req.encoding, "details": list(p.details),
+            "joints": registry.banks[req.animal].skeleton.n_joints, "resample_rate": 1.0,
+            "latency_frames": -(-synth.latency_frames // synth.out_step),
             "latency_s": synth.latency_frames / fps,
             "characters": [{"id": c.id, "scale": float(h)}
                            for c, h in zip(req.characters, synth.scales, strict=True)]}
@@ -180,9 +205,12 @@ async def stream_live(s: Session, body: dict[str, Any]) -> None:
     """A ``live`` message: start, frames for the points as they come until finish, end."""
     number = s.begin()
     req, synth = open_live(body, s.settings, s.state.registry.banks)
-    await s.send(_start_message(s, number, req, synth))
+    bank = s.state.registry.banks[req.animal]
+    p = encode.packing(req.encoding, req.lod.frame_step, req.lod.detail,
+                       [c.detail for c in req.characters], bank.skeleton, synth.scales)
+    await s.send(_start_message(s, number, req, synth, p))
     s.started()
-    run = LiveRun(s, number, req, synth)
+    run = LiveRun(s, number, req, synth, p)
     try:
         await run.run()
         if run.sending is not None:

@@ -19,7 +19,7 @@ import time
 from collections.abc import AsyncIterator, Callable
 from typing import Any
 
-from api_schemas.wire import BYTES_PER_JOINT_FRAME, MSGPACK
+from api_schemas.wire import BYTES_PER_JOINT_FRAME, DELTA_BYTES_PER_JOINT_FRAME, MSGPACK
 from service import answer, budget, jobs
 from service.body import JSON, PiecesResponse
 from service.pipe import Pipe
@@ -40,7 +40,9 @@ class Answer:
         self.end = self.loop.time() + state.settings.deadline_s
         self.estimate = functools.partial(
             budget.answer_bytes, joints=self.bank.skeleton.n_joints,
-            bytes_per_joint_frame=BYTES_PER_JOINT_FRAME[job.request.encoding], as_json=as_json,
+            bytes_per_joint_frame=BYTES_PER_JOINT_FRAME.get(job.request.encoding,
+                                                            int(DELTA_BYTES_PER_JOINT_FRAME)),
+            as_json=as_json,
             buffer_bytes=state.settings.answer_buffer_bytes, input_bytes=input_bytes)
         self.reservation = state.memory.reserve(self.estimate(len(job.lengths), job.out_frames))
         self.pipe = Pipe(self.loop, state.settings.answer_buffer_bytes)

@@ -6,7 +6,8 @@ import os
 from dataclasses import dataclass, fields
 
 from api_schemas import Limits
-from api_schemas.wire import BYTES_PER_JOINT_FRAME, ENCODING_ERROR
+from api_schemas.delta import MAX_ERROR_M as DELTA_MAX_ERROR_M
+from api_schemas.wire import BYTES_PER_JOINT_FRAME, DELTA_BYTES_PER_JOINT_FRAME, ENCODING_ERROR
 
 
 @dataclass(frozen=True)
@@ -56,4 +57,6 @@ class Settings:
             send_timeout_s=self.send_timeout_s, body_timeout_s=self.body_timeout_s,
             encodings={e: {"bytes_per_joint_frame": BYTES_PER_JOINT_FRAME[e],
                            "max_error_deg": ENCODING_ERROR[e][0],
-                           "max_error_mm_at_3cm": ENCODING_ERROR[e][1]} for e in BYTES_PER_JOINT_FRAME})
+                           "max_error_mm_at_3cm": ENCODING_ERROR[e][1]} for e in BYTES_PER_JOINT_FRAME}
+            | {"delta": {"bytes_per_joint_frame": DELTA_BYTES_PER_JOINT_FRAME,
+                         "max_world_error_mm": DELTA_MAX_ERROR_M * 1000.0}})

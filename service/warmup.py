@@ -26,7 +26,8 @@ def compile_kernels(directory: Path | None = None) -> None:
 def warm_up(registry: LibraryRegistry) -> None:
     """Load (or compile) the kernels and packers before /readyz says ready, so the first
     request does not pay for it."""
-    from service.packing import pack_rotations
+    from api_schemas import delta
+    from api_schemas.packing import pack_rotations
     from synth_core.runtime.live import LiveSynth
     from synth_core.runtime.streaming import BatchStream
     from synth_core.runtime.synthesis import synthesize
@@ -41,6 +42,7 @@ def warm_up(registry: LibraryRegistry) -> None:
         result = synthesize(bank, path)
         for encoding in ("s48", "i16"):
             pack_rotations(result.rotations, encoding)
+        delta.encode(result.rotations, delta.joint_steps(bank.skeleton.parents, bank.skeleton.offsets))
         for _ in BatchStream(bank, path, chunk_frames=10).windows():
             pass
         live = LiveSynth(bank, 2, 30.0)

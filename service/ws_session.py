@@ -124,11 +124,11 @@ class Session:
             self.cancel.set()
         elif kind in ("synthesize", "live"):
             self.take_request(kind, body)
-        elif kind in ("points", "finish"):
+        elif kind in ("points", "finish", "lod"):
             self.take_points(kind, body, len(raw))
         else:
             raise _protocol(INVALID_DATA, "type", f"unknown message type {kind!r}; expected synthesize, "
-                                                  "live, points, finish, ack, ping or cancel")
+                                                  "live, points, lod, finish, ack, ping or cancel")
 
     def take_ack(self, body: dict[str, Any]) -> None:
         chunk = body.get("chunk")
@@ -156,7 +156,7 @@ class Session:
             waiting = f"{self.inbox.qsize()} points messages ({self.inbox_bytes} bytes)"
             why = f"{waiting} wait, at most {LIVE_INBOX} and {room} bytes: sent faster than made"
             raise Closing(TRY_LATER, ApiError(503, "points", why))
-        self.live_open = kind == "points"
+        self.live_open = kind != "finish"
         self.inbox_bytes += size
         body["_bytes"] = size
         self.inbox.put_nowait(body)

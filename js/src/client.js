@@ -46,14 +46,15 @@ function requestBody(request) {
   return { ...request, characters };
 }
 
-/** A `chunk` message decoded: typed arrays for all characters at once. */
-export function decodeChunk(message) {
+/** A `chunk` message decoded: typed arrays for all characters at once. `header`: the batch's
+ * or session's `start` (its joint count fills in what a level of detail left out). */
+export function decodeChunk(message, header = {}) {
   const root = unblob(message.root, 'root');
   const [C, n] = message.root.shape;
-  const rotations = decodeRotations(message.rotations);
+  const rotations = decodeRotations(message.rotations, 'rotations', { joints: header.joints, characters: C });
   return {
     batch: message.batch, index: message.chunk, start: message.start, frames: n, characters: C,
-    joints: rotations.length / Math.max(C * n * 4, 1), encoding: message.rotations.encoding,
+    joints: header.joints ?? rotations.length / Math.max(C * n * 4, 1), encoding: message.rotations.encoding,
     root, rotations, gait: unblob(message.gait, 'gait'), contacts: unblob(message.contacts, 'contacts'),
   };
 }
@@ -184,7 +185,8 @@ export class QuadSynthClient {
     const body = decode(bytes);
     body.characters = body.characters.map((ch, c) => ({
       id: ch.id, scale: ch.scale, frames: ch.frames,
-      root: unblob(ch.root, `characters[${c}].root`), rotations: decodeRotations(ch.rotations, `characters[${c}].rotations`),
+      root: unblob(ch.root, `characters[${c}].root`),
+      rotations: decodeRotations(ch.rotations, `characters[${c}].rotations`, { joints: body.joints }),
       gait: unblob(ch.gait), contacts: unblob(ch.contacts),
     }));
     return body;
@@ -236,16 +238,16 @@ export class QuadSynthClient {
     const message = { type: 'synthesize', chunk_frames: chunkFrames, ...requestBody(request) };
     let given = 0;
     for (let attempt = 0; ; attempt++) {
-      let sock;
+      let sock, header = {};
       try {
         sock = await this.openSocket();
         sock.send(message);
         for (;;) {
           const m = await sock.next();
-          if (m.type === 'start') onStart?.(m);
+          if (m.type === 'start') { header = m; onStart?.(m); }
           else if (m.type === 'chunk') {
             if (m.chunk >= given) {
-              yield decodeChunk(m);
+              yield decodeChunk(m, header);
               given = m.chunk + 1;
               attempt = 0;
             }
@@ -357,7 +359,7 @@ export class LiveSession {
       for (;;) {
         const m = await sock.next();
         if (m.type === 'chunk') {
-          const chunk = decodeChunk(m);
+          const chunk = decodeChunk(m, this.header);
           chunk.start += this.offset;
           const skip = this.delivered - chunk.start;
           if (skip < chunk.frames) {

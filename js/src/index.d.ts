@@ -1,12 +1,19 @@
 // Typings of quadsynth-client (the sources are plain ES modules; no build step).
 
-export type Encoding = 'f32' | 'i16' | 's48';
+export type Encoding = 'f32' | 'i16' | 's48' | 'delta';
+export type Detail = 'full' | 'legs_spine' | 'root_gait';
+export interface Lod { detail?: Detail; frame_step?: number }
 export type Dtype = '<f4' | '<f8' | '<i2' | '<i4' | '|i1' | '|u1';
 export type TypedArray = Float32Array | Float64Array | Int16Array | Int32Array | Int8Array | Uint8Array;
 
 /** An array on the wire: little-endian `data`, C order. */
 export interface Blob { dtype: Dtype; shape: number[]; data: Uint8Array }
-export interface PackedRotations extends Blob { encoding: Encoding }
+export interface PackedRotations extends Blob {
+  encoding: Encoding;
+  decoded_shape?: number[]; // delta: what its blocks decode to
+  joints?: number[]; // level of detail: the joints sent (absent: all)
+  characters?: number[]; // a chunk's rows sent (absent: all)
+}
 
 export class WireError extends Error { field: string }
 export class ServiceError extends Error {
@@ -18,12 +25,17 @@ export class ServiceError extends Error {
 export function unblob(blob: Blob, field?: string): TypedArray;
 export function blob(array: TypedArray, shape: number[]): Blob;
 /** Unit quaternions xyzw, 4 floats per rotation, whatever the encoding. */
-export function decodeRotations(rotations: PackedRotations, field?: string): Float32Array;
+export function decodeRotations(rotations: PackedRotations, field?: string,
+  full?: { joints?: number; characters?: number }): Float32Array;
+/** delta blocks -> rotations (blocks x frames x joints x 4, xyzw). */
+export function decodeDelta(bytes: Uint8Array, field?: string):
+  { rotations: Float32Array; blocks: number; frames: number; joints: number };
+export const DELTA_MAX_ERROR_MM: number;
 export function decodeS48(bytes: Uint8Array): Float32Array;
 export function decodeI16(packed: Int16Array): Float32Array;
 export function contactFeet(mask: number): [boolean, boolean, boolean, boolean];
 /** Worst error per encoding: [degrees, mm at a point 3 cm from the joint]. */
-export const ENCODING_ERROR: Record<Encoding, [number, number]>;
+export const ENCODING_ERROR: Record<'f32' | 'i16' | 's48', [number, number]>;
 export const FEET: ['LF', 'RF', 'LH', 'RH'];
 export const GAITS: ['static', 'walk', 'trot', 'canter', 'gallop'];
 export const RETRY_CODES: Set<number>;
@@ -69,16 +81,17 @@ export interface Chunk {
   gait: Int8Array; // characters x frames: 0 static, 1 walk, 2 trot, 3 canter, 4 gallop
   contacts: Uint8Array; // characters x frames: bit mask 1 LF, 2 RF, 4 LH, 8 RH
 }
-export function decodeChunk(message: Record<string, unknown>): Chunk;
+export function decodeChunk(message: Record<string, unknown>, header?: Record<string, unknown>): Chunk;
 export function sliceChunk(chunk: Chunk, from: number): Chunk;
 
 export interface CharacterRequest {
   id?: string; points: Float32Array | Float64Array | [number, number, number][]; scale?: number; seed?: number;
+  detail?: Detail;
 }
 export interface SynthesizeRequest {
   characters: CharacterRequest[]; animal?: string; fps?: number; seed?: number; sigma?: number;
   encoding?: Encoding; skip_invalid?: boolean; scale_min?: number; scale_max?: number; foot_lock?: boolean;
-  first_index?: number; min_resample_rate?: number;
+  first_index?: number; min_resample_rate?: number; lod?: Lod;
 }
 export interface CharacterMotion {
   id: string; scale: number; frames: number;
@@ -89,8 +102,8 @@ export interface Motion {
   characters: CharacterMotion[]; skipped: { id: string; index: number; reason: string }[];
 }
 export interface LiveOptions {
-  characters: { id: string; scale?: number; seed?: number }[]; fps: number; animal?: string; seed?: number;
-  sigma?: number; encoding?: Encoding; scale_min?: number; scale_max?: number; foot_lock?: boolean; heading?: number;
+  characters: { id: string; scale?: number; seed?: number; detail?: Detail }[]; fps: number; animal?: string;
+  seed?: number; sigma?: number; encoding?: Encoding; lod?: Lod; scale_min?: number; scale_max?: number; foot_lock?: boolean; heading?: number;
 }
 export interface LiveStart {
   type: 'start'; mode: 'live'; fps: number; library_fps: number; latency_frames: number; latency_s: number;

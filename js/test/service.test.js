@@ -189,3 +189,47 @@ test('a herd spread over requests in flight is the motion one request gives', { 
   });
   assert.deepEqual(spread.warnings, one.warnings);
 });
+
+test('delta: every joint within 0.1 mm of f32 after FK (REST; WebSocket batch with levels of detail)', { skip }, async (t) => {
+  const qs = client();
+  const skeleton = await qs.skeleton('horse');
+  const J = skeleton.joints;
+  const exact = await qs.synthesize(request('f32'));
+  /** Largest distance (m) between the joints of `rot` and of f32's character c, frame f. */
+  const worstAt = (c, f, rot, at, fRef) => {
+    const ch = exact.characters[c];
+    const a = worldPose(skeleton, ch.root, fRef * 3, ch.rotations, fRef * J * 4, ch.scale).positions.slice();
+    const b = worldPose(skeleton, ch.root, fRef * 3, rot, at, ch.scale).positions;
+    let worst = 0;
+    for (let j = 0; j < J; j++) worst = Math.max(worst, Math.hypot(a[j * 3] - b[j * 3], a[j * 3 + 1] - b[j * 3 + 1], a[j * 3 + 2] - b[j * 3 + 2]));
+    return worst;
+  };
+  const rest = await qs.synthesize(request('delta'));
+  let worst = 0;
+  rest.characters.forEach((ch, c) => {
+    assert.equal(ch.rotations.length, exact.characters[c].rotations.length);
+    for (let f = 0; f < ch.frames; f++) worst = Math.max(worst, worstAt(c, f, ch.rotations, f * J * 4, f));
+  });
+  t.diagnostic(`delta REST: every joint within ${(worst * 1000).toFixed(4)} mm of f32`);
+  assert.ok(worst <= 1e-4 + 1e-5, `delta REST: ${worst * 1000} mm`); // 1e-5 m: FK in float32
+  // The stream: character 0 at full detail, 1 and 2 far (root and gait only), every 2nd frame.
+  const lod = { ...request('delta'), lod: { detail: 'root_gait', frame_step: 2 } };
+  lod.characters = lod.characters.map((ch, c) => (c === 0 ? { ...ch, detail: 'full' } : ch));
+  let streamed = 0, frames = 0, header;
+  for await (const chunk of qs.stream(lod, { chunkFrames: 40, onStart: (m) => { header = m; } })) {
+    assert.equal(chunk.joints, J);
+    for (let f = 0; f < chunk.frames; f++) {
+      const fRef = (chunk.start + f) * 2;
+      streamed = Math.max(streamed, worstAt(0, f, chunk.rotations, f * J * 4, fRef));
+      for (let c = 1; c < C; c++) {
+        const at = ((c * chunk.frames + f) * J) * 4;
+        for (let j = 0; j < J; j++) assert.equal(chunk.rotations[at + j * 4 + 3], 1); // identity: not sent
+        assert.equal(chunk.root[(c * chunk.frames + f) * 3], exact.characters[c].root[fRef * 3]);
+      }
+    }
+    frames += chunk.frames;
+  }
+  assert.equal(header.frame_step, 2);
+  assert.equal(frames, Math.ceil(exact.characters[0].frames / 2));
+  assert.ok(streamed <= 1e-4 + 1e-5, `delta stream: ${streamed * 1000} mm`);
+});

@@ -1,7 +1,7 @@
 // Decoding without a service: the worked examples of docs/wire-format.md, unaligned blobs.
 import { test } from 'node:test';
 import assert from 'node:assert/strict';
-import { decodeRotations, decodeS48, decodeI16, unblob, blob, contactFeet, WireError } from '../src/index.js';
+import { decodeRotations, decodeS48, decodeI16, decodeDelta, unblob, blob, contactFeet, WireError } from '../src/index.js';
 
 test('s48: the worked example (45 degrees about Y)', () => {
   const q = decodeS48(Uint8Array.from([0x03, 0x00, 0x45, 0xc5, 0x00, 0x40]));
@@ -48,4 +48,34 @@ test('blobs that do not add up are refused, naming the field', () => {
 
 test('contacts bit mask in foot order LF, RF, LH, RH', () => {
   assert.deepEqual(contactFeet(0b1001), [true, false, false, true]);
+});
+
+test('delta: the worked example (one joint turning 0, 10, 20, 30 degrees about Y)', () => {
+  const bytes = Uint8Array.from([0x01, 0x00, 0x04, 0x00, 0x01, 0x00, 0x17, 0x00, 0x00, 0x00, 0x16, 0x00, 0x00, 0x00,
+    0x40, 0x1f, 0x00, 0x00, 0xce, 0x07, 0x40, 0x0b, 0x12]);
+  const { rotations: q, blocks, frames, joints } = decodeDelta(bytes);
+  assert.deepEqual([blocks, frames, joints], [1, 4, 1]);
+  const step = 2 ** (-64 / 8); // the joint's step code 0x40: 1/256 rad
+  [0, 10, 20, 30].forEach((deg, t) => {
+    const angle = 2 * Math.atan2(q[t * 4 + 1], q[t * 4 + 3]);
+    assert.ok(Math.abs(angle - (deg * Math.PI) / 180) <= (step * Math.sqrt(3)) / 2, `frame ${t}: ${angle}`);
+    assert.ok(Math.abs(q[t * 4]) < 1e-7 && Math.abs(q[t * 4 + 2]) < 1e-7);
+  });
+  // The same bytes as a response's rotations map; a level of detail's joints filled in.
+  const rot = { dtype: '|u1', shape: [23], data: bytes, encoding: 'delta', decoded_shape: [4, 1, 4], joints: [2] };
+  const full = decodeRotations(rot, 'rotations', { joints: 3 });
+  assert.equal(full.length, 4 * 3 * 4);
+  assert.deepEqual(Array.from(full.subarray(0, 8)), [0, 0, 0, 1, 0, 0, 0, 1]); // joints 0 and 1: identity
+  assert.equal(full[8 + 1], q[1]);
+});
+
+test('delta: a cut or altered block is refused, not misread', () => {
+  const bytes = Uint8Array.from([0x01, 0x00, 0x04, 0x00, 0x01, 0x00, 0x17, 0x00, 0x00, 0x00, 0x16, 0x00, 0x00, 0x00,
+    0x40, 0x1f, 0x00, 0x00, 0xce, 0x07, 0x40, 0x0b, 0x12]);
+  assert.throws(() => decodeDelta(bytes.subarray(0, 20)), WireError);
+  const other = bytes.slice();
+  other[0] = 2;
+  assert.throws(() => decodeDelta(other), /version 2/);
+  assert.throws(() => decodeRotations({ dtype: '|u1', shape: [23], data: bytes, encoding: 'delta', decoded_shape: [5, 1, 4] }),
+    (e) => e instanceof WireError && e.field === 'rotations.decoded_shape');
 });

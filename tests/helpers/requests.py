@@ -31,3 +31,11 @@ def same_motion(a: Path, b: Path) -> None:
         np.testing.assert_array_equal(remote[key], local[key], err_msg=key)
     for key in ("root_pos", "rotations"):
         np.testing.assert_allclose(remote[key], local[key], atol=1e-5, err_msg=key)
+
+
+def refused(response: httpx.Response, status: int, field: str, *words: str) -> None:
+    assert response.status_code == status, (field, response.text[:300])
+    error = response.json()["error"]
+    assert error["status"] == status and error["field"] == field, error
+    for word in words:
+        assert word in error["message"], error
