@@ -102,6 +102,36 @@ print(json.dumps({"modules": names, "refused_and_loaded": refused_and_loaded(), 
     assert report["refused_and_loaded"] == []
 
 
+def test_the_core_runs_without_numba_on_its_numpy_reference(tmp_path: Path) -> None:
+    """numba is installed with the core (the compiled kernels, ~30x faster), but the core does not
+    need it: refused, every module imports and a herd is synthesized by the numpy reference, the
+    motion the kernels make."""
+    code = """
+import importlib, pkgutil
+import numpy as np
+import synth_core
+for module in pkgutil.walk_packages(synth_core.__path__, "synth_core."):
+    importlib.import_module(module.name)
+from synth_core.build.animals import build_builtin
+from synth_core.compiled import kernels
+from synth_core.quality import herd_sim
+from synth_core.runtime.bank import build_bank
+from synth_core.runtime.synthesis import synthesize
+result = synthesize(build_bank(build_builtin("dog")), herd_sim.simulate(3, 90, seed=1))
+np.savez(sys.argv[1], rotations=result.rotations, gait=result.gait, compiled=kernels.AVAILABLE)
+print(json.dumps(refused_and_loaded()))
+"""
+    for name, blocked in (("reference", outside_the_core("synth_core") | {"numba", "llvmlite"}),
+                          ("compiled", outside_the_core("synth_core"))):
+        done = run_refusing(blocked, code, str(tmp_path / f"{name}.npz"))
+        assert done.returncode == 0, done.stderr[-3000:]
+        assert json.loads(done.stdout.splitlines()[-1]) == []
+    with np.load(tmp_path / "reference.npz") as reference, np.load(tmp_path / "compiled.npz") as compiled:
+        assert not reference["compiled"] and compiled["compiled"]
+        np.testing.assert_array_equal(reference["gait"], compiled["gait"])
+        np.testing.assert_allclose(reference["rotations"], compiled["rotations"], atol=1e-4)
+
+
 @pytest.fixture(scope="module")
 def core_cli_files(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     """A library file and a small herd's trajectories, made with the CLI under the refusal."""
