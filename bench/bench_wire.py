@@ -78,7 +78,7 @@ cache: dict[str, tuple[NDArray[Any], NDArray[Any], NDArray[Any]]] = {}
 
 
 def run(quick: bool = False) -> dict[str, Any]:
-    from service.libraries import builtin_library
+    from synth_core.build.library_store import builtin_library
 
     out: dict[str, Any] = {"max_error_m_budget": delta.MAX_ERROR_M}
     for animal in ("horse", "dog"):

@@ -13,7 +13,7 @@ from hypothesis import strategies as st
 from api_schemas import delta
 from api_schemas.wire import WireError, decode_rotations, rotation_angle, rotations_of
 from bench.bench_wire import errors
-from service.libraries import builtin_library
+from synth_core.build.library_store import builtin_library
 from synth_core.build.motion_graph import HUBS
 from synth_core.motion.lod import detail_joints
 from synth_core.motion.skeleton import forward_kinematics

@@ -66,3 +66,19 @@ def test_a_built_in_library_built_by_other_code_is_built_again_and_the_old_file_
     assert stamp.read_text().strip() == library_store.builtin_source()
     stamp.unlink()  # no stamp at all (a file from before stamps, or the user's own)
     assert len(library_store.ensure_builtin_libraries(tmp_path)) == 1 and stamp.exists()
+
+
+def test_the_stamp_digests_every_module_that_builds_a_library() -> None:
+    """A built-in library is rebuilt when the code that made it changes: every synth_core module a
+    build (and the bank the service makes of it) imports must be in the digest, whatever the
+    package layout (a module moved out of it would silently stop counting)."""
+    import subprocess
+    import sys
+
+    code = ("import sys; from synth_core.build.animals import build_builtin; "
+            "from synth_core.runtime.bank import build_bank; build_bank(build_builtin('dog')); "
+            "print('\\n'.join(m.__file__ for n, m in sys.modules.items() if n.startswith('synth_core')))")
+    loaded = subprocess.run([sys.executable, "-c", code], check=True, capture_output=True, text=True)
+    used = {Path(f).resolve() for f in loaded.stdout.split()}
+    digested = {f.resolve() for f in library_store.builtin_source_files()}
+    assert len(used) > 10 and used <= digested, sorted(str(f) for f in used - digested)

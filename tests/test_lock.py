@@ -33,16 +33,29 @@ def pins(lock: Path) -> dict[str, list[tuple[str, str, int]]]:
     return found
 
 
-def wanted(extra: bool) -> list[Requirement]:
-    project = PYPROJECT["project"]
-    names = [*project["dependencies"], *PYPROJECT["build-system"]["requires"]]
-    return [Requirement(r) for r in names + (project["optional-dependencies"]["dev"] if extra else [])]
+def extra(name: str) -> list[Requirement]:
+    """An extra's requirements, its references to the project's other extras expanded."""
+    found = []
+    for text in PYPROJECT["project"]["optional-dependencies"][name]:
+        requirement = Requirement(text)
+        if canonicalize_name(requirement.name) == "quadsynth":
+            found += [r for other in sorted(requirement.extras) for r in extra(other)]
+        else:
+            found.append(requirement)
+    return found
 
 
-@pytest.mark.parametrize(("lock", "extra"), [("requirements.lock", False), ("requirements-dev.lock", True)])
-def test_the_lock_pins_every_dependency_within_its_range_with_hashes(lock: str, extra: bool) -> None:
+def wanted(extras: tuple[str, ...]) -> list[Requirement]:
+    names = [*PYPROJECT["project"]["dependencies"], *PYPROJECT["build-system"]["requires"]]
+    return [Requirement(r) for r in names] + [r for name in extras for r in extra(name)]
+
+
+@pytest.mark.parametrize(("lock", "extras"), [("requirements.lock", ("service",)),
+                                               ("requirements-dev.lock", ("dev",))])
+def test_the_lock_pins_every_dependency_within_its_range_with_hashes(lock: str,
+                                                                     extras: tuple[str, ...]) -> None:
     pinned = pins(REPO / lock)
-    for requirement in wanted(extra):
+    for requirement in wanted(extras):
         name = canonicalize_name(requirement.name)
         assert name in pinned, f"{lock} lacks {name} (pyproject.toml): run ./scripts/lock"
         for version, _, _ in pinned[name]:
@@ -51,6 +64,13 @@ def test_the_lock_pins_every_dependency_within_its_range_with_hashes(lock: str, 
     assert {"numba", "llvmlite", "numpy", "setuptools"} <= set(pinned)  # the compiled core and its build
     unhashed = [name for name, versions in pinned.items() if any(h == 0 for _, _, h in versions)]
     assert not unhashed
+
+
+def test_the_dev_extra_holds_every_other_extra() -> None:
+    """./scripts/test (the dev lock) tests the service, the client and the previews."""
+    others = set(PYPROJECT["project"]["optional-dependencies"]) - {"dev"}
+    assert {canonicalize_name(r.name) for r in extra("dev")} >= \
+        {canonicalize_name(r.name) for name in others for r in extra(name)}
 
 
 def test_the_runtime_lock_agrees_with_the_dev_lock() -> None:

@@ -33,19 +33,29 @@ def library_dir() -> Path:
     return Path(data_home) / "quadsynth" / "library"
 
 
-# The code a built-in library is made by (folders: every module in them), relative to
-# synth_core: a file built by other code than these is stale.
-_BUILDERS = ("builtin", "build", "motion/contacts.py", "runtime/bank.py")
+# The code a built-in library is made by (paths in synth_core): a file built by other code than
+# this is stale. Whole packages, so that a module added or moved inside them counts too.
+# tests/test_libraries.py checks that every synth_core module building a library imports is here.
+_BUILDERS = ("__init__.py", "build", "builtin", "motion", "quality/__init__.py", "quality/metrics.py",
+             "runtime/__init__.py", "runtime/bank.py")
+
+
+def builtin_source_files() -> list[Path]:
+    """The files :func:`builtin_source` digests."""
+    root = Path(synth_core.__file__).parent
+    missing = [name for name in _BUILDERS if not (root / name).exists()]
+    if missing:  # a module moved: say so instead of a bare FileNotFoundError at every start
+        raise RuntimeError(f"library_store._BUILDERS names {missing}, not in {root}: update it")
+    return sorted(f for name in _BUILDERS
+                  for f in ((root / name).rglob("*.py") if (root / name).is_dir() else [root / name]))
 
 
 @functools.cache
 def builtin_source() -> str:
     """A digest of the code that builds the built-in animals (written beside each built file)."""
     root = Path(synth_core.__file__).parent
-    files = sorted(f for name in _BUILDERS
-                   for f in ((root / name).glob("*.py") if (root / name).is_dir() else [root / name]))
     digest = hashlib.sha256()
-    for f in files:
+    for f in builtin_source_files():
         digest.update(f.relative_to(root).as_posix().encode() + b"\0" + f.read_bytes())
     return digest.hexdigest()[:16]
 
