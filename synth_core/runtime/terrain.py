@@ -1,0 +1,209 @@
+"""Ground that is not flat (issue 33): a height field, and what the render takes from it.
+
+A :class:`HeightField` is a grid of ground heights ``heights (Nz, Nx)``: ``heights[i, j]`` is the
+ground's y at ``x = origin[0] + j * spacing``, ``z = origin[1] + i * spacing`` (metres, Y up);
+between grid points it is bilinear, outside the grid the nearest edge's height.
+
+With a height field, a character's trajectory's y is not read: the ground gives it. The render
+(numpy reference :func:`synth_core.runtime.synthesis.render` with
+:func:`synth_core.runtime.footlock.lock_feet`, and the compiled
+:mod:`synth_core.compiled.kernels`) then
+
+1. fits a plane, per frame, to the ground under the four feet of the character's standing
+   footprint (:func:`ground_plan`): the root stands on the plane's height under it and the
+   body turns by the plane's tilt (pitch and roll: a horse climbing lifts its forehand);
+2. measures the feet of that tilted body with the tilt taken back off (legs hang as gravity
+   has them, not as the body leans) and relative to the ground under the body, plants them as
+   on flat ground (:func:`synth_core.runtime.footlock.plant_targets`), then puts each target on
+   the terrain under it (:func:`ground_targets`): a planted foot stands on it, a swinging foot
+   keeps its clip's height above the higher of the terrain under it and the ground eased from
+   lift-off to touchdown (it clears bumps and climbs steps before it lands on them);
+3. sinks the root where a leg cannot reach and solves the legs' IK as on flat ground.
+
+The gait is chosen on the speed along the ground (:func:`along_ground`).
+"""
+
+from __future__ import annotations
+
+import functools
+from dataclasses import dataclass, replace
+from typing import TYPE_CHECKING
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from synth_core import UP_AXIS
+from synth_core.motion import quat
+from synth_core.motion.skeleton import forward_kinematics
+
+if TYPE_CHECKING:
+    from synth_core.runtime.bank import Bank
+    from synth_core.runtime.synthesis import Plan
+    from synth_core.runtime.trajectory import Prepared
+
+Floats = NDArray[np.float64]
+
+MAX_CELLS = 4_194_304  # 2048 x 2048 heights (32 MB): a few km at a metre, or a field at 5 cm
+MAX_HEIGHT = 10_000.0  # |height|, m
+# The ground under a foot of the footprint is the mean of this pattern around it, in leg
+# lengths: a hoof stands on a patch, not a point, and a body does not rock with every pebble.
+PAD = 0.15
+
+
+class TerrainError(ValueError):
+    """A height field that cannot be used; the message names the field and the limit."""
+
+
+@dataclass(frozen=True, eq=False)
+class HeightField:
+    """Ground heights on a regular grid (see the module doc)."""
+
+    heights: Floats  # (Nz, Nx) float64, C-contiguous
+    origin: tuple[float, float]  # (x, z) of heights[0, 0], m
+    spacing: float  # m between grid points, along x and z
+
+    @classmethod
+    def make(cls, heights: ArrayLike, origin: ArrayLike = (0.0, 0.0), spacing: float = 1.0) -> HeightField:
+        """A checked height field, or :class:`TerrainError` naming what is wrong."""
+        try:
+            grid = np.ascontiguousarray(heights, dtype=np.float64)
+            at = np.asarray(origin, dtype=np.float64)
+            step = float(spacing)
+        except (TypeError, ValueError) as exc:
+            raise TerrainError(f"ground: not numbers ({exc})") from None
+        if grid.ndim != 2 or grid.shape[0] < 2 or grid.shape[1] < 2:
+            raise TerrainError(f"ground.heights: expected a grid of at least 2 x 2 rows (z) and "
+                               f"columns (x), got shape {grid.shape}")
+        if grid.size > MAX_CELLS:
+            raise TerrainError(f"ground.heights: at most {MAX_CELLS} heights, got {grid.size} {grid.shape}")
+        if not np.all(np.isfinite(grid)) or np.abs(grid).max() > MAX_HEIGHT:
+            raise TerrainError(f"ground.heights: every height must be a finite number within "
+                               f"+-{MAX_HEIGHT:g} m")
+        if at.shape != (2,) or not np.all(np.isfinite(at)):
+            raise TerrainError(f"ground.origin: expected two finite numbers (x, z), got {origin!r}")
+        if not (np.isfinite(step) and 1e-3 <= step <= 1e4):
+            raise TerrainError(f"ground.spacing: must be within [0.001, 10000] m, got {spacing!r}")
+        return cls(grid, (float(at[0]), float(at[1])), step)
+
+    def sample(self, x: ArrayLike, z: ArrayLike) -> Floats:
+        """The ground's height at ``(x, z)`` (any matching shapes), bilinear."""
+        return sample(self.heights, self.origin[0], self.origin[1], self.spacing,
+                      np.asarray(x, np.float64), np.asarray(z, np.float64))
+
+
+def sample(heights: Floats, x0: float, z0: float, spacing: float, x: Floats, z: Floats) -> Floats:
+    """Bilinear heights at (x, z), clamped to the grid (the compiled kernels' ``_ground_at`` does
+    the same arithmetic in the same order)."""
+    nz, nx = heights.shape
+    fx = np.clip((x - x0) / spacing, 0.0, nx - 1.0)
+    fz = np.clip((z - z0) / spacing, 0.0, nz - 1.0)
+    j = np.minimum(fx.astype(np.int64), nx - 2)
+    i = np.minimum(fz.astype(np.int64), nz - 2)
+    u, v = fx - j, fz - i
+    near = heights[i, j] * (1.0 - u) + heights[i, j + 1] * u
+    far = heights[i + 1, j] * (1.0 - u) + heights[i + 1, j + 1] * u
+    return np.asarray(near * (1.0 - v) + far * v)
+
+
+@dataclass(frozen=True, eq=False)
+class Grounding:
+    """What the render takes of the ground for one plan: the field, and each frame's tilt of the
+    body ``(C, T, 4)`` float64 xyzw (world rotation applied on top of the heading)."""
+
+    field: HeightField
+    tilt: Floats
+
+    def window(self, start: int, stop: int) -> Grounding:
+        return Grounding(self.field, self.tilt[:, start:stop])
+
+
+@functools.lru_cache(maxsize=8)
+def footprint(bank: Bank) -> Floats:
+    """``(4, 2)``: each foot's median (side, forward) place under the root over the library's
+    poses, in the library's unit (root yaw canonical: forward +Z, side +X)."""
+    sk = bank.skeleton
+    pos, _ = forward_kinematics(sk, np.zeros((len(bank.poses), 3)), bank.poses)
+    feet = np.asarray(pos, np.float64)[:, sk.foot_joints]
+    return np.asarray(np.median(feet[..., [0, 2]], axis=0))
+
+
+def _pad_pattern(bank: Bank) -> Floats:
+    r = PAD * bank.skeleton.leg_length()
+    return np.array([[0.0, 0.0], [r, 0.0], [-r, 0.0], [0.0, r], [0.0, -r]])
+
+
+def ground_pose(bank: Bank, field: HeightField, path: Floats, yaw: Floats,
+                h: Floats) -> tuple[Floats, Floats]:
+    """``(C, T)`` the ground plane's height under the root point of ``path (C, T, 3)`` and
+    ``(C, T, 4)`` the body's tilt: the smallest rotation taking up onto the plane's normal, the
+    plane fitted (least squares) to the ground under the footprint's four feet."""
+    foot = footprint(bank)  # (4, 2) side, forward
+    side = np.stack([np.cos(yaw), -np.sin(yaw)], axis=-1)  # (C, T, 2) in world (x, z)
+    fwd = np.stack([np.sin(yaw), np.cos(yaw)], axis=-1)
+    hs = np.asarray(h, np.float64)[:, None, None, None, None]
+    place = foot[None, None, :, :, None] + _pad_pattern(bank).T[None, None, None]  # (1,1,4,2,P)
+    across, along = place[:, :, :, :1], place[:, :, :, 1:]
+    sideways, ahead = side[:, :, None, :, None], fwd[:, :, None, :, None]
+    at = path[:, :, None, [0, 2], None] + hs * (across * sideways + along * ahead)
+    under = field.sample(at[..., 0, :], at[..., 1, :]).mean(axis=-1)  # (C, T, 4)
+    design = np.concatenate([np.ones((4, 1)), foot], axis=1)  # height = a + b side + c forward
+    coef = under @ np.linalg.pinv(design).T  # (C, T, 3), slopes per library unit
+    slope_side, slope_fwd = coef[..., 1] / hs[:, :, 0, 0, 0], coef[..., 2] / hs[:, :, 0, 0, 0]
+    normal = np.zeros((*yaw.shape, 3))
+    normal[..., UP_AXIS] = 1.0
+    normal[..., [0, 2]] -= slope_side[..., None] * side + slope_fwd[..., None] * fwd
+    up = np.zeros(3)
+    up[UP_AXIS] = 1.0
+    return np.asarray(coef[..., 0]), np.asarray(quat.between(up, normal), np.float64)
+
+
+def ground_plan(bank: Bank, p: Plan, field: HeightField) -> tuple[Plan, Grounding]:
+    """The plan standing on ``field`` (its path's y: the ground plane under the root) and the
+    body's tilt per frame; a frame's numbers depend on that frame's path point alone, so any
+    window of the plan gets the same as the whole."""
+    ground, tilt = ground_pose(bank, field, p.path, p.yaw, p.scales)
+    path = p.path.copy()
+    path[..., UP_AXIS] = ground
+    return replace(p, path=path), Grounding(field, tilt)
+
+
+def along_ground(prep: Prepared, field: HeightField, fps: float) -> Prepared:
+    """``prep`` on the ground: its paths' y the terrain's under them, the segment speeds those
+    along the ground (a 30% slope's 2 m/s over the map are 2.09 m/s of stride)."""
+    # Here, not at the top: trajectory imports the compiled kernels, which import footlock and this.
+    from synth_core.runtime.trajectory import segment_speeds
+    positions = prep.positions.copy()
+    positions[..., UP_AXIS] = field.sample(positions[..., 0], positions[..., 2])
+    speeds = segment_speeds(positions, prep.segment, fps, along_ground=True)
+    return replace(prep, positions=positions, segment_speeds=speeds)
+
+
+def untilt(feet: Floats, root: Floats, tilt: Floats) -> Floats:
+    """Feet ``(C, T, 4, 3)`` of a body tilted by ``tilt (C, T, 4)`` about its root ``(C, T, 3)``,
+    as they would hang without the tilt."""
+    back = quat.inv(tilt)[:, :, None]
+    return np.asarray(root[:, :, None] + quat.rotate(back, feet - root[:, :, None]), np.float64)
+
+
+def ground_targets(targets: Floats, contacts: NDArray[np.bool_], field: HeightField, h: Floats) -> Floats:
+    """Foot targets ``(C, T, 4, 3)`` (the library's unit: world / h) whose y is the height above
+    the body's ground, put on ``field``: planted, the terrain under the target; swinging, the
+    higher of that and the ground eased (smoothstep) from the last plant's to the next one's."""
+    C, T, F = contacts.shape
+    hs = np.asarray(h, np.float64)[:, None, None]
+    under = field.sample(targets[..., 0] * hs, targets[..., 2] * hs) / hs  # (C, T, 4)
+    t = np.arange(T)[None, :, None]
+    last = np.maximum.accumulate(np.where(contacts, t, -1), axis=1)
+    nxt = np.flip(np.minimum.accumulate(np.flip(np.where(contacts, t, T), axis=1), axis=1), axis=1)
+    has_last, has_next = last >= 0, nxt < T
+    c, f = np.arange(C)[:, None, None], np.arange(F)[None, None, :]
+    g_last = under[c, np.maximum(last, 0), f]
+    g_next = under[c, np.minimum(nxt, T - 1), f]
+    x = np.clip((t - last) / np.maximum(nxt - last, 1), 0.0, 1.0)
+    x = x * x * (3 - 2 * x)
+    eased = np.where(has_last & has_next, g_last * (1 - x) + g_next * x,
+                     np.where(has_last, g_last, np.where(has_next, g_next, under)))
+    out = targets.copy()
+    out[..., UP_AXIS] = np.maximum(targets[..., UP_AXIS], 0.0) + np.where(contacts, under,
+                                                                          np.maximum(under, eased))
+    return out
