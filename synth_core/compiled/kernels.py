@@ -537,16 +537,11 @@ def _ground_targets(targets: Any, contacts: Any, heights: Any, x0: float, z0: fl
                 nxt = t + 1
                 while nxt < T and not contacts[nxt, f]:
                     nxt += 1
+                eased = under[t]
                 if last >= 0 and nxt < T:
                     x = min(max((t - last) / max(nxt - last, 1), 0.0), 1.0)
                     x = x * x * (3 - 2 * x)
                     eased = under[last] * (1 - x) + under[nxt] * x
-                elif last >= 0:
-                    eased = under[last]
-                elif nxt < T:
-                    eased = under[nxt]
-                else:
-                    eased = under[t]
                 ground = max(under[t], eased)
             targets[t, f, 1] = max(targets[t, f, 1], 0.0) + ground
 
@@ -601,8 +596,10 @@ def _character(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, yaw
             p_an, p_ef = _world_position(world, an, t - o), _world_position(world, ef, t - o)
             if terrain:  # as the leg hangs untilted, above the body's ground (terrain.untilt)
                 r = _scale(_v3(out_root[t]), 1.0 / h)
-                p = _add(r, _qrot(_conj(_q4(tilt[tilt_at + t])), _sub(p_ef, r)))
-                feet[t, f, 0], feet[t, f, 1], feet[t, f, 2] = p[0], p[1] - path[t, 1] / h, p[2]
+                q = _q4(tilt[tilt_at + t])
+                p = _add(r, _qrot(_conj(_unit4((q[0], q[1], q[2], q[3] + 1.0))), _sub(p_ef, r)))
+                y = r[1] + _qrot(_conj(q), _sub(p_ef, r))[1]
+                feet[t, f, 0], feet[t, f, 1], feet[t, f, 2] = p[0], y - path[t, 1] / h, p[2]
             else:
                 feet[t, f, 0], feet[t, f, 1], feet[t, f, 2] = p_ef
             leg = legs[t, f]

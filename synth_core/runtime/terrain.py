@@ -180,15 +180,24 @@ def along_ground(prep: Prepared, field: HeightField, fps: float) -> Prepared:
 
 def untilt(feet: Floats, root: Floats, tilt: Floats) -> Floats:
     """Feet ``(C, T, 4, 3)`` of a body tilted by ``tilt (C, T, 4)`` about its root ``(C, T, 3)``,
-    as they would hang without the tilt."""
-    back = quat.inv(tilt)[:, :, None]
-    return np.asarray(root[:, :, None] + quat.rotate(back, feet - root[:, :, None]), np.float64)
+    their height as without the tilt (over the ground, the body's height is the clip's), their
+    place over the ground turned back by half the tilt: legs hang between square to the body and
+    plumb. Plumb (the whole tilt taken off), a body pitched down a 30% slope swung its forelegs
+    17 degrees forward of where it carries them and their shoulders flipped through straight;
+    square, the hooves slid 35 cm ahead of the root and the body leant back."""
+    half = tilt.copy()
+    half[..., 3] += 1.0  # the half turn about the same axis (tilt's w >= 0: the smallest rotation)
+    rel = feet - root[:, :, None]
+    out = root[:, :, None] + quat.rotate(quat.inv(quat.normalize(half))[:, :, None], rel)
+    out[..., UP_AXIS] = root[:, :, None, UP_AXIS] + quat.rotate(quat.inv(tilt)[:, :, None], rel)[..., UP_AXIS]
+    return np.asarray(out, np.float64)
 
 
 def ground_targets(targets: Floats, contacts: NDArray[np.bool_], field: HeightField, h: Floats) -> Floats:
     """Foot targets ``(C, T, 4, 3)`` (the library's unit: world / h) whose y is the height above
     the body's ground, put on ``field``: planted, the terrain under the target; swinging, the
-    higher of that and the ground eased (smoothstep) from the last plant's to the next one's."""
+    higher of that and the ground eased (smoothstep) from the last plant's to the next one's
+    (it clears a bump between them and climbs a step before it lands on it)."""
     C, T, F = contacts.shape
     hs = np.asarray(h, np.float64)[:, None, None]
     under = field.sample(targets[..., 0] * hs, targets[..., 2] * hs) / hs  # (C, T, 4)
@@ -201,8 +210,9 @@ def ground_targets(targets: Floats, contacts: NDArray[np.bool_], field: HeightFi
     g_next = under[c, np.minimum(nxt, T - 1), f]
     x = np.clip((t - last) / np.maximum(nxt - last, 1), 0.0, 1.0)
     x = x * x * (3 - 2 * x)
-    eased = np.where(has_last & has_next, g_last * (1 - x) + g_next * x,
-                     np.where(has_last, g_last, np.where(has_next, g_next, under)))
+    # A swing with no plant before or after it (the window's ends): the terrain under it alone
+    # (a plant left behind on a slope is no ground for a foot a stride on).
+    eased = np.where(has_last & has_next, g_last * (1 - x) + g_next * x, under)
     out = targets.copy()
     out[..., UP_AXIS] = np.maximum(targets[..., UP_AXIS], 0.0) + np.where(contacts, under,
                                                                           np.maximum(under, eased))
