@@ -222,7 +222,7 @@ def produce(job: jobs.Job, bank: Bank, meta: dict[str, Any], emit: Callable[[Any
     -> 0.18-0.20 s; over HTTP, interleaved: best 0.226 -> 0.204 s, median 0.273 -> 0.230)."""
     req = job.request
     scales, seeds = jobs.character_scales_and_seeds(req)
-    options = jobs.options(req, job.max_character_frames)
+    options = jobs.options(req, job.max_character_frames, job.ground)
     try:
         prep, h, keys = prepare_batch(bank, job.positions, req.fps, scales, options, job.ids, seeds)
     except TrajectoryError as exc:

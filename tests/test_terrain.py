@@ -9,6 +9,7 @@ from synth_core.compiled import kernels
 from synth_core.quality import metrics as M
 from synth_core.quality.evaluate import TERRAIN_TARGETS, edge_suite, passes, world_positions
 from synth_core.runtime.bank import Bank
+from synth_core.runtime.streaming import BatchStream
 from synth_core.runtime.synthesis import Options, synthesize
 from synth_core.runtime.terrain import HeightField, TerrainError, along_ground
 from synth_core.runtime.trajectory import Prepared
@@ -114,3 +115,17 @@ def test_terrain_scenarios_meet_the_issue_targets(bank: Bank, name: str) -> None
     assert figures["stretch_pct_max"] <= 3.0
     assert figures["limb_flips"] == 0
     assert figures["glide_ratio"] <= 0.10 and figures["strict_skate_mm_p95"] <= 3.0
+
+
+@pytest.mark.parametrize("backend", ["numba", "numpy"])
+def test_stream_windows_on_a_terrain_equal_the_whole_batch(bank: Bank, backend: str) -> None:
+    if backend == "numba" and not kernels.AVAILABLE:
+        pytest.skip("numba is not installed")
+    paths, field = _herd_on_hills()
+    opts = Options(scale_range=(0.8, 1.2), seed=2, backend=backend, ground=field)
+    whole = synthesize(bank, paths, 60.0, options=opts)
+    for chunk in (7, 100):
+        windows = list(BatchStream(bank, paths, 60.0, options=opts, chunk_frames=chunk).windows())
+        for name in ("root_pos", "rotations", "gait", "contacts"):
+            joined = np.concatenate([getattr(w, name) for w in windows], axis=1)
+            assert np.array_equal(joined, getattr(whole, name)), (name, chunk)

@@ -693,11 +693,12 @@ def _render_windows(poses: Any, height: Any, surge: Any, rows: Any, weights: Any
             kn = min(max(known[c] - b, 0), k) if keep else 0  # frames with their feet known
             recent_known = keep and legs_at[c] == start and start - b >= PAD and kn >= start - b
             own_tilt = tilt[c] if heights.shape[0] > 0 else tilt[0]
+            own_legs = known_legs[c] if keep else no_recent
             made = _character(poses, height, surge, rows[c, b:e], weights[c, b:e], yaw[c, b:e],
                               path[c, b:e], scales[c], contacts[c, b:e], parents, offsets, fk_joints, rigs,
                               bends, sink_limit, foot_lock, rot[:k], root[:k], world, feet[:k], legs[:k],
                               targets[:k], sink[:k], eased[:k], start - b, start - b + n,
-                              known_feet[b:e, c], kn, known_legs[c] if keep else no_recent, recent_known,
+                              known_feet[b:e, c], kn, own_legs, recent_known,
                               own_tilt, b, heights, ground_x0,
                               ground_z0, spacing)
             out_rot[c] = rot[start - b:start - b + n]
