@@ -26,7 +26,9 @@ The gait is chosen on the speed along the ground (:func:`along_ground`).
 from __future__ import annotations
 
 import functools
+import json
 from dataclasses import dataclass, replace
+from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -89,6 +91,28 @@ class HeightField:
         """The ground's height at ``(x, z)`` (any matching shapes), bilinear."""
         return sample(self.heights, self.origin[0], self.origin[1], self.spacing,
                       np.asarray(x, np.float64), np.asarray(z, np.float64))
+
+
+def read(path: str | Path) -> HeightField:
+    """A height field from ``FILE.npz`` (arrays ``heights``, ``origin`` (x, z), ``spacing``) or
+    ``FILE.json`` (``{"heights": [[...], ...], "origin": [x, z], "spacing": s}``)."""
+    path = Path(path)
+    try:
+        if path.suffix == ".json":
+            spec = json.loads(path.read_text())
+            if not isinstance(spec, dict) or "heights" not in spec:
+                raise TerrainError(f"ground: {path} must hold an object with heights, origin, spacing")
+            origin, spacing = spec.get("origin", (0.0, 0.0)), spec.get("spacing", 1.0)
+            return HeightField.make(spec["heights"], origin, spacing)
+        with np.load(path) as data:
+            if "heights" not in data:
+                raise TerrainError(f"ground: {path} has no 'heights' array (has {sorted(data.files)})")
+            return HeightField.make(data["heights"], data["origin"] if "origin" in data else (0.0, 0.0),
+                                    float(data["spacing"]) if "spacing" in data else 1.0)
+    except (OSError, ValueError) as exc:
+        if isinstance(exc, TerrainError):
+            raise
+        raise TerrainError(f"ground: cannot read {path}: {exc}") from None
 
 
 def sample(heights: Floats, x0: float, z0: float, spacing: float, x: Floats, z: Floats) -> Floats:
