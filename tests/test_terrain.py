@@ -11,7 +11,7 @@ from synth_core.quality.evaluate import TERRAIN_TARGETS, edge_suite, passes, wor
 from synth_core.runtime.bank import Bank
 from synth_core.runtime.streaming import BatchStream
 from synth_core.runtime.synthesis import Options, synthesize
-from synth_core.runtime.terrain import HeightField, TerrainError, along_ground
+from synth_core.runtime.terrain import HeightField, TerrainError, along_ground, ground_targets
 from synth_core.runtime.trajectory import Prepared
 
 
@@ -129,3 +129,19 @@ def test_stream_windows_on_a_terrain_equal_the_whole_batch(bank: Bank, backend: 
         for name in ("root_pos", "rotations", "gait", "contacts"):
             joined = np.concatenate([getattr(w, name) for w in windows], axis=1)
             assert np.array_equal(joined, getattr(whole, name)), (name, chunk)
+
+
+def test_a_swing_steps_up_a_step_instead_of_jumping_onto_it() -> None:
+    z = np.concatenate([np.zeros(10), np.linspace(0.0, 1.0, 12)[1:-1], np.ones(10)])  # 30 frames
+    targets = np.zeros((1, 30, 4, 3))
+    targets[0, :, :, 2] = z[:, None]
+    contacts = np.zeros((1, 30, 4), bool)
+    contacts[0, :10] = contacts[0, 20:] = True
+    xs = np.arange(-1.0, 2.0, 0.01)
+    step = np.where(xs > 0.3, 0.2, 0.0)  # a 20 cm step 0.3 m into the swing
+    field = HeightField.make(np.tile(step[:, None], (1, 3)), origin=(-0.01, -1.0), spacing=0.01)
+    y = ground_targets(targets, contacts, field, np.ones(1))[0, :, 0, 1]
+    under = field.sample(targets[0, :, 0, 0], targets[0, :, 0, 2])
+    assert np.allclose(y[contacts[0, :, 0]], under[contacts[0, :, 0]])  # planted: on it
+    assert np.all(y >= under - 1e-9)  # never in it
+    assert np.abs(np.diff(y)).max() < 0.2 / 2  # up over frames, not in the one crossing the edge

@@ -32,6 +32,7 @@ from synth_core import UP_AXIS
 from synth_core.build.ik import HINGE_AXIS_MIN_SIN, limb_rigs
 from synth_core.compiled.scratch import Scratch
 from synth_core.runtime.footlock import EASE_FRAMES, MAX_SINK, PAD, REACH, TERRAIN_MAX_SINK
+from synth_core.runtime.terrain import BUMP_LEAST
 
 if TYPE_CHECKING:
     from synth_core.runtime.bank import Bank
@@ -521,6 +522,16 @@ def _ground_at(heights: Any, x0: float, z0: float, spacing: float, x: float, z: 
 
 
 @_jit()
+def _swing_share(targets: Any, f: int, last: int, u: int, nxt: int) -> float:
+    """terrain.swing_share of frame u of a swing from plant frame ``last`` to ``nxt``."""
+    gone = math.hypot(targets[u, f, 0] - targets[last, f, 0], targets[u, f, 2] - targets[last, f, 2])
+    left = math.hypot(targets[nxt, f, 0] - targets[u, f, 0], targets[nxt, f, 2] - targets[u, f, 2])
+    if gone + left > 1e-9:
+        return float(gone / (gone + left))
+    return float((u - last) / (nxt - last))
+
+
+@_jit()
 def _ground_targets(targets: Any, contacts: Any, heights: Any, x0: float, z0: float, spacing: float,
                     h: float, under: Any) -> None:
     """terrain.ground_targets for one character, in place (``under (T,)``: scratch)."""
@@ -528,22 +539,29 @@ def _ground_targets(targets: Any, contacts: Any, heights: Any, x0: float, z0: fl
     for f in range(4):
         for t in range(T):
             under[t] = _ground_at(heights, x0, z0, spacing, targets[t, f, 0] * h, targets[t, f, 2] * h) / h
-        last = -1
-        for t in range(T):
+        t = 0
+        while t < T:
             if contacts[t, f]:
-                last = t
-                ground = under[t]
-            else:
-                nxt = t + 1
-                while nxt < T and not contacts[nxt, f]:
-                    nxt += 1
-                eased = under[t]
-                if last >= 0 and nxt < T:
-                    x = min(max((t - last) / max(nxt - last, 1), 0.0), 1.0)
-                    x = x * x * (3 - 2 * x)
-                    eased = under[last] * (1 - x) + under[nxt] * x
-                ground = max(under[t], eased)
-            targets[t, f, 1] = max(targets[t, f, 1], 0.0) + ground
+                targets[t, f, 1] = max(targets[t, f, 1], 0.0) + under[t]
+                t += 1
+                continue
+            s = t
+            while t < T and not contacts[t, f]:
+                t += 1
+            last, nxt = s - 1, t
+            if last < 0 or nxt >= T:  # no plant before or after it: the terrain under it
+                for u in range(s, t):
+                    targets[u, f, 1] = max(targets[u, f, 1], 0.0) + under[u]
+                continue
+            lift = 0.0
+            for u in range(s, t):
+                x = _swing_share(targets, f, last, u, nxt)
+                e = under[last] + (under[nxt] - under[last]) * x
+                lift = max(lift, (under[u] - e) / max(4.0 * x * (1.0 - x), BUMP_LEAST))
+            for u in range(s, t):
+                x = _swing_share(targets, f, last, u, nxt)
+                e = under[last] + (under[nxt] - under[last]) * x
+                targets[u, f, 1] = max(targets[u, f, 1], 0.0) + max(e + lift * 4.0 * x * (1.0 - x), under[u])
 
 
 @_jit()

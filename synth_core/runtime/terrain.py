@@ -50,6 +50,10 @@ MAX_HEIGHT = 10_000.0  # |height|, m
 # The ground under a foot of the footprint is the mean of this pattern around it, in leg
 # lengths: a hoof stands on a patch, not a point, and a body does not rock with every pebble.
 PAD = 0.15
+# A swing's bump is fitted over frames where it is at least this share of its height (4 x (1 - x)
+# >= 0.5: all but the swing's first and last 15%): near lift-off and touchdown a terrain point
+# would ask for a bump of any height (there the foot keeps over the terrain under it instead).
+BUMP_LEAST = 0.5
 
 
 class TerrainError(ValueError):
@@ -217,27 +221,49 @@ def untilt(feet: Floats, root: Floats, tilt: Floats) -> Floats:
     return np.asarray(out, np.float64)
 
 
+def swing_share(targets: Floats, last: NDArray[np.int64], nxt: NDArray[np.int64]) -> Floats:
+    """``(C, T, 4)``: how far each frame's target is along its swing, from the plant at frame
+    ``last`` to the one at ``nxt`` -- over the ground (its distance from the first over its
+    distances from both), or in time where the foot does not travel."""
+    C, T, F = last.shape
+    c, f = np.arange(C)[:, None, None], np.arange(F)[None, None, :]
+    here = targets[..., [0, 2]]
+    gone = np.hypot(*np.moveaxis(here - targets[c, np.clip(last, 0, T - 1), f][..., [0, 2]], -1, 0))
+    left = np.hypot(*np.moveaxis(targets[c, np.clip(nxt, 0, T - 1), f][..., [0, 2]] - here, -1, 0))
+    span = gone + left
+    timed = (np.arange(T)[None, :, None] - last) / np.where(nxt - last == 0, 1, nxt - last)
+    return np.asarray(np.where(span > 1e-9, gone / np.where(span > 1e-9, span, 1.0), timed))
+
+
 def ground_targets(targets: Floats, contacts: NDArray[np.bool_], field: HeightField, h: Floats) -> Floats:
     """Foot targets ``(C, T, 4, 3)`` (the library's unit: world / h) whose y is the height above
-    the body's ground, put on ``field``: planted, the terrain under the target; swinging, the
-    higher of that and the ground eased (smoothstep) from the last plant's to the next one's
-    (it clears a bump between them and climbs a step before it lands on it)."""
+    the body's ground, put on ``field``. Planted: on the terrain under the target. Swinging
+    between two plants: over the ground straight from the last plant's height to the next
+    one's (by :func:`swing_share`: on a plane, the plane's own heights), raised by a bump
+    (``4 x (1 - x)`` of the swing's share x: none at lift-off and touchdown) just high enough to
+    clear the terrain under the swing's middle frames (``BUMP_LEAST``), and never below the
+    terrain under it -- a foot steps up onto a step or over a hump instead of jumping onto it
+    in the frame it crosses the edge. A swing with no plant before or after it (a window's
+    ends): the terrain under it."""
     C, T, F = contacts.shape
     hs = np.asarray(h, np.float64)[:, None, None]
     under = field.sample(targets[..., 0] * hs, targets[..., 2] * hs) / hs  # (C, T, 4)
     t = np.arange(T)[None, :, None]
     last = np.maximum.accumulate(np.where(contacts, t, -1), axis=1)
     nxt = np.flip(np.minimum.accumulate(np.flip(np.where(contacts, t, T), axis=1), axis=1), axis=1)
-    has_last, has_next = last >= 0, nxt < T
+    swing = ~contacts & (last >= 0) & (nxt < T)
     c, f = np.arange(C)[:, None, None], np.arange(F)[None, None, :]
     g_last = under[c, np.maximum(last, 0), f]
     g_next = under[c, np.minimum(nxt, T - 1), f]
-    x = np.clip((t - last) / np.maximum(nxt - last, 1), 0.0, 1.0)
-    x = x * x * (3 - 2 * x)
-    # A swing with no plant before or after it (the window's ends): the terrain under it alone
-    # (a plant left behind on a slope is no ground for a foot a stride on).
-    eased = np.where(has_last & has_next, g_last * (1 - x) + g_next * x, under)
+    x = swing_share(targets, last, nxt)
+    eased = g_last + (g_next - g_last) * x
+    bump = 4.0 * x * (1.0 - x)
+    need = (under - eased) / np.maximum(bump, BUMP_LEAST)
+    run = ((c * F + f) * T + last)[swing]  # one key per swing: its character, foot and last plant
+    lift = np.zeros(C * F * T)
+    np.maximum.at(lift, run, need[swing])
+    ground = under.copy()
+    ground[swing] = np.maximum(eased[swing] + lift[run] * bump[swing], under[swing])
     out = targets.copy()
-    out[..., UP_AXIS] = np.maximum(targets[..., UP_AXIS], 0.0) + np.where(contacts, under,
-                                                                          np.maximum(under, eased))
+    out[..., UP_AXIS] = np.maximum(targets[..., UP_AXIS], 0.0) + ground
     return out
