@@ -6,9 +6,11 @@ import numpy as np
 import pytest
 
 from synth_core.compiled import kernels
+from synth_core.motion.skeleton import forward_kinematics
 from synth_core.quality import metrics as M
 from synth_core.quality.evaluate import TERRAIN_TARGETS, edge_suite, passes, world_positions
 from synth_core.runtime.bank import Bank
+from synth_core.runtime.live import LiveSynth
 from synth_core.runtime.streaming import BatchStream
 from synth_core.runtime.synthesis import Options, synthesize
 from synth_core.runtime.terrain import HeightField, TerrainError, along_ground, ground_targets
@@ -145,3 +147,28 @@ def test_a_swing_steps_up_a_step_instead_of_jumping_onto_it() -> None:
     assert np.allclose(y[contacts[0, :, 0]], under[contacts[0, :, 0]])  # planted: on it
     assert np.all(y >= under - 1e-9)  # never in it
     assert np.abs(np.diff(y)).max() < 0.2 / 2  # up over frames, not in the one crossing the edge
+
+
+@pytest.mark.parametrize("backend", ["numba", "numpy"])
+def test_a_live_session_stands_on_its_ground_as_the_batch_does(bank: Bank, backend: str) -> None:
+    if backend == "numba" and not kernels.AVAILABLE:
+        pytest.skip("numba is not installed")
+    paths, field = _herd_on_hills()
+    live = LiveSynth(bank, len(paths), 60.0, seed=5, backend=backend, ground=field)
+    windows = [w for i in range(0, paths.shape[1], 6) if (w := live.append(paths[:, i:i + 6])) is not None]
+    if (last := live.finish()) is not None:
+        windows.append(last)
+    root = np.concatenate([w.root_pos for w in windows], axis=1)
+    rot = np.concatenate([w.rotations for w in windows], axis=1)
+    contacts = np.concatenate([w.contacts for w in windows], axis=1)
+    offsets = bank.skeleton.offsets[None, None] * live.scales[:, None, None, None].astype(np.float32)
+    feet = np.asarray(forward_kinematics(bank.skeleton, root, rot, offsets)[0])
+    feet = feet[..., bank.skeleton.foot_joints, :]
+    above = feet[..., 1] - field.sample(feet[..., 0], feet[..., 2])
+    assert above.min() > -0.005  # no foot in the hills
+    # Planted feet on them (within a centimetre of their lowest, as in the batch: the paw's sole).
+    batch = synthesize(bank, paths, 60.0, options=Options(seed=5, backend=backend, ground=field))
+    b_feet = np.asarray(forward_kinematics(bank.skeleton, batch.root_pos, batch.rotations, offsets)[0])
+    b_feet = b_feet[..., bank.skeleton.foot_joints, :]
+    b_above = b_feet[..., 1] - field.sample(b_feet[..., 0], b_feet[..., 2])
+    assert np.percentile(above[contacts], 95) <= np.percentile(b_above[batch.contacts], 95) + 0.005

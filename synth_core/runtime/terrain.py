@@ -195,6 +195,18 @@ def ground_plan(bank: Bank, p: Plan, field: HeightField) -> tuple[Plan, Groundin
     return replace(p, path=path), Grounding(field, tilt)
 
 
+def on_ground(bank: Bank, p: Plan, field: HeightField, start: int, stop: int) -> tuple[Plan, Grounding]:
+    """:func:`ground_plan` of frames ``[start, stop)`` of ``p`` alone (a live session's window
+    reads no others: its buffer's other frames keep their y, and no tilt)."""
+    part, ground = ground_plan(bank, p.window(start, stop), field)
+    path = p.path.copy()
+    path[:, start:stop] = part.path
+    tilt = np.zeros((*p.yaw.shape, 4))
+    tilt[..., 3] = 1.0
+    tilt[:, start:stop] = ground.tilt
+    return replace(p, path=path), Grounding(field, tilt)
+
+
 def along_ground(prep: Prepared, field: HeightField, fps: float) -> Prepared:
     """``prep`` on the ground: its paths' y the terrain's under them, the segment speeds those
     along the ground (a 30% slope's 2 m/s over the map are 2.09 m/s of stride)."""
