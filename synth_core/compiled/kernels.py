@@ -680,9 +680,9 @@ def _render_all(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, ya
 def _render_windows(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, yaw: Any, path: Any,
                     scales: Any, contacts: Any, parents: Any, offsets: Any, fk_joints: Any, rigs: Any,
                     bends: Any, sink_limit: float, foot_lock: bool, workers: int, begin: Any, end: Any,
-                    start: int, out_rot: Any, out_root: Any, known_feet: Any, known: Any,
-                    known_legs: Any, legs_at: Any, tilt: Any, heights: Any, ground_x0: float,
-                    ground_z0: float, spacing: float, c0: int, c1: int) -> None:
+                    start: int, out_rot: Any, out_root: Any, tilt: Any, heights: Any, ground_x0: float,
+                    ground_z0: float, spacing: float, known_feet: Any, known: Any,
+                    known_legs: Any, legs_at: Any, c0: int, c1: int) -> None:
     """Frames ``[start, start + out.shape[1])`` of characters ``[c0, c1)``, each rendered over
     its own context ``[begin[c], end[c])`` of the plan (see :func:`render_window`);
     ``known_feet (T, C, 4, 3)`` (or none: ``(0, C, 4, 3)``), ``known``, ``known_legs``,
@@ -896,8 +896,8 @@ def render_window(bank: Bank, plan: Plan, start: int, stop: int, begin: NDArray[
     args = (*table, *_plan_arrays(plan.window(cb, ce)), *skeleton, foot_lock,
             1 if share else numba.get_num_threads(), np.asarray(begin, np.int64) - cb,
             np.asarray(end, np.int64) - cb, start - cb, out_rot, out_root,
-            posed.feet[cb:ce] if known is not None else posed.feet, posed.frames, posed.legs, posed.legs_at,
-            *_terrain_arrays(None if ground is None else ground.window(cb, ce)))
+            *_terrain_arrays(None if ground is None else ground.window(cb, ce)),
+            posed.feet[cb:ce] if known is not None else posed.feet, posed.frames, posed.legs, posed.legs_at)
     try:
         if share is None:
             _render_windows(*args, 0, C)
