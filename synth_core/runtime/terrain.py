@@ -49,7 +49,7 @@ MAX_CELLS = 4_194_304  # 2048 x 2048 heights (32 MB): a few km at a metre, or a 
 MAX_HEIGHT = 10_000.0  # |height|, m
 # The ground under a foot of the footprint is the mean of this pattern around it, in leg
 # lengths: a hoof stands on a patch, not a point, and a body does not rock with every pebble.
-PAD = 0.15
+FOOT_PAD = 0.15
 # A swing's bump is fitted over frames where it is at least this share of its height (4 x (1 - x)
 # >= 0.5: all but the swing's first and last 15%): near lift-off and touchdown a terrain point
 # would ask for a bump of any height (there the foot keeps over the terrain under it instead).
@@ -156,7 +156,7 @@ def footprint(bank: Bank) -> Floats:
 
 
 def _pad_pattern(bank: Bank) -> Floats:
-    r = PAD * bank.skeleton.leg_length()
+    r = FOOT_PAD * bank.skeleton.leg_length()
     return np.array([[0.0, 0.0], [r, 0.0], [-r, 0.0], [0.0, r], [0.0, -r]])
 
 
