@@ -13,7 +13,7 @@ from synth_core.runtime.bank import Bank
 from synth_core.runtime.live import LiveSynth
 from synth_core.runtime.streaming import BatchStream
 from synth_core.runtime.synthesis import Options, synthesize
-from synth_core.runtime.terrain import HeightField, TerrainError, along_ground, ground_targets
+from synth_core.runtime.terrain import HeightField, TerrainError, along_ground, ground_targets, sample
 from synth_core.runtime.trajectory import Prepared
 
 
@@ -172,3 +172,13 @@ def test_a_live_session_stands_on_its_ground_as_the_batch_does(bank: Bank, backe
     b_feet = b_feet[..., bank.skeleton.foot_joints, :]
     b_above = b_feet[..., 1] - field.sample(b_feet[..., 0], b_feet[..., 2])
     assert np.percentile(above[contacts], 95) <= np.percentile(b_above[batch.contacts], 95) + 0.005
+
+
+def test_compiled_sampling_is_the_numpy_sampling() -> None:
+    if not kernels.AVAILABLE:
+        pytest.skip("numba is not installed")
+    rng = np.random.default_rng(1)
+    heights = rng.normal(size=(30, 50))
+    x, z = rng.uniform(-3.0, 30.0, (2, 7, 11))  # some outside the grid
+    want = sample(heights, -1.0, 0.5, 0.5, x, z)
+    assert np.array_equal(kernels.ground_samples(heights, -1.0, 0.5, 0.5, x, z), want)

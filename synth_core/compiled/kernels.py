@@ -521,6 +521,23 @@ def _ground_at(heights: Any, x0: float, z0: float, spacing: float, x: float, z: 
     return float(near * (1.0 - v) + far * v)
 
 
+@_jit(parallel=True)
+def _ground_many(heights: Any, x0: float, z0: float, spacing: float, x: Any, z: Any, out: Any) -> None:
+    for i in _prange(x.shape[0]):
+        out[i] = _ground_at(heights, x0, z0, spacing, x[i], z[i])
+
+
+def ground_samples(heights: NDArray[np.float64], x0: float, z0: float, spacing: float,
+                   x: NDArray[np.float64], z: NDArray[np.float64]) -> NDArray[np.float64]:
+    """terrain.sample, compiled (the same numbers): the body's footprint samples 20 points a
+    character-frame, which numpy's gathers made 10 us of it (more than the whole flat render)."""
+    x, z = np.broadcast_arrays(np.asarray(x, np.float64), np.asarray(z, np.float64))
+    out = np.empty(x.size)
+    _ground_many(heights, float(x0), float(z0), float(spacing), np.ascontiguousarray(x).ravel(),
+                 np.ascontiguousarray(z).ravel(), out)
+    return out.reshape(x.shape)
+
+
 @_jit()
 def _swing_share(targets: Any, f: int, last: int, u: int, nxt: int) -> float:
     """terrain.swing_share of frame u of a swing from plant frame ``last`` to ``nxt``."""

@@ -93,8 +93,11 @@ class HeightField:
 
     def sample(self, x: ArrayLike, z: ArrayLike) -> Floats:
         """The ground's height at ``(x, z)`` (any matching shapes), bilinear."""
-        return sample(self.heights, self.origin[0], self.origin[1], self.spacing,
-                      np.asarray(x, np.float64), np.asarray(z, np.float64))
+        from synth_core.compiled import kernels  # here: the kernels import this module
+
+        how = kernels.ground_samples if kernels.AVAILABLE else sample
+        return how(self.heights, self.origin[0], self.origin[1], self.spacing,
+                   np.asarray(x, np.float64), np.asarray(z, np.float64))
 
 
 def read(path: str | Path) -> HeightField:
