@@ -9,11 +9,13 @@ from typing import Any
 import msgpack
 import numpy as np
 import pytest
+from websockets.sync.client import connect
 
 from api_schemas.wire import blob, unblob
 from synth_core.runtime.terrain import MAX_CELLS, HeightField
 from tests.test_api import LIMITS, batch, post, refused
 from tests.test_service import running
+from tests.test_stream_api import stream_all, ws_url
 
 
 @pytest.fixture(scope="module")
@@ -72,3 +74,19 @@ def test_bad_grounds_are_refused_naming_the_field(server: str) -> None:
     ]
     for ground, field, words in cases:
         refused(post(server, batch(paths, ground=ground)), 422, field, words)
+
+
+def test_the_websocket_batch_on_a_slope_gives_what_rest_gives(server: str) -> None:
+    xs = np.arange(-10.0, 30.0, 0.5)
+    body = batch(_straight(2), encoding="f32", ground=_ground(np.tile(0.3 * xs, (60, 1)).astype(np.float32)))
+    rest = msgpack.unpackb(post(server, body).content)
+    with connect(ws_url(server), compression=None) as ws:
+        _, chunks = stream_all(ws, {**body, "chunk_frames": 50})
+    def array(b: dict[str, Any]) -> np.ndarray:
+        return unblob(b["dtype"], b["shape"], b["data"])
+
+    for name in ("root", "rotations"):
+        joined = np.concatenate([array(c[name]) for c in chunks], axis=1)
+        for c, ch in enumerate(rest["characters"]):
+            want = array(ch[name])
+            assert np.array_equal(joined[c], want), name
