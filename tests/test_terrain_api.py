@@ -11,11 +11,12 @@ import numpy as np
 import pytest
 from websockets.sync.client import connect
 
+from api_schemas.client import Client
 from api_schemas.wire import blob, unblob
 from synth_core.runtime.terrain import MAX_CELLS, HeightField
 from tests.test_api import LIMITS, batch, post, refused
 from tests.test_service import running
-from tests.test_stream_api import stream_all, ws_url
+from tests.test_stream_api import closed_with, send, stream_all, ws_url
 
 
 @pytest.fixture(scope="module")
@@ -90,3 +91,23 @@ def test_the_websocket_batch_on_a_slope_gives_what_rest_gives(server: str) -> No
         for c, ch in enumerate(rest["characters"]):
             want = array(ch[name])
             assert np.array_equal(joined[c], want), name
+
+
+def test_a_live_session_takes_its_ground_once_at_the_start(server: str) -> None:
+    xs = np.arange(-10.0, 30.0, 0.5)
+    slope = _ground(np.tile(0.3 * xs, (60, 1)).astype(np.float32))
+    with connect(ws_url(server), compression=None) as ws:
+        bad = {**slope, "heights": blob(np.full((3, 3), np.nan, np.float32))}
+        send(ws, {"type": "live", "ground": bad, "characters": [{"id": "a"}]})
+        closed_with(ws, 1007, 422, "ground.heights", "finite")
+    paths = _straight(2, 240)
+    chunks = []
+    with Client(server) as client, client.live(["a", "b"], fps=60, ground=slope, encoding="f32") as session:
+        for i in range(0, 240, 20):
+            chunks += session.push(paths[:, i:i + 20], wait=0.2)
+        chunks += session.finish()
+    root = np.concatenate([c.root for c in chunks], axis=1)
+    assert root.shape[1] > 200
+    field = HeightField.make(np.tile(0.3 * xs, (60, 1)), (-10.0, -10.0), 0.5)
+    above = root[..., 1] - field.sample(root[..., 0], root[..., 2])
+    assert 0.5 < above.min() and above.max() < 2.5  # standing on the slope (the paths' y is 0)
