@@ -79,6 +79,15 @@ def decode_chunk(header: dict[str, Any], message: dict[str, Any]) -> Chunk:
                  unblob(**message["gait"]), (bits[..., None] >> np.arange(4)) & 1 == 1)
 
 
+def ground(heights: ArrayLike, origin: tuple[float, float] = (0.0, 0.0),
+           spacing: float = 1.0) -> dict[str, Any]:
+    """A request's ``ground`` (docs/terrain.md): ``heights (rows along z, columns along x)``, the
+    (x, z) of ``heights[0, 0]`` and the metres between grid points. Pass it as
+    ``client.synthesize(positions, ground=ground(h, (x0, z0), 0.5))``."""
+    return {"heights": blob(np.ascontiguousarray(heights, np.float32)),
+            "origin": [float(origin[0]), float(origin[1])], "spacing": float(spacing)}
+
+
 def request_body(positions: ArrayLike, ids: Sequence[str] | None = None,
                  scales: Sequence[float | None] | None = None,
                  details: Sequence[str | None] | None = None, **options: Any) -> bytes:

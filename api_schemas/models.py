@@ -123,6 +123,22 @@ class CharacterIn(BaseModel):
                                                             "(default: the request's lod.detail)")
 
 
+class GroundIn(BaseModel):
+    """A height field (docs/terrain.md): ``heights[i, j]`` is the ground's y at
+    ``x = origin[0] + j * spacing``, ``z = origin[1] + i * spacing``; bilinear between points,
+    the nearest edge's height outside the grid."""
+
+    model_config = _STRICT
+    heights: Blob = Field(description="(rows along z, columns along x) float32 or float64 metres, "
+                                      "at least 2 x 2, at most 4,194,304 heights, all finite")
+    origin: tuple[float, float] = Field(default=(0.0, 0.0), description="(x, z) of heights[0, 0], metres")
+    spacing: float = Field(default=1.0, ge=0.001, le=10_000, description="metres between grid points")
+
+
+GROUND_DOC = ("the terrain the herd walks on: planted feet on it, bodies pitched and rolled with it, "
+              "the paths' y not read (docs/terrain.md); default: the ground is the paths' y")
+
+
 class SynthesizeRequest(BaseModel):
     model_config = _STRICT
     animal: str = Field(default="horse", description="a library from GET /v1/libraries")
@@ -153,6 +169,7 @@ class SynthesizeRequest(BaseModel):
                                        "fastest stride rate is listed in 'warnings'")
     size_matching: SizeMatching = Field(default="froude", description=SIZE_MATCHING_DOC)
     tempo_spread: float = Field(default=0.06, ge=0, le=0.25, description=TEMPO_SPREAD_DOC)
+    ground: GroundIn | None = Field(default=None, description=GROUND_DOC)
     characters: list[CharacterIn] = Field(min_length=1)
 
 
@@ -186,6 +203,7 @@ class LiveRequest(BaseModel):
                                                                  "move is known")
     size_matching: SizeMatching = Field(default="froude", description=SIZE_MATCHING_DOC)
     tempo_spread: float = Field(default=0.06, ge=0, le=0.25, description=TEMPO_SPREAD_DOC)
+    ground: GroundIn | None = Field(default=None, description=GROUND_DOC + "; sent once, for the session")
     characters: list[LiveCharacter] = Field(min_length=1)
 
 

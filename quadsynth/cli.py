@@ -224,16 +224,18 @@ def _crowd_sim(args: argparse.Namespace, extra: list[str]) -> int:
 
 
 def _synth(args: argparse.Namespace, extra: list[str]) -> int:
+    from synth_core.runtime import terrain
     from synth_core.runtime import trajectory_files as crowd_io
     from synth_core.runtime.bank import build_bank
     from synth_core.runtime.synthesis import Options, synthesize
 
     traj = crowd_io.read(args.trajectories, args.fps)
+    ground = terrain.read(args.ground) if args.ground else None
     library = _load_library(args.animal, args.library)
     bank = build_bank(library)
     options = Options(sigma=args.sigma, seed=args.seed, scale_range=(args.scale_min, args.scale_max),
                       skip_invalid=args.skip_invalid, resample=args.resample,
-                      size_matching=args.size_matching, tempo_spread=args.tempo_spread)
+                      size_matching=args.size_matching, tempo_spread=args.tempo_spread, ground=ground)
     result = synthesize(bank, traj.positions, traj.fps, options=options, ids=traj.ids,
                         progress=_progress("synthesizing"))
     ids = [traj.ids[c] for c in result.kept]
@@ -252,13 +254,20 @@ def _client_synth(args: argparse.Namespace, extra: list[str]) -> int:
     from synth_core.runtime import trajectory_files as crowd_io
 
     traj = crowd_io.read(args.trajectories, args.fps)
+    more: dict[str, Any] = {}
+    if args.ground:  # checked here, sent as the request's 'ground'
+        from api_schemas.client import ground
+        from synth_core.runtime import terrain
+
+        field = terrain.read(args.ground)
+        more["ground"] = ground(field.heights, field.origin, field.spacing)
     try:
         herd = remote.synthesize(args.url, traj.positions, traj.fps, traj.ids, animal=args.animal,
                                  progress=_progress("requests"), seed=args.seed, sigma=args.sigma,
                                  scale_min=args.scale_min, scale_max=args.scale_max,
                                  skip_invalid=args.skip_invalid, encoding=args.encoding,
                                  resample=args.resample, size_matching=args.size_matching,
-                                 tempo_spread=args.tempo_spread, concurrency=args.concurrency)
+                                 tempo_spread=args.tempo_spread, concurrency=args.concurrency, **more)
     except ServiceError as exc:
         raise ValueError(f"the service refused: {exc}") from None
     except httpx.HTTPError as exc:
@@ -405,6 +414,9 @@ def _herd_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--tempo-spread", type=float, default=TEMPO_SPREAD,
                         help=f"each character's stride frequency varies by up to this share (default "
                              f"{TEMPO_SPREAD}; 0: none)")
+    parser.add_argument("--ground", help="the terrain: FILE.npz (heights (rows z, columns x), origin (x, z), "
+                                         "spacing) or FILE.json with the same keys (docs/terrain.md); "
+                                         "default: the trajectories' y is the ground")
     parser.add_argument("--out", required=True, help="output directory: motion.npz, summary.json, BVH files")
     parser.add_argument("--bvh", action="store_true", help="write DIR/<id>.bvh per character (centimetres) "
                         "and DIR/<id>.contacts.json (gaits and foot contacts)")

@@ -67,10 +67,11 @@ def bind_pose(url: str, animal: str, skeleton: Skeleton) -> NDArray[np.float32] 
     return bind_rotations(glb, skeleton.n_joints)
 
 
-def piece_size(limits: dict[str, Any], points: int, out_frames: int) -> int:
-    """Characters per request that keep within every published limit (at least 1)."""
+def piece_size(limits: dict[str, Any], points: int, out_frames: int, extra_bytes: int = 0) -> int:
+    """Characters per request that keep within every published limit (at least 1);
+    ``extra_bytes``: sent with every request besides (a terrain)."""
     by_frames = limits["max_character_frames"] // max(1, int(out_frames * RATE_ALLOWANCE))
-    by_body = (limits["max_body_bytes"] - BODY_SLACK) // (points * 12 + CHARACTER_BYTES)
+    by_body = (limits["max_body_bytes"] - BODY_SLACK - extra_bytes) // (points * 12 + CHARACTER_BYTES)
     return int(max(1, min(limits["max_characters"], by_frames, by_body)))
 
 
@@ -98,7 +99,9 @@ def synthesize(url: str, positions: NDArray[np.floating], fps: float, ids: list[
         limits, detail = client.limits(), client.library(animal)
         out_frames = int(np.ceil((F - 1) * detail["fps"] / fps)) + 1
         # At least N pieces for N in flight.
-        size = max(1, min(piece_size(limits, F, out_frames), -(-C // concurrency)))
+        ground = options.get("ground")
+        extra = len(ground["heights"]["data"]) if isinstance(ground, dict) else 0
+        size = max(1, min(piece_size(limits, F, out_frames, extra), -(-C // concurrency)))
         pieces = [(a, min(a + size, C)) for a in range(0, C, size)]
         done: dict[tuple[int, int], Motion] = {}
 

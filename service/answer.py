@@ -264,7 +264,7 @@ def _prepare(job: jobs.Job, bank: Bank, prepared: Callable[[int, int], None] | N
     """The job's batch prepared (422 for a bad trajectory), its size told to ``prepared``."""
     req = job.request
     scales, seeds = jobs.character_scales_and_seeds(req)
-    options = jobs.options(req, job.max_character_frames)
+    options = jobs.options(req, job.max_character_frames, job.ground)
     try:
         prep, h, keys = prepare_batch(bank, job.positions, req.fps, scales, options, job.ids, seeds)
     except TrajectoryError as exc:

@@ -14,6 +14,7 @@ from numpy.typing import NDArray
 from pydantic import BaseModel, TypeAdapter, ValidationError
 
 from api_schemas import CharacterIn, LiveCharacter, LiveRequest, SynthesizeRequest
+from api_schemas.models import GroundIn
 from api_schemas.wire import WireError, unblob
 from service.errors import ApiError, field_path, from_validation
 from service.settings import Settings
@@ -21,6 +22,7 @@ from synth_core.runtime.bank import Bank
 from synth_core.runtime.parallel_render import Cancelled as Cancelled  # deadline passed, client left
 from synth_core.runtime.streaming import BatchStream
 from synth_core.runtime.synthesis import Options, Result
+from synth_core.runtime.terrain import MAX_CELLS, HeightField, TerrainError
 from synth_core.runtime.trajectory import FrameLimitError, Prepared, TrajectoryError, resampled_frames
 
 
@@ -32,6 +34,7 @@ class Job:
     cancel: threading.Event
     max_character_frames: int | None = None  # checked again once the resampling is known
     out_frames: int = 0  # frames each character comes back with at least (the longest's)
+    ground: HeightField | None = None  # the request's terrain, checked
 
     @functools.cached_property
     def ids(self) -> list[str]:
@@ -144,7 +147,31 @@ def parse(body: Any, settings: Settings, banks: dict[str, Bank]) -> Job:
         for c, p in enumerate(paths):
             positions[c, :len(p)] = p
             positions[c, len(p):] = p[-1]  # a shorter path: it stands at its end
-    return Job(req, positions, lengths, threading.Event(), settings.max_character_frames, out_frames)
+    return Job(req, positions, lengths, threading.Event(), settings.max_character_frames, out_frames,
+               ground_field(req.ground))
+
+
+def ground_field(ground: GroundIn | None) -> HeightField | None:
+    """The request's height field, checked: 422 naming the field (``ground.heights``, ...)."""
+    if ground is None:
+        return None
+    where = "ground.heights"
+    if ground.heights.dtype not in ("<f4", "<f8"):
+        raise ApiError(422, f"{where}.dtype", f"heights must be float32 ('<f4') or float64 ('<f8'), "
+                                              f"got {ground.heights.dtype!r}")
+    if len(ground.heights.shape) != 2:
+        raise ApiError(422, f"{where}.shape", f"expected (rows along z, columns along x), "
+                                              f"got {tuple(ground.heights.shape)}")
+    if int(np.prod(ground.heights.shape, dtype=np.int64)) > MAX_CELLS:
+        raise ApiError(422, f"{where}.shape", f"{tuple(ground.heights.shape)} is over the limit of "
+                                              f"{MAX_CELLS} heights")
+    try:
+        heights = unblob(ground.heights.dtype, ground.heights.shape, ground.heights.data, where)
+        return HeightField.make(heights, ground.origin, ground.spacing)
+    except WireError as exc:
+        raise ApiError(422, exc.field, exc.reason) from None
+    except TerrainError as exc:
+        raise ApiError(422, exc.field, exc.reason) from None
 
 
 def character_scales_and_seeds(req: SynthesizeRequest) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
@@ -154,12 +181,13 @@ def character_scales_and_seeds(req: SynthesizeRequest) -> tuple[NDArray[np.float
     return scales, seeds
 
 
-def options(req: SynthesizeRequest, max_character_frames: int | None = None) -> Options:
+def options(req: SynthesizeRequest, max_character_frames: int | None = None,
+            ground: HeightField | None = None) -> Options:
     return Options(sigma=req.sigma, seed=req.seed, scale_range=(req.scale_min, req.scale_max),
                    skip_invalid=req.skip_invalid, foot_lock=req.foot_lock, first_index=req.first_index,
                    min_resample_rate=req.min_resample_rate, resample=req.resample,
                    size_matching=req.size_matching, tempo_spread=req.tempo_spread,
-                   max_character_frames=max_character_frames)
+                   max_character_frames=max_character_frames, ground=ground)
 
 
 def trajectory_error(exc: TrajectoryError, job: Job) -> ApiError:
@@ -180,7 +208,8 @@ def open_stream(job: Job, bank: Bank, chunk_frames: int) -> BatchStream:
     req = job.request
     scales, seeds = character_scales_and_seeds(req)
     try:
-        return BatchStream(bank, job.positions, req.fps, scales, options(req, job.max_character_frames),
+        return BatchStream(bank, job.positions, req.fps, scales,
+                           options(req, job.max_character_frames, job.ground),
                            job.ids, seeds, chunk_frames)
     except TrajectoryError as exc:
         raise trajectory_error(exc, job) from None

@@ -23,7 +23,7 @@ from service import encode
 from service.chunk import packed_chunk
 from service.encode import Packing
 from service.errors import ApiError
-from service.jobs import validate
+from service.jobs import ground_field, validate
 from service.packing import skeleton_id
 from service.settings import Settings
 from service.ws_session import Session
@@ -46,7 +46,7 @@ def open_live(body: Any, settings: Settings, banks: dict[str, Bank]) -> tuple[Li
         live = LiveShards(bank, len(req.characters), req.fps, scales=scales, seed=req.seed, seeds=seeds,
                           scale_range=(req.scale_min, req.scale_max), sigma=req.sigma,
                           foot_lock=req.foot_lock, heading=req.heading, size_matching=req.size_matching,
-                          tempo_spread=req.tempo_spread,
+                          tempo_spread=req.tempo_spread, ground=ground_field(req.ground),
                           reuse_windows=True)  # a window is packed before the next is made
     except TrajectoryError as exc:
         raise live_error(exc, "characters") from None

@@ -20,7 +20,7 @@ import pytest
 
 from api_schemas.wire import ENCODING_ERROR, blob, decode_rotations, rotation_angle, unblob
 from synth_core.quality import herd_sim as crowd
-from tests.helpers.requests import LIMITS, MSGPACK, post, refused
+from tests.helpers.requests import LIMITS, MSGPACK, batch, post, refused
 from tests.helpers.servers import metric, running
 
 
@@ -33,11 +33,6 @@ def server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
 @pytest.fixture(scope="module")
 def herd() -> np.ndarray:
     return crowd.simulate(6, 240, seed=0).astype(np.float32)
-
-
-def batch(herd: np.ndarray, **options: Any) -> dict[str, Any]:
-    return {"animal": "horse", "seed": 3, **options,
-            "characters": [{"id": f"h{c}", "points": blob(herd[c])} for c in range(len(herd))]}
 
 
 def as_json(body: dict[str, Any]) -> str:

@@ -24,6 +24,7 @@ from synth_core.runtime.bank import Bank
 from synth_core.runtime.live import LiveSynth
 from tests.helpers.requests import LIMITS, post
 from tests.helpers.servers import free_port, metric, running, start, wait_until_live
+from tests.helpers.stream import closed_with, receive, send, stream_all, ws_url
 
 STREAM_LIMITS = {**LIMITS, "QUADSYNTH_WS_WINDOW": "2", "QUADSYNTH_WS_SEND_TIMEOUT_S": "1.5"}
 
@@ -53,42 +54,6 @@ def batch(herd: np.ndarray, **options: Any) -> dict[str, Any]:
     # Characters of different lengths: each is answered at its own.
     return {"animal": "horse", "seed": 3, **options,
             "characters": [{"id": f"h{c}", "points": blob(herd[c, :300 - 40 * c])} for c in range(len(herd))]}
-
-
-def ws_url(url: str) -> str:
-    return url.replace("http://", "ws://") + "/v1/stream"
-
-
-def send(ws: ClientConnection, message: dict[str, Any]) -> None:
-    ws.send(msgpack.packb(message, use_bin_type=True))
-
-
-def receive(ws: ClientConnection, timeout: float = 30) -> dict[str, Any]:
-    return msgpack.unpackb(ws.recv(timeout=timeout))  # type: ignore[no-any-return]
-
-
-def closed_with(ws: ClientConnection, code: int, status: int, field: str, *words: str) -> None:
-    """The next message is a typed error, then the connection closes with ``code``."""
-    error = receive(ws)
-    assert error["type"] == "error", error
-    assert error["error"]["status"] == status and error["error"]["field"] == field, error
-    for word in words:
-        assert word in error["error"]["message"], error
-    with pytest.raises(ConnectionClosed) as closed:
-        ws.recv(timeout=10)
-    assert closed.value.rcvd is not None and closed.value.rcvd.code == code
-
-
-def stream_all(ws: ClientConnection, body: dict[str, Any]) -> tuple[dict[str, Any], list[dict[str, Any]]]:
-    send(ws, {"type": "synthesize", **body})
-    head = receive(ws)
-    assert head["type"] == "start", head
-    chunks = []
-    while (m := receive(ws))["type"] == "chunk":
-        chunks.append(m)
-        send(ws, {"type": "ack", "chunk": m["chunk"]})
-    assert m == {"type": "end", "batch": head["batch"], "chunks": len(chunks), "cancelled": False}
-    return head, chunks
 
 
 def test_stream_gives_the_motion_rest_gives(server: str, herd: np.ndarray) -> None:

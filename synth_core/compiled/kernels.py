@@ -31,11 +31,13 @@ from numpy.typing import NDArray
 from synth_core import UP_AXIS
 from synth_core.build.ik import HINGE_AXIS_MIN_SIN, limb_rigs
 from synth_core.compiled.scratch import Scratch
-from synth_core.runtime.footlock import EASE_FRAMES, MAX_SINK, PAD, REACH
+from synth_core.runtime.footlock import EASE_FRAMES, MAX_SINK, PAD, REACH, TERRAIN_MAX_SINK
+from synth_core.runtime.terrain import BUMP_LEAST
 
 if TYPE_CHECKING:
     from synth_core.runtime.bank import Bank
     from synth_core.runtime.synthesis import Plan
+    from synth_core.runtime.terrain import Grounding
 
 try:
     import numba
@@ -506,12 +508,87 @@ NOWHERE = -(1 << 62)  # Posed.legs_at of a character whose last window kept no l
 
 
 @_jit()
+def _ground_at(heights: Any, x0: float, z0: float, spacing: float, x: float, z: float) -> float:
+    """terrain.sample at one point (the same arithmetic, in the same order)."""
+    nz, nx = heights.shape
+    fx = min(max((x - x0) / spacing, 0.0), nx - 1.0)
+    fz = min(max((z - z0) / spacing, 0.0), nz - 1.0)
+    j = min(int(fx), nx - 2)
+    i = min(int(fz), nz - 2)
+    u, v = fx - j, fz - i
+    near = heights[i, j] * (1.0 - u) + heights[i, j + 1] * u
+    far = heights[i + 1, j] * (1.0 - u) + heights[i + 1, j + 1] * u
+    return float(near * (1.0 - v) + far * v)
+
+
+@_jit(parallel=True)
+def _ground_many(heights: Any, x0: float, z0: float, spacing: float, x: Any, z: Any, out: Any) -> None:
+    for i in _prange(x.shape[0]):
+        out[i] = _ground_at(heights, x0, z0, spacing, x[i], z[i])
+
+
+def ground_samples(heights: NDArray[np.float64], x0: float, z0: float, spacing: float,
+                   x: NDArray[np.float64], z: NDArray[np.float64]) -> NDArray[np.float64]:
+    """terrain.sample, compiled (the same numbers): the body's footprint samples 20 points a
+    character-frame, which numpy's gathers made 10 us of it (more than the whole flat render)."""
+    x, z = np.broadcast_arrays(np.asarray(x, np.float64), np.asarray(z, np.float64))
+    out = np.empty(x.size)
+    _ground_many(heights, float(x0), float(z0), float(spacing), np.ascontiguousarray(x).ravel(),
+                 np.ascontiguousarray(z).ravel(), out)
+    return out.reshape(x.shape)
+
+
+@_jit()
+def _swing_share(targets: Any, f: int, last: int, u: int, nxt: int) -> float:
+    """terrain.swing_share of frame u of a swing from plant frame ``last`` to ``nxt``."""
+    gone = math.hypot(targets[u, f, 0] - targets[last, f, 0], targets[u, f, 2] - targets[last, f, 2])
+    left = math.hypot(targets[nxt, f, 0] - targets[u, f, 0], targets[nxt, f, 2] - targets[u, f, 2])
+    if gone + left > 1e-9:
+        return float(gone / (gone + left))
+    return float((u - last) / (nxt - last))
+
+
+@_jit()
+def _ground_targets(targets: Any, contacts: Any, heights: Any, x0: float, z0: float, spacing: float,
+                    h: float, under: Any) -> None:
+    """terrain.ground_targets for one character, in place (``under (T,)``: scratch)."""
+    T = targets.shape[0]
+    for f in range(4):
+        for t in range(T):
+            under[t] = _ground_at(heights, x0, z0, spacing, targets[t, f, 0] * h, targets[t, f, 2] * h) / h
+        t = 0
+        while t < T:
+            if contacts[t, f]:
+                targets[t, f, 1] = max(targets[t, f, 1], 0.0) + under[t]
+                t += 1
+                continue
+            s = t
+            while t < T and not contacts[t, f]:
+                t += 1
+            last, nxt = s - 1, t
+            if last < 0 or nxt >= T:  # no plant before or after it: the terrain under it
+                for u in range(s, t):
+                    targets[u, f, 1] = max(targets[u, f, 1], 0.0) + under[u]
+                continue
+            lift = 0.0
+            for u in range(s, t):
+                x = _swing_share(targets, f, last, u, nxt)
+                e = under[last] + (under[nxt] - under[last]) * x
+                lift = max(lift, (under[u] - e) / max(4.0 * x * (1.0 - x), BUMP_LEAST))
+            for u in range(s, t):
+                x = _swing_share(targets, f, last, u, nxt)
+                e = under[last] + (under[nxt] - under[last]) * x
+                targets[u, f, 1] = max(targets[u, f, 1], 0.0) + max(e + lift * 4.0 * x * (1.0 - x), under[u])
+
+
+@_jit()
 def _character(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, yaw: Any, path: Any,
                     h: float, contacts: Any, parents: Any, offsets: Any, fk_joints: Any, rigs: Any,
                     bends: Any, sink_limit: float, foot_lock: bool, out_rot: Any, out_root: Any,
                     world: Any, feet: Any, legs: Any, targets: Any, sink: Any, eased: Any,
                     keep_from: int, keep_to: int, known_feet: Any, known: int, recent: Any,
-                    recent_known: bool) -> bool:
+                    recent_known: bool, tilt: Any, tilt_at: int, heights: Any, ground_x0: float,
+                    ground_z0: float, spacing: float) -> bool:
     """All four passes for one character (scratch arrays given). Only frames ``[keep_from,
     keep_to)`` are wanted (a window rendered over its foot lock's context): the legs' IK, which
     reads nothing of other frames, is solved for those alone.
@@ -521,7 +598,12 @@ def _character(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, yaw
     array: none kept). ``recent (PAD, 4, LEG_WIDTH)``: what the sink reads of the PAD frames
     before ``keep_from``, if ``recent_known`` (then ``known >= keep_from``): those are not posed
     either. On return it holds the same of the PAD frames before ``keep_to``: True if it does
-    (the first frames of a plan have fewer than PAD frames before them)."""
+    (the first frames of a plan have fewer than PAD frames before them).
+
+    ``heights (Nz, Nx)``: the terrain (``(0, 0)``: none), its grid's origin and spacing; the body
+    then tilted by ``tilt[tilt_at + t]`` (``(T', 4)``) on frame t and its feet planted on the
+    terrain (:mod:`synth_core.runtime.terrain`)."""
+    terrain = heights.shape[0] > 0
     T = out_rot.shape[0]
     if not foot_lock:
         keep_from, keep_to, known, recent_known = 0, T, 0, False  # no context
@@ -532,6 +614,9 @@ def _character(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, yaw
     else:
         s = a = max(min(known, keep_from - PAD), 0)
     _assemble(poses, height, surge, rows[a:], weights[a:], yaw[a:], path[a:], h, out_rot[a:], out_root[a:])
+    if terrain:
+        for t in range(a, T):
+            _put(out_rot[t, 0], _qmul(_q4(tilt[tilt_at + t]), _q4(out_rot[t, 0])))
     if not foot_lock:
         return False
     # The world's origin: a block starts at the first wanted frame (the frames posed before it
@@ -544,7 +629,14 @@ def _character(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, yaw
             up, hi, an, ef = rigs[f, 0], rigs[f, 1], rigs[f, 2], rigs[f, 3]
             p_up, p_hi = _world_position(world, up, t - o), _world_position(world, hi, t - o)
             p_an, p_ef = _world_position(world, an, t - o), _world_position(world, ef, t - o)
-            feet[t, f, 0], feet[t, f, 1], feet[t, f, 2] = p_ef
+            if terrain:  # as the leg hangs untilted, above the body's ground (terrain.untilt)
+                r = _scale(_v3(out_root[t]), 1.0 / h)
+                q = _q4(tilt[tilt_at + t])
+                p = _add(r, _qrot(_conj(_unit4((q[0], q[1], q[2], q[3] + 1.0))), _sub(p_ef, r)))
+                y = r[1] + _qrot(_conj(q), _sub(p_ef, r))[1]
+                feet[t, f, 0], feet[t, f, 1], feet[t, f, 2] = p[0], y - path[t, 1] / h, p[2]
+            else:
+                feet[t, f, 0], feet[t, f, 1], feet[t, f, 2] = p_ef
             leg = legs[t, f]
             leg[_LEG_TOE], leg[_LEG_TOE + 1], leg[_LEG_TOE + 2] = _sub(p_ef, p_an)
             leg[_LEG_UP], leg[_LEG_UP + 1], leg[_LEG_UP + 2] = p_up
@@ -552,11 +644,13 @@ def _character(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, yaw
     if known_feet.shape[0] > 0:
         known_feet[a:] = feet[a:]
     _plant_targets(feet, contacts, targets)
+    if terrain:
+        _ground_targets(targets, contacts, heights, ground_x0, ground_z0, spacing, h, sink)
     for t in range(s, T):
         floor = path[t, 1] / h
         worst = 0.0
         for f in range(4):
-            if targets[t, f, 1] < floor:
+            if not terrain and targets[t, f, 1] < floor:
                 targets[t, f, 1] = floor
             leg = legs[t, f]
             to_ankle = _sub(_sub(_v3(targets[t, f]), _v3(leg[_LEG_TOE:])), _v3(leg[_LEG_UP:]))
@@ -579,7 +673,8 @@ def _character(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, yaw
 def _render_all(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, yaw: Any, path: Any,
                 scales: Any, contacts: Any, parents: Any, offsets: Any, fk_joints: Any, rigs: Any,
                 bends: Any, sink_limit: float, foot_lock: bool, out_rot: Any, out_root: Any,
-                w_world: Any, w_feet: Any, w_legs: Any, w_targets: Any, w_sink: Any, w_eased: Any) -> None:
+                w_world: Any, w_feet: Any, w_legs: Any, w_targets: Any, w_sink: Any, w_eased: Any,
+                tilt: Any, heights: Any, ground_x0: float, ground_z0: float, spacing: float) -> None:
     """``w_*``: one working set per worker (first axis), reused for its characters: a fresh
     megabyte per character would cost more in page faults than the lock's arithmetic."""
     C = out_rot.shape[0]
@@ -590,17 +685,20 @@ def _render_all(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, ya
         sink, eased = w_sink[worker], w_eased[worker]
         recent = np.empty((PAD, 4, LEG_WIDTH))
         for c in range(worker, C, workers):
+            own_tilt = tilt[c] if heights.shape[0] > 0 else tilt[0]
             _character(poses, height, surge, rows[c], weights[c], yaw[c], path[c], scales[c],
                        contacts[c], parents, offsets, fk_joints, rigs, bends, sink_limit, foot_lock,
                        out_rot[c], out_root[c], world, feet, legs, targets, sink, eased, 0,
-                       out_rot.shape[1], none_known, 0, recent, False)
+                       out_rot.shape[1], none_known, 0, recent, False, own_tilt, 0, heights, ground_x0,
+                       ground_z0, spacing)
 
 
 @_jit(parallel=True)
 def _render_windows(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, yaw: Any, path: Any,
                     scales: Any, contacts: Any, parents: Any, offsets: Any, fk_joints: Any, rigs: Any,
                     bends: Any, sink_limit: float, foot_lock: bool, workers: int, begin: Any, end: Any,
-                    start: int, out_rot: Any, out_root: Any, known_feet: Any, known: Any,
+                    start: int, out_rot: Any, out_root: Any, tilt: Any, heights: Any, ground_x0: float,
+                    ground_z0: float, spacing: float, known_feet: Any, known: Any,
                     known_legs: Any, legs_at: Any, c0: int, c1: int) -> None:
     """Frames ``[start, start + out.shape[1])`` of characters ``[c0, c1)``, each rendered over
     its own context ``[begin[c], end[c])`` of the plan (see :func:`render_window`);
@@ -629,11 +727,15 @@ def _render_windows(poses: Any, height: Any, surge: Any, rows: Any, weights: Any
             k = e - b
             kn = min(max(known[c] - b, 0), k) if keep else 0  # frames with their feet known
             recent_known = keep and legs_at[c] == start and start - b >= PAD and kn >= start - b
+            own_tilt = tilt[c] if heights.shape[0] > 0 else tilt[0]
+            own_legs = known_legs[c] if keep else no_recent
             made = _character(poses, height, surge, rows[c, b:e], weights[c, b:e], yaw[c, b:e],
                               path[c, b:e], scales[c], contacts[c, b:e], parents, offsets, fk_joints, rigs,
                               bends, sink_limit, foot_lock, rot[:k], root[:k], world, feet[:k], legs[:k],
                               targets[:k], sink[:k], eased[:k], start - b, start - b + n,
-                              known_feet[b:e, c], kn, known_legs[c] if keep else no_recent, recent_known)
+                              known_feet[b:e, c], kn, own_legs, recent_known,
+                              own_tilt, b, heights, ground_x0,
+                              ground_z0, spacing)
             out_rot[c] = rot[start - b:start - b + n]
             out_root[c] = root[start - b:start - b + n]
             if keep and foot_lock:
@@ -685,6 +787,16 @@ def lock_context(contacts: NDArray[np.bool_], start: int, stop: int
     return begin, end
 
 
+def _terrain_arrays(ground: Grounding | None) -> tuple[Any, Any, float, float, float]:
+    """tilt, heights, grid origin x and z, spacing; no terrain: empty arrays (one layout each,
+    so the kernels are compiled once for both)."""
+    if ground is None:
+        return np.empty((1, 0, 4)), np.empty((0, 0)), 0.0, 0.0, 1.0
+    f = ground.field
+    return (np.ascontiguousarray(ground.tilt, np.float64), np.ascontiguousarray(f.heights, np.float64),
+            f.origin[0], f.origin[1], f.spacing)
+
+
 def _plan_arrays(plan: Plan) -> tuple[Any, Any, Any, Any, Any, Any]:
     """rows, weights, yaw, path, scales, contacts: C-contiguous, whatever view the plan holds.
 
@@ -718,6 +830,15 @@ def _bank_tables(bank: Bank) -> tuple[tuple[Any, Any, Any], tuple[Any, Any, Any,
              MAX_SINK * sk.leg_length()))
 
 
+def _sink_limit(bank: Bank, ground: Grounding | None
+                ) -> tuple[tuple[Any, Any, Any], tuple[Any, Any, Any, Any, Any, float]]:
+    """:func:`_bank_tables`, the sink limit that on a terrain (footlock.TERRAIN_MAX_SINK)."""
+    table, skeleton = _bank_tables(bank)
+    if ground is None:
+        return table, skeleton
+    return table, (*skeleton[:5], TERRAIN_MAX_SINK * bank.skeleton.leg_length())
+
+
 # Parts of a shared window's characters (see render_window): enough that a thread done with its own
 # work takes a part of another's and the two end near together, few enough that each call's
 # overhead stays small.
@@ -745,8 +866,8 @@ class Posed(NamedTuple):
 def render_window(bank: Bank, plan: Plan, start: int, stop: int, begin: NDArray[np.int64],
                   end: NDArray[np.int64], foot_lock: bool = True, known: Posed | None = None,
                   out: NDArray[np.float32] | None = None,
-                  share: Callable[[list[Callable[[], None]]], None] | None = None
-                  ) -> tuple[NDArray[np.float32], NDArray[np.float32]]:
+                  share: Callable[[list[Callable[[], None]]], None] | None = None,
+                  ground: Grounding | None = None) -> tuple[NDArray[np.float32], NDArray[np.float32]]:
     """Root ``(C, stop - start, 3)`` and rotations of frames ``[start, stop)`` only, each
     character rendered over its context ``[begin, end)`` of ``plan`` (from
     :func:`synth_core.runtime.streaming.lock_context`): the same numbers as :func:`render` of the whole
@@ -763,7 +884,9 @@ def render_window(bank: Bank, plan: Plan, start: int, stop: int, begin: NDArray[
     ``share``: the characters are cut into SHARED_PARTS parts, each a one-thread render, which
     ``share`` runs (:func:`synth_core.compiled.render_pool.shared`: threads with nothing else to do take
     some): renders side by side on the pool's threads -- a live session's shards, a stream's
-    first-window parts -- finish together though one has more to pose than the other."""
+    first-window parts -- finish together though one has more to pose than the other.
+
+    ``ground``: the plan stands on a terrain (:func:`synth_core.runtime.terrain.ground_plan`)."""
     if not AVAILABLE:
         raise RuntimeError("synth_core.compiled.kernels needs numba; use the numpy backend")
     C = plan.yaw.shape[0]
@@ -786,10 +909,11 @@ def render_window(bank: Bank, plan: Plan, start: int, stop: int, begin: NDArray[
     out_rot = np.empty((C, stop - start, J, 4), np.float32) if out is None else out
     assert out_rot.shape == (C, stop - start, J, 4) and out_rot.dtype == np.float32
     assert out_rot.flags.c_contiguous
-    table, skeleton = _bank_tables(bank)
+    table, skeleton = _sink_limit(bank, ground)
     args = (*table, *_plan_arrays(plan.window(cb, ce)), *skeleton, foot_lock,
             1 if share else numba.get_num_threads(), np.asarray(begin, np.int64) - cb,
             np.asarray(end, np.int64) - cb, start - cb, out_rot, out_root,
+            *_terrain_arrays(None if ground is None else ground.window(cb, ce)),
             posed.feet[cb:ce] if known is not None else posed.feet, posed.frames, posed.legs, posed.legs_at)
     try:
         if share is None:
@@ -806,11 +930,13 @@ def render_window(bank: Bank, plan: Plan, start: int, stop: int, begin: NDArray[
 
 def render(bank: Bank, plan: Plan, foot_lock: bool = True,
            out: tuple[NDArray[np.float32], NDArray[np.float32]] | None = None,
-           scratch: Scratch | None = None) -> tuple[NDArray[np.float32], NDArray[np.float32]]:
+           scratch: Scratch | None = None, ground: Grounding | None = None
+           ) -> tuple[NDArray[np.float32], NDArray[np.float32]]:
     """Root ``(C, T, 3)`` and local rotations ``(C, T, J, 4)`` of a plan (see
     :func:`synth_core.runtime.synthesis.render`, the reference); into ``out`` (root, rotations) if given.
     ``scratch``: where the workers' working sets are kept between calls (a small chunk's call
-    would otherwise spend a fifth of its time faulting them in)."""
+    would otherwise spend a fifth of its time faulting them in). ``ground``: the plan stands on
+    a terrain (:func:`synth_core.runtime.terrain.ground_plan`)."""
     if not AVAILABLE:
         raise RuntimeError("synth_core.compiled.kernels needs numba; use the numpy backend")
     C, T = plan.yaw.shape
@@ -824,8 +950,10 @@ def render(bank: Bank, plan: Plan, foot_lock: bool = True,
                                 ("root", (C, T, 3)))]
     out_root = work.pop()
     out_rot = np.empty((C, T, J, 4), np.float32) if out is None else out[1]
-    table, skeleton = _bank_tables(bank)
-    _render_all(*table, *_plan_arrays(plan), *skeleton, foot_lock, out_rot, out_root, *work)
+    table, skeleton = _sink_limit(bank, ground)
+    w_world, w_feet, w_legs, w_targets, w_sink, w_eased = work
+    _render_all(*table, *_plan_arrays(plan), *skeleton, foot_lock, out_rot, out_root, w_world, w_feet, w_legs,
+                w_targets, w_sink, w_eased, *_terrain_arrays(ground))
     assert UP_AXIS == 1  # the kernels index Y directly
     if out is None:
         return out_root.astype(np.float32), out_rot

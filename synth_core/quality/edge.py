@@ -24,6 +24,9 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy.ndimage import gaussian_filter
+
+from synth_core.runtime.terrain import HeightField
 
 Floats = NDArray[np.float64]
 # A turn: (distance along the path where it starts (m), angle (rad, + left), radius (m)).
@@ -45,6 +48,7 @@ class Scenario:
     scales: Floats  # (C,)
     reference: NDArray[np.float32]  # (C, F, 3) the path meant (positions without jitter noise)
     about: str
+    ground: HeightField | None = None  # the terrain walked on (None: flat, at the paths' y)
 
 
 GaitSpeeds = Mapping[str, tuple[float, float]]  # gait -> (slowest, fastest) clip speed, m/s at scale 1
@@ -279,6 +283,85 @@ def mixed_sizes(gaits: GaitSpeeds, fps: float, rng: np.random.Generator) -> Scen
                 about=f"scales {scales} on one path up to {fast:.2f} m/s and back to {slow:.2f}")
 
 
+# --- ground that is not flat (issue 33) ---------------------------------------------------------
+
+TERRAIN_SPACING = 0.05  # m between the scenarios' height-field points
+TERRAIN_MARGIN = 10.0  # m of terrain around the paths
+
+
+def on_terrain(sc: Scenario, heights: Callable[[Floats, Floats], Floats], name: str, about: str) -> Scenario:
+    """``sc`` on the ground ``heights(x, z)`` (metres, vectorized), sampled on a grid around its
+    paths; the paths' y (which the render does not read on a terrain) the ground's under them."""
+    lo = sc.positions[..., [0, 2]].min(axis=(0, 1)) - TERRAIN_MARGIN
+    hi = sc.positions[..., [0, 2]].max(axis=(0, 1)) + TERRAIN_MARGIN
+    xs = np.arange(lo[0], hi[0] + TERRAIN_SPACING, TERRAIN_SPACING)
+    zs = np.arange(lo[1], hi[1] + TERRAIN_SPACING, TERRAIN_SPACING)
+    x, z = np.meshgrid(xs, zs)
+    field = HeightField.make(heights(x, z), (float(xs[0]), float(zs[0])), TERRAIN_SPACING)
+
+    def grounded(p: NDArray[np.float32]) -> NDArray[np.float32]:
+        out = p.copy()
+        out[..., 1] = field.sample(p[..., 0], p[..., 2])
+        return out
+
+    return Scenario(name, grounded(sc.positions), sc.scales, grounded(sc.reference), about, field)
+
+
+def _gaits_straight(gaits: GaitSpeeds, fps: float, seconds: float = 6.0,
+                    turns: Sequence[Turn] = ()) -> Scenario:
+    """Walk, trot and canter side by side at their middle speeds, heading +Z after a run-up."""
+    order = [g for g in ("walk", "trot", "canter") if g in gaits]
+    speeds = [cruise(gaits, g) for g in order]
+    F = frames_for(0.5 + max(speeds) / SPEED_UP + seconds, fps)
+    return herd([run(F, fps, start_at(v), turns) for v in speeds])
+
+
+def slope(grade: float, direction: str) -> Callable[[GaitSpeeds, float, np.random.Generator], Scenario]:
+    """A plane rising ``grade`` (rise over run) up (+Z, the way the herd goes), down or across."""
+    def make(gaits: GaitSpeeds, fps: float, rng: np.random.Generator) -> Scenario:
+        k = {"up": (0.0, grade), "down": (0.0, -grade), "across": (grade, 0.0)}[direction]
+        return on_terrain(_gaits_straight(gaits, fps), lambda x, z: k[0] * x + k[1] * z,
+                          f"slope_{direction}_{round(grade * 100)}",
+                          f"walk, trot and canter straight {direction} a {grade:.0%} slope")
+    return make
+
+
+def step_20cm(gaits: GaitSpeeds, fps: float, rng: np.random.Generator) -> Scenario:
+    return on_terrain(_gaits_straight(gaits, fps), lambda x, z: np.where(z > 6.0, 0.2, 0.0), "step_20cm",
+                      "walk, trot and canter up a 20 cm step 6 m along the path")
+
+
+def rolling_hills(gaits: GaitSpeeds, fps: float, rng: np.random.Generator) -> Scenario:
+    return on_terrain(_gaits_straight(gaits, fps, turns=[(5.0, 0.6, 12.0)]),
+                      lambda x, z: 0.6 * np.sin(2 * np.pi * z / 16.0) * np.cos(2 * np.pi * x / 22.0),
+                      "rolling_hills", "walk, trot and canter over hills 1.2 m from trough to crest "
+                      "(up to 24% steep), bending left")
+
+
+def bumpy(gaits: GaitSpeeds, fps: float, rng: np.random.Generator) -> Scenario:
+    sc = _gaits_straight(gaits, fps)
+    lo = sc.positions[..., [0, 2]].min(axis=(0, 1)) - TERRAIN_MARGIN
+    hi = sc.positions[..., [0, 2]].max(axis=(0, 1)) + TERRAIN_MARGIN
+    shape = (int((hi[1] - lo[1]) / TERRAIN_SPACING) + 2, int((hi[0] - lo[0]) / TERRAIN_SPACING) + 2)
+    noise = gaussian_filter(rng.normal(0.0, 1.0, shape), 3.0)  # bumps ~15 cm across
+    noise *= 0.03 / noise.std()
+
+    def heights(x: Floats, z: Floats) -> Floats:
+        return np.asarray(noise[:x.shape[0], :x.shape[1]])
+
+    return on_terrain(sc, heights, "bumpy", "walk, trot and canter over bumps of 3 cm (sd), ~15 cm across")
+
+
+TERRAIN_MAKERS: dict[str, Callable[[GaitSpeeds, float, np.random.Generator], Scenario]] = {
+    **{f"slope_up_{g}": slope(g / 100, "up") for g in (10, 20, 30)},
+    "slope_down_30": slope(0.3, "down"),
+    "slope_across_30": slope(0.3, "across"),
+    "step_20cm": step_20cm,
+    "rolling_hills": rolling_hills,
+    "bumpy": bumpy,
+}
+
+
 MAKERS: dict[str, Callable[[GaitSpeeds, float, np.random.Generator], Scenario]] = {
     "cruise_straight": cruise_straight,
     "stop_and_stand": stop_and_stand,
@@ -293,6 +376,7 @@ MAKERS: dict[str, Callable[[GaitSpeeds, float, np.random.Generator], Scenario]] 
     "jitter_10hz": jitter_10hz,
     "too_fast": too_fast,
     "mixed_sizes": mixed_sizes,
+    **TERRAIN_MAKERS,
 }
 
 

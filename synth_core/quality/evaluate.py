@@ -24,12 +24,13 @@ from synth_core import UP_AXIS
 from synth_core.build.animals import sync_frames
 from synth_core.build.motion_graph import HUBS
 from synth_core.motion.contacts import touchdowns
-from synth_core.motion.skeleton import forward_kinematics
+from synth_core.motion.skeleton import Skeleton, forward_kinematics
 from synth_core.quality import edge
 from synth_core.quality import herd_sim as crowd
 from synth_core.quality import metrics as M
 from synth_core.runtime.bank import STATIC, Bank, Piece
 from synth_core.runtime.synthesis import N_HUBS, Options, Result, headings, synthesize
+from synth_core.runtime.terrain import HeightField
 
 Floats = NDArray[np.float64]
 
@@ -199,6 +200,13 @@ EDGE_TARGETS: dict[str, tuple[str, float]] = {
     "path_cm_max": ("<=", 1.0),
     "clock_kept": ("==", 1),
 }
+# ... and issue 33's, for the scenarios on a terrain (the flat ones report the figures too).
+TERRAIN_TARGETS: dict[str, tuple[str, float]] = {
+    "planted_ground_mm_p95": ("<=", 5.0),
+    "penetration_mm": ("<=", 5.0),
+    "pitch_error_deg_max": ("<=", 5.0),
+}
+PITCH_WINDOW_S = 1.0  # the body's pitch is judged on its mean over about a stride
 HIGHER_IS_BETTER = {"walk_support_share", "still_four_down_share", "footfall_preserved",
                     "footfall_across_transitions", "clock_kept"}
 
@@ -276,22 +284,64 @@ class Feet:
     down: NDArray[np.bool_]  # (C, T, 4) strict plants of ``heights``
 
 
-def feet_after_fk(bank: Bank, result: Result, ref: LibraryReference) -> Feet:
+def feet_after_fk(bank: Bank, result: Result, ref: LibraryReference,
+                  ground: HeightField | None = None) -> Feet:
+    """``ground``: heights are over the terrain under each foot (else the path's height)."""
     pos = np.asarray(world_positions(bank, result), np.float64)
     feet = pos[..., bank.skeleton.foot_joints, :]
-    above_ground = np.asarray(M.foot_heights(feet, result.path[..., UP_AXIS]), np.float64)
+    if ground is None:
+        above_ground = np.asarray(M.foot_heights(feet, result.path[..., UP_AXIS]), np.float64)
+    else:
+        above_ground = feet[..., UP_AXIS] - ground.sample(feet[..., 0], feet[..., 2])
     heights = above_ground - ref.soles[result.gait] * result.scales[:, None, None]
     return Feet(pos, feet, above_ground, heights, M.strict_plants(heights))
 
 
+def rest_pitch(bank: Bank) -> float:
+    """The library's median body pitch (degrees, hips to shoulders) on flat ground."""
+    sk = bank.skeleton
+    pos = np.asarray(forward_kinematics(sk, np.zeros((len(bank.poses), 3)), bank.poses)[0], np.float64)
+    return float(np.median(body_pitch(pos, sk)))
+
+
+def body_pitch(positions: Floats, skeleton: Skeleton) -> Floats:
+    """``(...)`` degrees: the line from the hips' midpoint to the shoulders' over the horizontal."""
+    top = np.array([f.chain[0] for f in skeleton.feet])
+    d = positions[..., top[:2], :].mean(axis=-2) - positions[..., top[2:], :].mean(axis=-2)
+    return np.asarray(np.degrees(np.arctan2(d[..., UP_AXIS], np.linalg.norm(d[..., [0, 2]], axis=-1))))
+
+
+def ground_figures(bank: Bank, result: Result, fk: Feet, ground: HeightField | None,
+                   ref: LibraryReference) -> dict[str, Any]:
+    """Issue 33's figures: how far annotated planted feet stand from the ground (over their
+    standing height, mm), and the body's pitch against the ground's slope between the front and
+    hind feet (a stride's mean, over the library's own pitch on flat ground, degrees)."""
+    planted = np.abs(fk.heights[result.contacts]) * 1000.0
+    front, hind = fk.feet[..., :2, :].mean(axis=-2), fk.feet[..., 2:, :].mean(axis=-2)
+    if ground is None:
+        rise = np.zeros(front.shape[:-1])
+    else:
+        rise = ground.sample(front[..., 0], front[..., 2]) - ground.sample(hind[..., 0], hind[..., 2])
+    run_ = np.linalg.norm((front - hind)[..., [0, 2]], axis=-1)
+    slope = np.degrees(np.arctan2(rise, np.maximum(run_, 1e-6)))
+    stride = max(3, int(PITCH_WINDOW_S * bank.fps))
+    off = ndimage.uniform_filter1d(body_pitch(fk.positions, bank.skeleton) - slope, stride, axis=1)
+    error = np.abs(off - rest_pitch(bank))
+    return {
+        "planted_ground_mm_p95": _round(float(np.percentile(planted, 95)) if planted.size else 0.0, 2),
+        "planted_ground_mm_max": _round(float(planted.max()) if planted.size else 0.0, 2),
+        "pitch_error_deg_max": _round(float(error.max()), 2),
+    }
+
+
 def edge_figures(bank: Bank, result: Result, reference_path: NDArray[np.floating], frames_in: int,
-                 ref: LibraryReference) -> dict[str, Any]:
+                 ref: LibraryReference, ground: HeightField | None = None) -> dict[str, Any]:
     """Every edge figure of one synthesized scenario, from world positions after FK.
 
     ``reference_path (C, F, 3)``: the path the characters were meant to follow, ``frames_in``
-    its frame count (the output's time is mapped onto it)."""
+    its frame count (the output's time is mapped onto it); ``ground``: the terrain walked on."""
     sk, fps = bank.skeleton, bank.fps
-    fk = feet_after_fk(bank, result, ref)
+    fk = feet_after_fk(bank, result, ref, ground)
     pos, feet, above_ground, heights, down = fk.positions, fk.feet, fk.above_ground, fk.heights, fk.down
     glide = M.near_ground_glide(feet, above_ground, result.root_pos)
     skate = M.foot_skate(feet, down)
@@ -344,14 +394,15 @@ def edge_figures(bank: Bank, result: Result, reference_path: NDArray[np.floating
         "gait_frames": {name: int(n) for name, n in
                         zip(HUBS, np.bincount(result.gait.ravel(), minlength=N_HUBS), strict=False)},
         "nan_count": int(np.isnan(result.rotations).sum() + np.isnan(result.root_pos).sum()),
-    }
+    } | ground_figures(bank, result, fk, ground, ref)
 
 
 def passes(figure: str, value: float | None) -> bool | None:
     """Whether ``value`` meets the issue's target for ``figure`` (None: no target, or no value)."""
-    if figure not in EDGE_TARGETS or value is None:
+    targets = EDGE_TARGETS | TERRAIN_TARGETS
+    if figure not in targets or value is None:
         return None
-    op, limit = EDGE_TARGETS[figure]
+    op, limit = targets[figure]
     return bool(value <= limit if op == "<=" else value >= limit if op == ">=" else value == limit)
 
 
@@ -387,15 +438,16 @@ def edge_suite(bank: Bank, seed: int = 0, names: list[str] | None = None, backen
                                  "frames": int(sc.positions.shape[1])}
         try:
             result = synthesize(bank, sc.positions, bank.fps, scales=sc.scales,
-                                options=Options(seed=seed, backend=backend))
+                                options=Options(seed=seed, backend=backend, ground=sc.ground))
         except ValueError as exc:  # a refusal is a figure too: the scenario could not be played
             scenarios[sc.name] = entry | {"error": str(exc), "failed": ["error"]}
             continue
-        figures = edge_figures(bank, result, sc.reference, sc.positions.shape[1], ref)
-        failed = [f for f in EDGE_TARGETS if passes(f, figures.get(f)) is False]
+        figures = edge_figures(bank, result, sc.reference, sc.positions.shape[1], ref, sc.ground)
+        targets = EDGE_TARGETS | (TERRAIN_TARGETS if sc.ground is not None else {})
+        failed = [f for f in targets if passes(f, figures.get(f)) is False]
         # By how much, in the figure's unit (a share: how much of it is missing).
-        beyond = {f: round(abs(float(figures[f]) - EDGE_TARGETS[f][1]), 4) for f in failed}
-        verdicts = {f: passes(f, figures.get(f)) for f in EDGE_TARGETS}  # None: no such frames
+        beyond = {f: round(abs(float(figures[f]) - targets[f][1]), 4) for f in failed}
+        verdicts = {f: passes(f, figures.get(f)) for f in targets}  # None: no such frames
         scenarios[sc.name] = entry | {"figures": figures, "pass": verdicts, "failed": failed,
                                       "beyond_target": beyond}
         if keep is not None:

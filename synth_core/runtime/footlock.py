@@ -25,10 +25,15 @@ from scipy.ndimage import gaussian_filter1d, maximum_filter1d
 from synth_core import UP_AXIS
 from synth_core.build import ik
 from synth_core.motion.skeleton import Skeleton, forward_kinematics
+from synth_core.runtime.terrain import Grounding, ground_targets, untilt
 
 Floats = NDArray[np.float64]
 REACH = 0.98  # of a leg's full reach, at most
 MAX_SINK = 0.05  # of the leg length, the most the root is lowered
+# ... on a terrain: a foot planted a stride downhill of its hip is further from it than on the
+# flat (at 30%, 7% of the leg for a foot half a leg ahead), and a body lowers rather than a leg
+# stretches (issue 33).
+TERRAIN_MAX_SINK = 0.2
 EASE_FRAMES = 9
 # Frames either side of a frame that its eased sink reads: the running max's half width plus the
 # Gaussian's radius (ease_sink: sigma EASE_FRAMES / 6, truncated at 4 sigma).
@@ -88,22 +93,31 @@ def ease_sink(sink: Floats, limit: float) -> Floats:
 def lock_feet(skeleton: Skeleton, root_pos: NDArray[np.floating], rotations: NDArray[np.floating],
               contacts: NDArray[np.bool_], scales: NDArray[np.floating],
               ground: NDArray[np.floating] | None = None, rigs: tuple[ik.LimbRig, ...] | None = None,
-              bends: NDArray[np.floating] | None = None) -> tuple[NDArray[np.float32], NDArray[np.float32]]:
+              bends: NDArray[np.floating] | None = None,
+              terrain: Grounding | None = None) -> tuple[NDArray[np.float32], NDArray[np.float32]]:
     """Root ``(C, T, 3)`` and local rotations ``(C, T, J, 4)`` with planted feet pinned.
 
     ``ground (C, T)``: the height planted feet stand at (default: as they are); ``bends (4, 3)``:
-    the legs' bend axes (:func:`synth_core.build.ik.bend_axes`; default: over this motion)."""
+    the legs' bend axes (:func:`synth_core.build.ik.bend_axes`; default: over this motion).
+    ``terrain``: the body already tilted by ``terrain.tilt`` and standing on ``ground``; the feet
+    are planted on ``terrain.field`` (:mod:`synth_core.runtime.terrain`)."""
     rigs = ik.limb_rigs(skeleton) if rigs is None else rigs
     h = np.asarray(scales, np.float64)[:, None, None]
     unit_root = np.asarray(root_pos, np.float64) / h
     pos, _ = forward_kinematics(skeleton, unit_root, rotations)
     feet = np.asarray(pos, np.float64)[..., skeleton.foot_joints, :]
-    targets = plant_targets(feet, contacts)
-    if ground is not None:  # planted feet on the ground the path runs over
+    if terrain is not None and ground is not None:
+        feet = untilt(feet, unit_root, terrain.tilt)
+        feet[..., UP_AXIS] -= (np.asarray(ground, np.float64) / h[..., 0])[..., None]
+        targets = ground_targets(plant_targets(feet, contacts), contacts, terrain.field, h[:, 0, 0])
+    else:
+        targets = plant_targets(feet, contacts)
+    if ground is not None and terrain is None:  # planted feet on the ground the path runs over
         floor = (np.asarray(ground, np.float64) / h[..., 0])[..., None]
         targets[..., UP_AXIS] = np.maximum(targets[..., UP_AXIS], floor)
     sink = ik.sink_to_reach(skeleton, unit_root, rotations, targets, np.full(4, REACH), rigs)
-    sink = ease_sink(np.asarray(sink, np.float64), MAX_SINK * skeleton.leg_length())
+    most = (MAX_SINK if terrain is None else TERRAIN_MAX_SINK) * skeleton.leg_length()
+    sink = ease_sink(np.asarray(sink, np.float64), most)
     unit_root[..., UP_AXIS] -= sink
     solved = ik.solve(skeleton, unit_root, rotations, targets, rigs, ground=None, bends=bends)
     return (unit_root * h).astype(np.float32), solved.rotations

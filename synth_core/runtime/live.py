@@ -70,6 +70,7 @@ from synth_core.runtime.synthesis import (
     stride_clocks,
     switch,
 )
+from synth_core.runtime.terrain import HeightField, on_ground
 from synth_core.runtime.trajectory import _GROUND, DEFAULT_SIGMA, TELEPORT_M, TrajectoryError
 
 NEVER = np.iinfo(np.int64).max // 4
@@ -192,7 +193,7 @@ class LiveSynth:
                  margin: int = MARGIN, foot_lock: bool = True, backend: str = "auto",
                  heading: float = 0.0, lock_lag: int = LOCK_LAG, first: int = 0,
                  reuse_windows: bool = False, share_render: bool = False, size_matching: str = "froude",
-                 tempo_spread: float = TEMPO_SPREAD) -> None:
+                 tempo_spread: float = TEMPO_SPREAD, ground: HeightField | None = None) -> None:
         if not (isinstance(n_characters, int) and n_characters >= 1):
             raise TrajectoryError(f"characters: need at least one, got {n_characters}")
         fps = bank.fps if fps is None else float(fps)
@@ -203,6 +204,7 @@ class LiveSynth:
         C = n_characters
         self.bank, self.fps, self.sigma, self.margin = bank, fps, float(sigma), margin
         self.foot_lock, self.heading = foot_lock, float(heading)
+        self.ground = ground  # the terrain (synth_core.runtime.terrain), rendered on in _emit
         self.scratch = Scratch() if reuse_windows else None
         self.share = render_pool.shared if share_render else None
         self.lock_lag = lock_lag if foot_lock else 0
@@ -713,6 +715,9 @@ class LiveSynth:
         else:
             C = len(self.scales)
             begin, end = np.full(C, lo), np.full(C, hi)
+        ground = None
+        if self.ground is not None:
+            buf, ground = on_ground(self.bank, buf, self.ground, int(begin.min()), int(end.max()))
         if self.compiled:
             # The feet of frames posed by earlier windows, by frame sent (from 0), kept for later ones.
             n = buf.yaw.shape[1]
@@ -722,11 +727,12 @@ class LiveSynth:
             out = None if self.scratch is None else self.scratch.array(
                 "live.rotations", (len(self.scales), hi - lo, self.bank.skeleton.n_joints, 4), np.float32)
             root, rot = kernels.render_window(self.bank, buf, lo, hi, begin, end, self.foot_lock, posed, out,
-                                              self.share)
+                                              self.share, ground)
             self.known_feet, self.legs_at = posed.frames + o0, posed.legs_at + o0
         else:
             cb, ce = int(begin.min()), int(end.max())
-            root, rot = render(self.bank, buf.window(cb, ce), self.foot_lock)
+            root, rot = render(self.bank, buf.window(cb, ce), self.foot_lock,
+                               None if ground is None else ground.window(cb, ce))
             root, rot = root[:, lo - cb:hi - cb], rot[:, lo - cb:hi - cb]
         # Copies: the buffer's columns are written over by later blocks.
         window = Window(self.emitted, root, rot, buf.gait[:, lo:hi].copy(), buf.contacts[:, lo:hi].copy())

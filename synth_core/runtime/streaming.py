@@ -36,6 +36,7 @@ from synth_core.compiled import kernels, render_pool
 from synth_core.runtime.bank import Bank
 from synth_core.runtime.footlock import PAD
 from synth_core.runtime.synthesis import Options, Plan, compiled_backend, plan, prepare_batch, render
+from synth_core.runtime.terrain import along_ground, ground_plan
 
 RENDER_CHUNKS = 4  # chunks rendered at once after the first (the context's cost spread over more)
 # The first window's plan reaches this many mean cycles past its lock's pad, then (if a plant runs
@@ -114,6 +115,8 @@ class BatchStream:
             raise ValueError(f"chunk_frames: must be a positive integer, got {self.chunk_frames!r}")
         self.prep, self.character_scales, self.keys = prepare_batch(
             self.bank, self.positions, self.fps, self.scales, self.options, self.ids, self.seeds)
+        if self.options.ground is not None:
+            self.prep = along_ground(self.prep, self.options.ground, self.bank.fps)
         self.frames = self.prep.positions.shape[1]
 
     @property
@@ -157,14 +160,21 @@ class BatchStream:
             begin, end = np.full(C, start), np.full(C, stop)
         else:
             begin, end = self._context(p, start, stop, bounds) if context is None else context
+        gait, contacts = p.gait[:, start:stop], p.contacts[:, start:stop]
+        at, ground = start, None
+        if self.options.ground is not None:  # the frames read, on the terrain (terrain.ground_plan)
+            o = int(begin.min())
+            p, ground = ground_plan(self.bank, p.window(o, int(end.max())), self.options.ground)
+            start, stop, begin, end = start - o, stop - o, begin - o, end - o
         if compiled_backend(self.options):
             root, rot = kernels.render_window(self.bank, p, start, stop, begin, end, lock,
-                                              share=render_pool.shared if shared else None)
+                                              share=render_pool.shared if shared else None, ground=ground)
         else:  # the reference: one context for all, the widest
             b, e = int(begin.min()), int(end.max())
-            root, rot = render(self.bank, p.window(b, e), lock)
+            part = None if ground is None else ground.window(b, e)
+            root, rot = render(self.bank, p.window(b, e), lock, part)
             root, rot = root[:, start - b:stop - b], rot[:, start - b:stop - b]
-        return Window(start, root, rot, p.gait[:, start:stop], p.contacts[:, start:stop])
+        return Window(at, root, rot, gait, contacts)
 
     def _first_part(self, rows: slice, stop: int, shared: bool = False) -> tuple[Window, Plan | None]:
         """Frames ``[0, stop)`` of characters ``rows``, from a plan of just those frames and

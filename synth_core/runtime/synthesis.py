@@ -52,6 +52,7 @@ from synth_core.runtime.draws import (
     uniform_streams,
 )
 from synth_core.runtime.footlock import lock_feet
+from synth_core.runtime.terrain import Grounding, HeightField, along_ground, ground_plan
 from synth_core.runtime.trajectory import DEFAULT_SIGMA, Prepared, TrajectoryError, prepare
 
 Floats = NDArray[np.float64]
@@ -87,6 +88,7 @@ class Options:
     size_matching: str = "froude"  # how a character of scale h uses the library (character_tempo)
     tempo_spread: float = TEMPO_SPREAD  # each character's own stride tempo, +- this share
     max_character_frames: int | None = None  # refuse (FrameLimitError) a batch that would make more
+    ground: HeightField | None = None  # the terrain the herd walks on (None: the paths' y is the ground)
 
 
 @dataclass(frozen=True, eq=False)
@@ -561,9 +563,11 @@ def _nlerp(a: NDArray[np.float32], b: NDArray[np.float32], w: NDArray[np.float32
     return np.asarray(q / np.linalg.norm(q, axis=-1, keepdims=True), dtype=np.float32)
 
 
-def render(bank: Bank, p: Plan, foot_lock: bool = True) -> tuple[NDArray[np.float32], NDArray[np.float32]]:
+def render(bank: Bank, p: Plan, foot_lock: bool = True,
+           ground: Grounding | None = None) -> tuple[NDArray[np.float32], NDArray[np.float32]]:
     """Root ``(C, T, 3)`` and local rotations ``(C, T, J, 4)`` of a plan: the numpy reference of
-    :func:`synth_core.compiled.kernels.render`."""
+    :func:`synth_core.compiled.kernels.render`. ``ground``: the plan stands on a terrain
+    (:func:`synth_core.runtime.terrain.ground_plan`)."""
     r, wt = p.rows, p.weights
     rotations = _nlerp(bank.poses[r[..., 0]], bank.poses[r[..., 1]], wt[..., 0])
     height = bank.height[r[..., 0]] * (1 - wt[..., 0]) + bank.height[r[..., 1]] * wt[..., 0]
@@ -584,10 +588,12 @@ def render(bank: Bank, p: Plan, foot_lock: bool = True) -> tuple[NDArray[np.floa
     root[..., UP_AXIS] = p.path[..., UP_AXIS] + height * h
     turn = quat.from_axis_angle(np.array([0.0, 1.0, 0.0]), p.yaw).astype(np.float32)
     rotations[:, :, 0] = quat.mul(turn, rotations[:, :, 0])
+    if ground is not None:
+        rotations[:, :, 0] = quat.mul(ground.tilt, rotations[:, :, 0].astype(np.float64))
     if not foot_lock:
         return root.astype(np.float32), rotations
     return lock_feet(bank.skeleton, root, rotations, p.contacts, p.scales, ground=p.path[..., UP_AXIS],
-                     bends=bank.bends)
+                     bends=bank.bends, terrain=ground)
 
 
 def character_scales(keys: NDArray[np.uint64], scales: ArrayLike | None,
@@ -654,17 +660,22 @@ def render_chunk(bank: Bank, prep: Prepared, h: Floats, keys: NDArray[np.uint64]
     hold until it renders again; the render kernel's working sets are kept in ``scratch``."""
     sl = characters
     part = prep.rows(sl)
+    if options.ground is not None:
+        part = along_ground(part, options.ground, bank.fps)
     compiled = compiled_backend(options)
     p = plan(bank, part, h[sl], keys[sl], options.margin, compiled=compiled)
+    ground = None
+    if options.ground is not None:
+        p, ground = ground_plan(bank, p, options.ground)
     if out is None:
         n, T = p.yaw.shape
         out = (scratch.array("root", (n, T, 3), np.float32),
                scratch.array("rotations", (n, T, bank.skeleton.n_joints, 4), np.float32))
     root, rotations = out
     if compiled:
-        kernels.render(bank, p, options.foot_lock, out=(root, rotations), scratch=scratch)
+        kernels.render(bank, p, options.foot_lock, out=(root, rotations), scratch=scratch, ground=ground)
     else:
-        root[...], rotations[...] = render(bank, p, options.foot_lock)
+        root[...], rotations[...] = render(bank, p, options.foot_lock, ground)
     return Rendered(sl, root, rotations, p)
 
 

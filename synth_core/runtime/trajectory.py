@@ -189,9 +189,11 @@ def smooth(positions: Floats, sigma: float) -> Floats:
     return gaussian.smooth_frames(longer, sigma, pad, F)
 
 
-def segment_speeds(positions: Floats, m: int, fps: float) -> Floats:
-    """(C, K) ground speed of each m-frame segment, m/s (the last may be shorter)."""
-    step = np.linalg.norm(np.diff(positions[..., _GROUND], axis=1), axis=-1)  # (C, F-1)
+def segment_speeds(positions: Floats, m: int, fps: float, along_ground: bool = False) -> Floats:
+    """(C, K) ground speed of each m-frame segment, m/s (the last may be shorter);
+    ``along_ground``: along the path's slope, not over the map (positions on a terrain)."""
+    axes = slice(None) if along_ground else _GROUND
+    step = np.linalg.norm(np.diff(positions[..., axes], axis=1), axis=-1)  # (C, F-1)
     F1 = step.shape[1]
     K = max(1, -(-F1 // m))
     padded = np.zeros((step.shape[0], K * m))

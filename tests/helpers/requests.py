@@ -9,6 +9,8 @@ import httpx
 import msgpack
 import numpy as np
 
+from api_schemas.wire import blob
+
 MSGPACK = "application/vnd.msgpack"
 
 
@@ -39,3 +41,8 @@ def refused(response: httpx.Response, status: int, field: str, *words: str) -> N
     assert error["status"] == status and error["field"] == field, error
     for word in words:
         assert word in error["message"], error
+
+
+def batch(herd: np.ndarray, **options: Any) -> dict[str, Any]:
+    return {"animal": "horse", "seed": 3, **options,
+            "characters": [{"id": f"h{c}", "points": blob(herd[c])} for c in range(len(herd))]}
