@@ -53,8 +53,7 @@ def required_animals() -> tuple[str, ...]:
 
 
 # The modules a built-in library is made by: a file built by other code than these is stale.
-_BUILDERS = ("library", "ik.py", "speed_map.py", "build.py", "motion_graph.py", "contacts.py", "bank.py",
-             "artifact.py")
+_BUILDERS = ("build", "builtin", "motion/contacts.py", "runtime/bank.py")
 
 
 @functools.cache
