@@ -71,21 +71,6 @@ def test_live_frames_are_the_batch_plans_frames(bank: Bank, herd: np.ndarray, ba
     assert len(set(gait.ravel().tolist())) == 5  # standing and every gait: the test covers them
 
 
-@pytest.mark.parametrize("fps", [60.0, 30.0, 20.0])
-def test_compiled_live_plan_is_the_numpy_reference(bank: Bank, herd: np.ndarray, fps: float) -> None:
-    """plan_kernels.live_block against LiveSynth's numpy blocks: with the same render, the same
-    windows bit for bit (foot lock on: its contexts read the kept plan too) -- at the library's
-    rate, and at a half and a third of it (the plan kept for frames sent only)."""
-    pytest.importorskip("numba")
-    herd = herd[:, ::round(60 / fps)]
-    sessions = []
-    for compiled in (True, False):
-        live = LiveSynth(bank, len(herd), fps, seed=5, scale_range=(0.8, 1.2), backend="numba")
-        live.plan_compiled = compiled
-        sessions.append(joined(feed(live, herd, seed=3)[0]))
-    for got, want in zip(*sessions, strict=True):
-        np.testing.assert_array_equal(got, want)
-
 def test_points_at_30_fps_come_back_at_30_fps(bank: Bank) -> None:
     herd = crowd.simulate(8, 400, seed=4, fps=30.0)
     batch = synthesize(bank, herd, 30.0, options=Options(seed=1, foot_lock=False))
@@ -144,7 +129,7 @@ def test_bad_points_are_refused_naming_the_character(bank: Bank) -> None:
 
 
 def test_the_compiled_points_check_passes_what_the_numpy_check_passes(bank: Bank) -> None:
-    """LiveSynth.check's compiled fast path (plan_kernels.live_points_fine) passes exactly the
+    """LiveSynth.check's compiled fast path (plan_kernels.points_fine) passes exactly the
     points the numpy checks pass: NaN and Inf anywhere, jumps just over and under the limit,
     from the last point given or (a session's first points) between the points only."""
     pytest.importorskip("numba")
@@ -162,9 +147,8 @@ def test_the_compiled_points_check_passes_what_the_numpy_check_passes(bank: Bank
                 before = pts[c, i - 1] if i > 0 else np.zeros(3)
                 pts[c, i:] += before + [limit * (1.0001 if kind == 2 else 0.9999), 0.0, 0.0] - pts[c, i]
             results = []
-            for compiled in (True, False):
-                live = LiveSynth(bank, 4, 60.0)
-                live.plan_compiled = compiled
+            for backend in ("numba", "numpy"):
+                live = LiveSynth(bank, 4, 60.0, backend=backend)
                 if not first:
                     live.append(np.zeros((4, 1, 3)))
                 try:

@@ -35,7 +35,7 @@ from synth_core.runtime.footlock import EASE_FRAMES, MAX_SINK, PAD, REACH
 
 if TYPE_CHECKING:
     from synth_core.runtime.bank import Bank
-    from synth_core.runtime.synthesis import Plan
+    from synth_core.runtime.plan import Plan
 
 try:
     import numba
