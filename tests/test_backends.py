@@ -11,6 +11,7 @@ import pytest
 from service.libraries import builtin_library
 from synth_core.compiled import backend
 from synth_core.compiled import plan_kernels as pk
+from synth_core.compiled.jit import AVAILABLE
 from synth_core.quality import evaluate
 from synth_core.quality import herd_sim as crowd
 from synth_core.runtime.bank import Bank, build_bank
@@ -29,12 +30,12 @@ from synth_core.runtime.plan import (
 )
 from synth_core.runtime.synthesis import Options, prepare_batch
 
-needs_numba = pytest.mark.skipif(not pk.AVAILABLE, reason="numba is not installed: only the reference runs")
+needs_numba = pytest.mark.skipif(not AVAILABLE, reason="numba is not installed: only the reference runs")
 
 
 def test_backends_are_chosen_by_name_in_one_place() -> None:
     assert backend.planner("numpy") is pk.REFERENCE
-    assert backend.planner("auto") is (pk.COMPILED if pk.AVAILABLE else pk.REFERENCE)
+    assert backend.planner("auto") is (pk.COMPILED if AVAILABLE else pk.REFERENCE)
     assert backend.compiled("numba") and not backend.compiled("numpy")
     with pytest.raises(ValueError, match="backend: must be one of"):
         backend.compiled("gpu")
@@ -72,6 +73,7 @@ def test_planner_blocks_and_state_are_the_references(bank: Bank) -> None:
     prep, h, keys = prepare_batch(bank, paths, None, None, Options(scale_range=(0.7, 1.3), seed=5), None)
     C, T = prep.positions.shape[:2]
     m = prep.segment
+    assert prep.tempo is not None
     v = frame_speeds(prep.segment_speeds / (h * prep.tempo)[:, None], m, T)
     step = decision_step(m)
     planners = {name: Planner(bank, h, prep.tempo, backend=name) for name in ("numba", "numpy")}

@@ -10,7 +10,8 @@ from synth_core.motion.skeleton import forward_kinematics
 from synth_core.quality import herd_sim as crowd
 from synth_core.quality.metrics import foot_skate
 from synth_core.runtime.bank import Bank
-from synth_core.runtime.live import LiveSynth, _Columns
+from synth_core.runtime.columns import Columns
+from synth_core.runtime.live import LiveSynth
 from synth_core.runtime.live_shards import LiveShards
 from synth_core.runtime.streaming import Window
 from synth_core.runtime.streaming import joined as shards_joined
@@ -320,7 +321,7 @@ def test_a_failing_shard_fails_the_tick_once_every_shard_is_done(bank: Bank,
 
 
 def test_columns_keep_their_frames_through_moves_in_place_and_into_larger_arrays() -> None:
-    cols = _Columns(2, [((3,), np.float64)], room=8)
+    cols = Columns(2, [((3,), np.float64)], room=8)
     frame, arrays_seen = 0, set()
     for n in (3, 3, 2, 5, 1, 12, 4, 30, 2):
         cols.reserve(n)[0][...] = np.arange(frame, frame + n)[None, :, None]  # each frame: its index

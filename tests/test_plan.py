@@ -29,7 +29,8 @@ def live_plan(live: LiveSynth, positions: np.ndarray, rng: np.random.Generator) 
         n = -(-t1 // k) - -(-t0 // k)
         kept = live.buffer.plan()
         T = kept.yaw.shape[1]
-        blocks.append(Plan(*(np.array(getattr(kept.window(T - n, T), f.name)) for f in fields(Plan))))
+        block = kept.window(T - n, T)
+        blocks.append(Plan(**{f.name: np.array(getattr(block, f.name)) for f in fields(Plan)}))
 
     live._plan_block = spy  # type: ignore[method-assign]
     i = 0
@@ -37,8 +38,9 @@ def live_plan(live: LiveSynth, positions: np.ndarray, rng: np.random.Generator) 
         n = int(rng.integers(1, 60))
         live.append(positions[:, i:i + n])
         i += n
-    return Plan(*(np.concatenate([getattr(b, f.name) for b in blocks], axis=1) if f.name != "scales"
-                  else blocks[0].scales for f in fields(Plan)))
+    whole = {f.name: np.concatenate([getattr(b, f.name) for b in blocks], axis=1) for f in fields(Plan)
+             if f.name != "scales"}
+    return Plan(scales=blocks[0].scales, **whole)
 
 
 @pytest.mark.parametrize("seed", [0, 1, 2])

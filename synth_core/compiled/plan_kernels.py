@@ -34,8 +34,8 @@ from typing import Any
 import numpy as np
 
 from synth_core.compiled.jit import AVAILABLE, interpreted, jit, prange
+from synth_core.runtime.bank import STATIC
 
-STATIC = 0  # the hub of standing (synth_core.runtime.bank.STATIC)
 NEVER = np.iinfo(np.int64).max // 4
 HELD = np.iinfo(np.int32).max  # a finished transition's clip frame: it stays at its end
 

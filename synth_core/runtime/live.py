@@ -32,8 +32,6 @@ batch's 1.1 (no lag: 0.7 mm p95, 2.0 mm mean).
 
 from __future__ import annotations
 
-from typing import Any
-
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
@@ -43,6 +41,7 @@ from synth_core.compiled import kernels, render_pool
 from synth_core.compiled.scratch import Scratch
 from synth_core.runtime import gaussian
 from synth_core.runtime.bank import Bank
+from synth_core.runtime.columns import Columns, PlannedColumns
 from synth_core.runtime.draws import SCHEDULE_STREAM, character_keys, uniform
 from synth_core.runtime.footlock import EASE_FRAMES, PAD
 from synth_core.runtime.plan import (
@@ -51,7 +50,6 @@ from synth_core.runtime.plan import (
     Decisions,
     Floats,
     Headings,
-    Plan,
     Planner,
     decision_step,
     lookahead,
@@ -63,81 +61,6 @@ from synth_core.runtime.trajectory import DEFAULT_SIGMA, GROUND, TELEPORT_M, Tra
 
 KEEP_PLANS = 1  # of the slowest cycle: planned frames kept as the foot lock's context
 LOCK_LAG = 20  # frames planned but not yet sent, so that most plants a frame is in have ended
-
-
-class _Columns:
-    """Frames ``[start, stop)`` of per-character arrays ``(C, frames, ...)`` with room to grow:
-    new frames are written in place at the end and old ones dropped from the front (concatenating
-    the whole of them for every block cost a tenth of a session's time)."""
-
-    def __init__(self, C: int, layout: list[tuple[tuple[int, ...], type]], room: int = 0) -> None:
-        self.C, self.layout = C, layout
-        self.start = 0  # frame of the first kept
-        self.lo = self.hi = 0  # the columns kept
-        self.arrays = self._alloc(room)  # room: twice the frames usually kept, so moves are rare
-
-    def _alloc(self, cap: int) -> list[NDArray[Any]]:
-        return [np.empty((self.C, cap, *tail), dtype) for tail, dtype in self.layout]
-
-    @property
-    def frames(self) -> int:
-        return self.hi - self.lo
-
-    @property
-    def stop(self) -> int:
-        return self.start + self.frames
-
-    def columns(self, a: int, b: int) -> list[NDArray[Any]]:
-        """Frames ``[a, b)`` (within ``[start, stop)``) of each array: views."""
-        i = self.lo - self.start
-        return [x[:, a + i:b + i] for x in self.arrays]
-
-    def reserve(self, n: int) -> list[NDArray[Any]]:
-        """The next ``n`` frames, to be filled."""
-        cap = self.arrays[0].shape[1]
-        if self.hi + n > cap:  # move the kept frames to the front, into larger arrays if need be
-            kept = self.hi - self.lo
-            # In place when that leaves half the room free, or when the frames kept are no more
-            # than those coming (a big block, as at the finish: the copy costs no more than the
-            # writing; fresh arrays would cost page faults on top).
-            in_place = kept + n <= cap // 2 or (kept + n <= cap and kept <= n)
-            arrays = self.arrays if in_place else self._alloc(2 * (kept + n))
-            for new, old in zip(arrays, self.arrays, strict=True):
-                new[:, :kept] = old[:, self.lo:self.hi]
-            self.arrays, self.lo, self.hi = arrays, 0, kept
-        self.hi += n
-        return self.columns(self.stop - n, self.stop)
-
-    def drop_before(self, frame: int) -> None:
-        frame = min(frame, self.stop)
-        if frame > self.start:
-            self.lo += frame - self.start
-            self.start = frame
-
-
-class _Planned(_Columns):
-    """The planned frames kept (the foot lock's context): only those sent, every ``out_step``-th
-    of the library's, its columns numbered by frame sent (library frame // out_step). Kept at
-    the library's rate, each window's frames were a strided view, copied in strides for the
-    render kernel (7% of a 30 fps session), and the plan's rows made for frames never read."""
-
-    def __init__(self, scales: Floats, room: int) -> None:
-        super().__init__(len(scales), [((4,), np.int32), ((3,), np.float32), ((), np.float64),
-                                       ((3,), np.float64), ((4,), np.bool_), ((), np.bool_), ((), np.int8)],
-                         room)
-        self.scales = scales
-
-    def _plan(self, arrays: list[NDArray[Any]]) -> Plan:
-        rows, weights, yaw, path, contacts, stitches, gait = arrays
-        return Plan(rows, weights, yaw, path, self.scales, contacts, stitches, gait)
-
-    def plan(self) -> Plan:
-        """The frames kept, ``[start, stop)``."""
-        return self._plan(self.columns(self.start, self.stop))
-
-    def reserve_plan(self, n: int) -> Plan:
-        """The next ``n`` frames, to be filled."""
-        return self._plan(self.reserve(n))
 
 
 class LiveSynth:
@@ -216,7 +139,7 @@ class LiveSynth:
         # Smoothed path, segment speeds, and what the plan carries from block to block.
         # Room for the path the finish adds too (see _end): growing at the finish moved it into
         # fresh memory, 20-30 ms of a 2,000-horse session's finish (page faults).
-        self.path = _Columns(C, [((3,), np.float64)], 2 * self.latency_frames + self._end_frames)
+        self.path = Columns(C, [((3,), np.float64)], 2 * self.latency_frames + self._end_frames)
         self.n_path = 0
         self.seg = np.zeros((C, 0))  # segment speeds / (scale x tempo): the library's speeds
         self.seg_start = 0
@@ -229,12 +152,12 @@ class LiveSynth:
         self.planned = 0
         self.emitted = 0
         # Planned frames kept as the foot lock's context (see _emit).
-        self.buffer = _Planned(self.scales, -(-2 * (self.lock_lag + self.kept_frames + 2 * self.step)
+        self.buffer = PlannedColumns(self.scales, -(-2 * (self.lock_lag + self.kept_frames + 2 * self.step)
                                               // self.out_step))
         # The feet of the frames sent and of those after them posed by the foot lock so far (frames
         # [0, known_feet) of each character's): see kernels.render_window.
         # One row of (frames, C, 4, 3): its views are C-contiguous, as the kernel takes them.
-        self.feet = _Columns(1, [((C, 4, 3), np.float64)],
+        self.feet = Columns(1, [((C, 4, 3), np.float64)],
                              self.buffer.arrays[0].shape[1] + self._end_frames // self.out_step + 1)
         self.known_feet = np.zeros(C, np.int64)
         # What the sink reads of the legs on the last PAD frames sent (see kernels.Posed).
