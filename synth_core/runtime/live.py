@@ -1,19 +1,22 @@
 """Live synthesis: trajectory points arrive a few at a time (a crowd simulation as it runs) and
-poses come back for every frame the plan can settle -- :func:`synth_core.runtime.synthesis.plan` made
-incrementally, frame block by frame block, with its state carried between blocks.
+poses come back for every frame the plan can settle: the batch's planner
+(:class:`synth_core.runtime.plan.Planner`, one state machine for both) advanced frame block by
+frame block as the points arrive, its state carried between blocks.
 
 Every step of the batch plan is causal but for a bounded look-ahead, which is the latency:
 
 - smoothing reads ``radius`` points ahead (4 sigma);
 - a frame's speed is interpolated between segment centres, so it waits for the segment after
   its own (up to 1.5 segments ahead), and a gait is chosen on the speed ``LOOKAHEAD`` segments
-  ahead of its decision, waiting up to a stride for its entry phase (``horizon``: the larger);
+  ahead of its decision (decided once the speeds up to a stride past that are known, ``horizon``:
+  so the windows come as they did when the entry phase was searched ahead; the planner, stepping
+  frame by frame, no longer needs them);
 - a transition ends where the character has covered its distance -- found as the path arrives.
 
 So a frame is planned about ``horizon + 1.5 m + radius`` frames after its point arrived and
 sent ``lock_lag`` frames later (:attr:`LiveSynth.latency_frames`; horse, 60 fps:
-112 + 84 + 16 + 2 + 20 = 234 frames, 3.9 s), and then it is exactly the frame the batch plan of
-the whole trajectory has (tested, foot lock off), but for:
+112 + 84 + 16 + 2 + 20 = 234 frames, 3.9 s), and then its plan is exactly the batch plan of the
+whole trajectory's, bit for bit (tests/test_plan.py), but for:
 
 - the heading of a character standing before it first moves: the batch turns it to where it
   will go; live does that only if the move is already known, else keeps ``heading``;
@@ -220,7 +223,9 @@ class LiveSynth:
             raise TrajectoryError(f"points: expected shape ({C}, n >= 1, 3), got {arr.shape}")
         if self.compiled:  # a fast pass (its numpy took a millisecond of a 2,000-horse tick's serial part)
             last = self.inputs[:, -1] if self.inputs.shape[1] else np.full((C, 3), np.nan)
-            if self.planner.kernels.points_fine(last, arr, float(TELEPORT_M)):
+            # Contiguous: one compiled signature for every call (none compiled mid-session).
+            if self.planner.kernels.points_fine(np.ascontiguousarray(last), np.ascontiguousarray(arr),
+                                                float(TELEPORT_M)):
                 return arr  # else found and named below
         finite = np.isfinite(arr).all(axis=(1, 2))
         if not finite.all():
