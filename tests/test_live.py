@@ -10,7 +10,8 @@ from synth_core.motion.skeleton import forward_kinematics
 from synth_core.quality import herd_sim as crowd
 from synth_core.quality.metrics import foot_skate
 from synth_core.runtime.bank import Bank
-from synth_core.runtime.live import LiveSynth, _Columns
+from synth_core.runtime.columns import Columns
+from synth_core.runtime.live import LiveSynth
 from synth_core.runtime.live_shards import LiveShards
 from synth_core.runtime.streaming import Window
 from synth_core.runtime.streaming import joined as shards_joined
@@ -71,21 +72,6 @@ def test_live_frames_are_the_batch_plans_frames(bank: Bank, herd: np.ndarray, ba
     assert len(set(gait.ravel().tolist())) == 5  # standing and every gait: the test covers them
 
 
-@pytest.mark.parametrize("fps", [60.0, 30.0, 20.0])
-def test_compiled_live_plan_is_the_numpy_reference(bank: Bank, herd: np.ndarray, fps: float) -> None:
-    """plan_kernels.live_block against LiveSynth's numpy blocks: with the same render, the same
-    windows bit for bit (foot lock on: its contexts read the kept plan too) -- at the library's
-    rate, and at a half and a third of it (the plan kept for frames sent only)."""
-    pytest.importorskip("numba")
-    herd = herd[:, ::round(60 / fps)]
-    sessions = []
-    for compiled in (True, False):
-        live = LiveSynth(bank, len(herd), fps, seed=5, scale_range=(0.8, 1.2), backend="numba")
-        live.plan_compiled = compiled
-        sessions.append(joined(feed(live, herd, seed=3)[0]))
-    for got, want in zip(*sessions, strict=True):
-        np.testing.assert_array_equal(got, want)
-
 def test_points_at_30_fps_come_back_at_30_fps(bank: Bank) -> None:
     herd = crowd.simulate(8, 400, seed=4, fps=30.0)
     batch = synthesize(bank, herd, 30.0, options=Options(seed=1, foot_lock=False))
@@ -144,7 +130,7 @@ def test_bad_points_are_refused_naming_the_character(bank: Bank) -> None:
 
 
 def test_the_compiled_points_check_passes_what_the_numpy_check_passes(bank: Bank) -> None:
-    """LiveSynth.check's compiled fast path (plan_kernels.live_points_fine) passes exactly the
+    """LiveSynth.check's compiled fast path (plan_kernels.points_fine) passes exactly the
     points the numpy checks pass: NaN and Inf anywhere, jumps just over and under the limit,
     from the last point given or (a session's first points) between the points only."""
     pytest.importorskip("numba")
@@ -162,9 +148,8 @@ def test_the_compiled_points_check_passes_what_the_numpy_check_passes(bank: Bank
                 before = pts[c, i - 1] if i > 0 else np.zeros(3)
                 pts[c, i:] += before + [limit * (1.0001 if kind == 2 else 0.9999), 0.0, 0.0] - pts[c, i]
             results = []
-            for compiled in (True, False):
-                live = LiveSynth(bank, 4, 60.0)
-                live.plan_compiled = compiled
+            for backend in ("numba", "numpy"):
+                live = LiveSynth(bank, 4, 60.0, backend=backend)
                 if not first:
                     live.append(np.zeros((4, 1, 3)))
                 try:
@@ -336,7 +321,7 @@ def test_a_failing_shard_fails_the_tick_once_every_shard_is_done(bank: Bank,
 
 
 def test_columns_keep_their_frames_through_moves_in_place_and_into_larger_arrays() -> None:
-    cols = _Columns(2, [((3,), np.float64)], room=8)
+    cols = Columns(2, [((3,), np.float64)], room=8)
     frame, arrays_seen = 0, set()
     for n in (3, 3, 2, 5, 1, 12, 4, 30, 2):
         cols.reserve(n)[0][...] = np.arange(frame, frame + n)[None, :, None]  # each frame: its index

@@ -36,7 +36,7 @@ from synth_core.runtime.terrain import BUMP_LEAST
 
 if TYPE_CHECKING:
     from synth_core.runtime.bank import Bank
-    from synth_core.runtime.synthesis import Plan
+    from synth_core.runtime.plan import Plan
     from synth_core.runtime.terrain import Grounding
 
 try:

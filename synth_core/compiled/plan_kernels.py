@@ -1,138 +1,113 @@
-"""Compiled (numba) planning: each character's schedule and every frame's table rows, characters
-in parallel.
+"""The planner, written once: each character's plan is a state machine stepped frame by frame.
 
-The numpy reference is :func:`synth_core.runtime.synthesis.plan` (``schedule``, ``_local``,
-``blend_rows``): vectorized over characters, it loops in Python over the gait decisions (four a
-segment), and that overhead, not the arithmetic, dominated small batches (10 characters ran at
-40% of the speed per character-frame of 1,000). Here one character's whole plan is a few loops
-over its frames. The same float64 operations in the same order as the reference, without
-fastmath: the plans are equal bit for bit (tested), and so are the live mode's blocks made here
-and by its numpy reference (``live_block``, tested).
+Every frame ``t`` of a character, in this order (Sung 2011 section 6, steps 1-2; see
+:mod:`synth_core.runtime.plan` for the why of each rule):
 
-A batch's per-frame headings and speeds stay in numpy (shared with the live mode, whose
-blocks' headings are compiled here as well: ``live_headings``); the random draws are made
-beforehand (:func:`synth_core.runtime.draws.uniform`, one stream per decision).
+1. a transition under way ends at the first frame after its start where the character has covered
+   its distance; its gait starts there, at the clip frame the transition ends in;
+2. at a decision frame (every ``step`` frames) the gait is chosen on the speed ``lookahead`` ahead
+   (:func:`_choose`); a change is *asked*: a character free now changes at once, one whose
+   transition ends before the next decision changes as it ends, others not;
+3. a change waits for the gait's stride clock to reach the transition's entry phase: the
+   transition starts at the first frame where it has;
+4. the frame's table rows: the piece playing at its clip frame (the stride clock since it started)
+   and, over ``margin`` frames after a start, the piece before it fading out;
+5. every kind's stride clock and the distance walked move on to the next frame.
+
+The state a character carries from frame to frame -- so from a live tick to the next -- is two
+small rows, ``ints`` and ``floats`` (the fields below). The batch plan is this machine run over
+the whole trajectory in one call, a live session runs it block by block: the same code, the same
+state, so their frames are the same by construction.
+
+Numba compiles these functions (:func:`synth_core.compiled.jit.jit`); :data:`REFERENCE` is the
+same source run by the interpreter (slow: for tests and for a machine without numba). Both are a
+:class:`Kernels` with the same signatures; :mod:`synth_core.compiled.backend` picks one.
+The float operations are numpy's, in numpy's order, without fastmath, so the two agree bit for bit.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any, TypeVar, cast
+from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
 
-from synth_core.compiled.kernels import AVAILABLE
+from synth_core.compiled.jit import AVAILABLE, interpreted, jit, prange
 from synth_core.runtime.bank import STATIC
 
-if TYPE_CHECKING:
-    from synth_core.runtime.bank import Bank
-    from synth_core.runtime.synthesis import _Kinds
+NEVER = np.iinfo(np.int64).max // 4
+HELD = np.iinfo(np.int32).max  # a finished transition's clip frame: it stays at its end
 
-if AVAILABLE:
-    import numba
-
-F = TypeVar("F", bound=Callable[..., Any])
-_NEVER = np.iinfo(np.int64).max // 4
-
-
-def _jit(parallel: bool = False) -> Callable[[F], F]:
-    # No fastmath: the plan must equal the numpy reference's bit for bit (a rounding apart can
-    # move a floor() -- a stride frame, a clip -- and so a contact flag).
-    def wrap(f: F) -> F:
-        if not AVAILABLE:
-            return f
-        return cast(F, numba.njit(cache=True, parallel=parallel, nogil=True)(f))
-    return wrap
-
-
-_prange: Any = numba.prange if AVAILABLE else range
-
-
-@dataclass(frozen=True)
-class Tables:
-    """What the compiled plan reads of the bank: the piece kinds, and as flat arrays per kind
-    what the reference finds in the bank's dicts."""
-
-    kinds: _Kinds
-    total: NDArray[np.float64]  # per kind: a transition's distance
-    low: NDArray[np.float64]  # per hub: lowest speed it covers (inf: none)
-    high: NDArray[np.float64]  # per hub: highest speed it covers (-inf: none)
-    curve_at: NDArray[np.int64]  # (kinds, 2): per kind, where its curve sits in ``curves`` and its length
-    curves: NDArray[np.float64]  # hubs: clip speeds; transitions: their frames' progress
+# A character's state, int64 fields ...
+CURRENT = 0  # the hub decided last (being reached, if a change is under way)
+STAGE = 1  # FREE, WAITING (a change asked, its transition not started) or MOVING (it plays)
+KIND = 2  # the piece playing: its kind (hub 0-4, then transitions), first clip frame, start frame
+FIRST = 3
+START = 4
+PREV_KIND = 5  # the piece before it (fading out over the margin after START)
+PREV_FIRST = 6
+HAS_PREV = 7
+FROM = 8  # a change under way: the hub whose stride clock reaches the entry, the transition,
+TRANSITION = 9  # the gait after it and the clip frame that gait resumes at
+TO = 10
+RESUME = 11
+ASKED = 12  # a change asked of a character not free (-1: none), valid before frame ASKED_UNTIL
+ASKED_UNTIL = 13
+N_INTS = 14
+# ... and float64 fields
+CLOCK0 = 0  # the piece playing's kind's clock at its start, and the distance travelled there (over h)
+TRAV0 = 1
+PREV_CLOCK0 = 2
+DUE = 3  # the stride clock (of FROM) at which the transition may start
+WALKED = 4  # distance along the path (unscaled) at the next frame
+CLOCKS = 5  # + kind row (hubs, then every transition's: time): stride frames played by the next frame
+FREE, WAITING, MOVING = 0, 1, 2
 
 
-def tables(bank: Bank, kinds: _Kinds, total: NDArray[np.float64], low: NDArray[np.float64],
-           high: NDArray[np.float64]) -> Tables:
-    n = len(kinds.frames)
-    curve_at = np.zeros((n, 2), np.int64)
-    parts: list[NDArray[np.float64]] = []
-    at = 0
-    sources = [(hub, s) for hub, s in bank.speeds.items()]
-    sources += [(int(kinds.tr_kind[a, b]), d) for (a, b), d in bank.progress.items()]
-    for k, curve in sources:
-        curve_at[k] = at, len(curve)
-        parts.append(np.asarray(curve, np.float64))
-        at += len(curve)
-    flat = np.concatenate(parts) if parts else np.zeros(0)
-    return Tables(kinds, total, low, high, curve_at, flat)
+def initial_state(characters: int, hubs: int) -> tuple[Any, Any]:
+    """``(ints, floats)`` of characters standing at frame 0 (the idle playing from its frame 0)."""
+    ints = np.zeros((characters, N_INTS), np.int64)
+    ints[:, ASKED] = -1
+    return ints, np.zeros((characters, CLOCKS + hubs + 1))
 
 
-@_jit()
-def _interp(x: float, xp: Any) -> float:
-    """np.interp(x, xp, arange(len(xp))) for one x, as numpy computes it (same branches, same
+@jit(inline="always")
+def _interp(x: float, xp: Any, at: int, n: int) -> float:
+    """np.interp(x, xp[at:at + n], arange(n)) for one x, as numpy computes it (same branches, same
     operations): the last j with xp[j] <= x, then the slope form."""
-    n = len(xp)
-    if x < xp[0]:
+    if x < xp[at]:
         return 0.0
-    if x > xp[n - 1]:
+    if x > xp[at + n - 1]:
         return float(n - 1)
     lo, hi = 0, n
     while lo < hi:
         mid = lo + ((hi - lo) >> 1)
-        if x >= xp[mid]:
+        if x >= xp[at + mid]:
             lo = mid + 1
         else:
             hi = mid
     j = lo - 1
-    if j == n - 1 or xp[j] == x:
+    if j == n - 1 or xp[at + j] == x:
         return float(j)
-    slope = (float(j + 1) - float(j)) / (xp[j + 1] - xp[j])
-    return float(slope * (x - xp[j]) + float(j))
+    slope = (float(j + 1) - float(j)) / (xp[at + j + 1] - xp[at + j])
+    return float(slope * (x - xp[at + j]) + float(j))
 
 
-@_jit()
+@jit(inline="always")
 def _rate(v: float, hub: int, high: Any, max_rate: float, slowest: int, slow: float, share: float) -> float:
-    """synthesis._stride_clock's clip frames per frame (before the tempo) of hub ``hub`` at speed
-    ``v`` (``slow``: the slowest hub's slowest clip speed, below which it plays slower)."""
+    """Clip frames per frame (before the tempo) of hub ``hub`` at speed ``v``: up to ``max_rate``
+    faster above its fastest clip, and for the slowest gait below its slowest clip (``slow``)
+    slower, down to ``share``."""
     if hub == slowest and v < slow:
         return max(v / slow, share)
     return float(min(max(v / high[hub], 1.0), max_rate))
 
 
-@_jit()
-def _clocks(v: Any, high: Any, max_rate: float, slowest: int, slow: float, share: float, tempo: float,
-            out: Any) -> None:
-    """stride_clocks for one character: ``out (N_HUBS + 1, T + 1)`` (``high``: each hub's
-    fastest clip, -inf for none; the last row is every transition's: plain time)."""
-    T = v.shape[0]
-    for hub in range(out.shape[0]):
-        has = hub < len(high) and high[hub] > -np.inf and hub != STATIC
-        acc = 0.0
-        out[hub, 0] = 0.0
-        for t in range(T):
-            if has:
-                acc += _rate(v[t], hub, high, max_rate, slowest, slow, share) * tempo
-            else:
-                acc = float(t + 1)
-            out[hub, t + 1] = acc
-
-
-@_jit()
+@jit(inline="always")
 def _choose(current: int, speed: float, draws: Any, low: Any, high: Any, slowest: int, fastest: int) -> int:
-    """synthesis._choose for one character (``low``, ``high``: synthesis.coverage)."""
+    """The next hub for ``speed``: stay while covered (``low``, ``high``: each hub's range), else
+    one step toward a covering gait (the one with the highest draw where several cover it)."""
     best, pick, any_cover = -1.0, 0, False
     cover_current = False
     for hub in range(len(low)):
@@ -154,55 +129,12 @@ def _choose(current: int, speed: float, draws: Any, low: Any, high: Any, slowest
     return current + (1 if pick > current else (-1 if pick < current else 0))
 
 
-@_jit()
-def _schedule(tb_frames: Any, tr_kind: Any, entry: Any, exit_: Any, total: Any, low: Any, high: Any,
-              slowest: int, fastest: int, v: Any, travelled: Any, clocks: Any, draws: Any,
-              step: int, ahead: int, creep: float, start: Any, kind: Any, first: Any) -> None:
-    """synthesis.schedule for one character: ``start, kind, first (E,)`` filled."""
-    T = v.shape[0]
-    K = draws.shape[0]
-    start[:] = _NEVER
-    kind[:] = 0
-    first[:] = 0
-    start[0] = 0
-    count, current, busy = 1, 0, 0
-    for k in range(K):
-        a = k * step
-        nxt = _choose(current, v[min(a + ahead, T - 1)], draws[k], low, high, slowest, fastest)
-        if not (busy < a + step and nxt != current):
-            continue
-        cur, new, last = current, nxt, count - 1
-        d = max(a, busy)
-        clock = clocks[cur]
-        played = clock[d] - clock[start[last]]
-        frames = tb_frames[cur]
-        phase = int(math.floor(first[last] + played + 0.5)) % frames
-        wait = 0 if cur == STATIC else (entry[cur, new] - phase) % frames
-        tr = tr_kind[cur, new]
-        resume = 0 if new == STATIC else (exit_[cur, new] + 1) % tb_frames[new]
-        due = clock[d] + wait - 1e-9
-        begin = len(clock)
-        for t in range(d, len(clock)):
-            if clock[t] >= due:
-                begin = t
-                break
-        at = travelled[min(max(begin, 0), T - 1)]
-        end = T + tb_frames[tr]
-        for t in range(begin + 1, T):
-            if travelled[t] - at + creep * (t - begin) >= total[tr]:
-                end = t
-                break
-        start[last + 1], kind[last + 1], first[last + 1] = begin, tr, 0
-        start[last + 2], kind[last + 2], first[last + 2] = end, new, resume
-        count += 2
-        busy = end
-        current = new
-
-
-@_jit()
+@jit(inline="always")
 def _row(kind: int, local: int, speed: float, walked: float, has_walked: bool, offset: Any, frames_of: Any,
          clips: Any, cyclic: Any, curve_at: Any, curves: Any) -> Any:
-    """synthesis._rows for one (character, frame): (row 0, row 1, the second's weight)."""
+    """Table rows of a piece at clip frame ``local``: (row 0, row 1, the second's weight). Gaits:
+    the two speed-map clips around ``speed``; transitions: the two clip frames around the one whose
+    progress is ``walked`` (the distance since it began; ``has_walked`` False: past its end)."""
     frames = frames_of[kind]
     if cyclic[kind]:
         frame = local % frames
@@ -212,13 +144,12 @@ def _row(kind: int, local: int, speed: float, walked: float, has_walked: bool, o
     weight = 0.0
     at, n = curve_at[kind, 0], curve_at[kind, 1]
     if n > 0:
-        curve = curves[at:at + n]
         if cyclic[kind]:  # a gait: the clips around the speed
-            u = _interp(speed, curve)
+            u = _interp(speed, curves, at, n)
             clip0 = min(int(math.floor(u)), n - 2) if n > 1 else 0
             weight = u - clip0
         elif has_walked:  # a transition: the frames around the distance walked
-            f = _interp(walked, curve)
+            f = _interp(walked, curves, at, n)
             frame = min(int(math.floor(f)), n - 1)
             weight = f - frame
     clip1 = min(clip0 + 1, clips[kind] - 1)
@@ -227,273 +158,191 @@ def _row(kind: int, local: int, speed: float, walked: float, has_walked: bool, o
     return base + clip0 * frames, base + step, weight
 
 
-@_jit()
-def _frames(offset: Any, frames_of: Any, clips: Any, cyclic: Any, source: Any, target: Any, curve_at: Any,
-            curves: Any, contacts_of: Any, margin: int, n_hubs: int, v: Any, travelled: Any, clocks: Any,
-            creep: float, start: Any, kind_e: Any, first_e: Any, rows: Any, weights: Any, gait: Any,
-            contacts: Any, stitches: Any) -> None:
-    """The rest of synthesis.plan for one character: which piece plays each frame, its rows, the
-    piece fading out, gait, contacts and stitches -- of the first ``rows.shape[0]`` frames (a
-    first window's plan needs the schedule further, its rows not)."""
-    T = v.shape[0]
-    E = start.shape[0]
-    e = 0
-    for t in range(rows.shape[0]):
-        moved = False
-        while e + 1 < E and min(start[e + 1], T + 1) <= t:
-            e += 1
-            moved = True
-        stitches[t] = moved and t >= 1
-        kind = kind_e[e]
-        row = min(kind, n_hubs)
-        s0 = start[e]
-        local = int(math.floor(first_e[e] + clocks[row, t] - clocks[row, min(max(s0, 0), T)] + 0.5))
-        walked = travelled[t] - travelled[min(max(s0, 0), T - 1)] + creep * local
-        r0, r1, w = _row(kind, local, v[t], walked, True, offset, frames_of, clips, cyclic, curve_at, curves)
-        rows[t, 0], rows[t, 1], weights[t, 0] = r0, r1, w
-        rows[t, 2], rows[t, 3], weights[t, 1] = r0, r1, w
-        weights[t, 2] = 0.0
-        since = t - s0
-        if e >= 1 and since < margin:
-            pk = kind_e[e - 1]
-            pr = min(pk, n_hubs)
-            p_local = int(math.floor(first_e[e - 1] + clocks[pr, t]
-                                          - clocks[pr, min(max(start[e - 1], 0), T)] + 0.5))
-            if not cyclic[pk]:  # a finished transition stays at its end
-                p_local = np.iinfo(np.int32).max
-            p0, p1, pw = _row(pk, p_local, v[t], 0.0, False, offset, frames_of, clips, cyclic, curve_at,
-                              curves)
-            u = (since + 1) / (margin + 1)
-            rows[t, 2], rows[t, 3], weights[t, 1] = p0, p1, pw
-            weights[t, 2] = 1 - u * u * (3 - 2 * u)
-        first_half = (r0 - offset[kind]) < frames_of[kind] // 2
-        gait[t] = source[kind] if first_half else target[kind]
-        for f in range(4):
-            contacts[t, f] = contacts_of[r0, f]
+@jit(inline="always")
+def _start(s: Any, f: Any, kind: int, first: int, t: int, clock0: float, travelled: float) -> None:
+    """Piece ``kind`` starts at frame t at clip frame ``first``: the one playing fades out."""
+    s[PREV_KIND], s[PREV_FIRST], f[PREV_CLOCK0] = s[KIND], s[FIRST], f[CLOCK0]
+    s[HAS_PREV] = 1
+    s[KIND], s[FIRST], s[START] = kind, first, t
+    f[CLOCK0], f[TRAV0] = clock0, travelled
 
 
-@_jit(parallel=True)
-def _plan_all(offset: Any, frames_of: Any, clips: Any, cyclic: Any, source: Any, target: Any, tr_kind: Any,
-              entry: Any, exit_: Any, total: Any, low: Any, high: Any, curve_at: Any, curves: Any,
-              contacts_of: Any, slowest: int, fastest: int, max_rate: float, slow: float, share: float,
-              margin: int, n_hubs: int, step: int, ahead: int, creep: float, v: Any, path: Any, h: Any,
-              tempo: Any,
-              draws: Any, workers: int, rows: Any, weights: Any, gait: Any, contacts: Any,
-              stitches: Any) -> None:
-    C, T = v.shape
-    E = 1 + 2 * draws.shape[1]
+@jit(inline="always")
+def _change(s: Any, f: Any, new: int, frames_of: Any, tr_kind: Any, entry: Any, exit_: Any) -> None:
+    """A change from the gait playing (hub CURRENT, started at its clip frame FIRST) to hub ``new``,
+    now: the transition waits for the stride to reach its entry phase, the gait after it picks up
+    at the phase the transition ends in (the footfall sequence carries on across it)."""
+    cur = s[CURRENT]
+    clock = f[CLOCKS + cur]
+    frames = frames_of[cur]
+    phase = int(math.floor(s[FIRST] + (clock - f[CLOCK0]) + 0.5)) % frames
+    wait = 0 if cur == STATIC else (entry[cur, new] - phase) % frames
+    s[FROM], s[TRANSITION], s[TO] = cur, tr_kind[cur, new], new
+    s[RESUME] = 0 if new == STATIC else (exit_[cur, new] + 1) % frames_of[new]
+    f[DUE] = clock + wait - 1e-9
+    s[STAGE], s[CURRENT], s[ASKED] = WAITING, new, -1
+
+
+@jit(inline="always")
+def _frame_rows(kind: int, local: int, walked: float, since: int, p_kind: int, p_local: int, v: float,
+                offset: Any, frames_of: Any, clips: Any, cyclic: Any, source: Any, target: Any, curve_at: Any,
+                curves: Any, contacts_of: Any, margin: int, o: int, rows: Any, weights: Any,
+                contacts: Any) -> int:
+    """A frame's rows, weights and contacts (into row ``o`` of the outputs): the piece ``kind`` at
+    clip frame ``local`` (``walked`` since it started ``since`` frames ago), and unless ``p_local``
+    is -1, the piece before it (``p_kind`` at ``p_local``) fading out; returns the frame's gait."""
+    r0, r1, w = _row(kind, local, v, walked, True, offset, frames_of, clips, cyclic, curve_at, curves)
+    rows[o, 0], rows[o, 1], weights[o, 0] = r0, r1, w
+    rows[o, 2], rows[o, 3], weights[o, 1] = r0, r1, w
+    weights[o, 2] = 0.0
+    if p_local >= 0:
+        p0, p1, pw = _row(p_kind, p_local, v, 0.0, False, offset, frames_of, clips, cyclic, curve_at, curves)
+        u = (since + 1) / (margin + 1)
+        rows[o, 2], rows[o, 3], weights[o, 1] = p0, p1, pw
+        weights[o, 2] = 1 - u * u * (3 - 2 * u)  # smoothstep out
+    for foot in range(4):
+        contacts[o, foot] = contacts_of[r0, foot]
+    first_half = (r0 - offset[kind]) < frames_of[kind] // 2  # a transition: the hub it leaves, then
+    return int(source[kind] if first_half else target[kind])  # the one it reaches
+
+
+@jit()
+def _character(t0: int, v: Any, pts: Any, h: float, tempo: float, asked_speed: Any, draws: Any, k0: int,
+               step: int, s: Any, f: Any, offset: Any, frames_of: Any, clips: Any, cyclic: Any, source: Any,
+               target: Any, tr_kind: Any, entry: Any, exit_: Any, total: Any, low: Any, high: Any,
+               curve_at: Any, curves: Any, contacts_of: Any, slowest: int, fastest: int, max_rate: float,
+               slow: float, share: float, margin: int, creep: float, out_step: int, rows: Any, weights: Any,
+               gait: Any, contacts: Any, stitches: Any) -> None:
+    """Frames ``[t0, t0 + len(v))`` of one character (speeds ``v``, path ``pts`` from frame t0 on):
+    its state ``s``, ``f`` carried on; the outputs' row i is frame ``t`` = the i-th multiple of
+    ``out_step`` from t0 on. Decision ``k0 + k`` (at frame ``(k0 + k) step``) reads
+    ``asked_speed[k]`` and ``draws[k]``."""
+    n_hubs = len(low)
+    ask = -(-t0 // step) * step  # the next decision's frame (counted on: no division a frame)
+    k = ask // step - k0
+    sent, o = t0 + (-t0) % out_step, 0  # the next frame sent, its row in the outputs
+    for i in range(v.shape[0]):
+        t = t0 + i
+        walked = f[WALKED]
+        travelled = walked / h  # in the library's unit
+        started = False
+        if s[STAGE] == MOVING and t > s[START] and (
+                (travelled - f[TRAV0]) + creep * float(t - s[START]) >= total[s[KIND]]):
+            to = s[TO]
+            _start(s, f, to, s[RESUME], t, f[CLOCKS + min(to, n_hubs)], travelled)
+            s[STAGE], started = FREE, True
+            if s[ASKED] >= 0 and t < s[ASKED_UNTIL]:  # asked before, for as it ends
+                _change(s, f, s[ASKED], frames_of, tr_kind, entry, exit_)
+        if t == ask:
+            if 0 <= k < asked_speed.shape[0]:
+                nxt = _choose(s[CURRENT], asked_speed[k], draws[k], low, high, slowest, fastest)
+                s[ASKED] = -1
+                if nxt != s[CURRENT] and s[STAGE] == FREE:
+                    _change(s, f, nxt, frames_of, tr_kind, entry, exit_)
+                elif nxt != s[CURRENT]:
+                    s[ASKED], s[ASKED_UNTIL] = nxt, t + step
+            ask, k = ask + step, k + 1
+        if s[STAGE] == WAITING and f[CLOCKS + s[FROM]] >= f[DUE]:
+            _start(s, f, s[TRANSITION], 0, t, float(t), travelled)  # a transition's clock is time
+            s[STAGE], started = MOVING, True
+        if t == sent:
+            kind, pk, since = s[KIND], s[PREV_KIND], t - s[START]
+            local = int(math.floor(s[FIRST] + f[CLOCKS + min(kind, n_hubs)] - f[CLOCK0] + 0.5))
+            p_local = -1  # the piece before, fading out over the margin after a start (-1: none)
+            if s[HAS_PREV] and since < margin:
+                p_local = HELD if not cyclic[pk] else int(
+                    math.floor(s[PREV_FIRST] + f[CLOCKS + min(pk, n_hubs)] - f[PREV_CLOCK0] + 0.5))
+            walked_since = (travelled - f[TRAV0]) + creep * local
+            gait[o] = _frame_rows(kind, local, walked_since, since, pk, p_local, v[i], offset,
+                                  frames_of, clips, cyclic, source, target, curve_at, curves, contacts_of,
+                                  margin, o, rows, weights, contacts)
+            stitches[o] = started and t >= 1
+            sent, o = sent + out_step, o + 1
+        for hub in range(n_hubs + 1):
+            if hub < n_hubs and hub != STATIC and high[hub] > -np.inf:
+                f[CLOCKS + hub] += _rate(v[i], hub, high, max_rate, slowest, slow, share) * tempo
+            else:  # standing and transitions: time
+                f[CLOCKS + hub] = float(t + 1)
+        if i + 1 < pts.shape[0]:
+            dx = pts[i + 1, 0] - pts[i, 0]
+            dz = pts[i + 1, 2] - pts[i, 2]
+            f[WALKED] = walked + math.sqrt(dx * dx + dz * dz)
+
+
+@jit(parallel=True)
+def advance(t0: int, v: Any, pts: Any, h: Any, tempo: Any, asked_speed: Any, draws: Any, k0: int, step: int,
+            ints: Any, floats: Any, offset: Any, frames_of: Any, clips: Any, cyclic: Any, source: Any,
+            target: Any, tr_kind: Any, entry: Any, exit_: Any, total: Any, low: Any, high: Any, curve_at: Any,
+            curves: Any, contacts_of: Any, slowest: int, fastest: int, max_rate: float, slow: float,
+            share: float, margin: int, creep: float, out_step: int, workers: int, rows: Any, weights: Any,
+            gait: Any, contacts: Any, stitches: Any) -> None:
+    """:func:`_character` for every character ``c`` (row c of every array but the tables),
+    characters in parallel on ``workers`` threads."""
+    C = v.shape[0]
     workers = min(C, workers)
-    for worker in _prange(workers):
-        clocks = np.empty((n_hubs + 1, T + 1))
-        travelled = np.empty(T)
-        start = np.empty(E, np.int64)
-        kind = np.empty(E, np.int64)
-        first = np.empty(E, np.int64)
+    for worker in prange(workers):
         for c in range(worker, C, workers):
-            _clocks(v[c], high, max_rate, slowest, slow, share, tempo[c], clocks)
-            acc = 0.0
-            travelled[0] = 0.0
-            for t in range(1, T):
-                dx = path[c, t, 0] - path[c, t - 1, 0]
-                dz = path[c, t, 2] - path[c, t - 1, 2]
-                acc += math.sqrt(dx * dx + dz * dz)
-                travelled[t] = acc / h[c]
-            _schedule(frames_of, tr_kind, entry, exit_, total, low, high, slowest, fastest, v[c],
-                      travelled, clocks, draws[c], step, ahead, creep, start, kind, first)
-            _frames(offset, frames_of, clips, cyclic, source, target, curve_at, curves, contacts_of, margin,
-                    n_hubs, v[c], travelled, clocks, creep, start, kind, first, rows[c], weights[c], gait[c],
-                    contacts[c], stitches[c])
+            _character(t0, v[c], pts[c], h[c], tempo[c], asked_speed[c], draws[c], k0, step, ints[c],
+                       floats[c], offset, frames_of, clips, cyclic, source, target, tr_kind, entry, exit_,
+                       total, low, high, curve_at, curves, contacts_of, slowest, fastest, max_rate, slow,
+                       share, margin, creep, out_step, rows[c], weights[c], gait[c], contacts[c],
+                       stitches[c])
 
 
-def plan_frames(tb: Tables, contacts_of: NDArray[np.bool_], slowest: int, fastest: int, max_rate: float,
-                slow: float, share: float, margin: int, step: int, ahead: int, creep: float,
-                v: NDArray[np.float64], path: NDArray[np.float64], h: NDArray[np.float64],
-                tempo: NDArray[np.float64], draws: NDArray[np.float64], frames: int | None = None
-                ) -> tuple[NDArray[np.int32], NDArray[np.float32], NDArray[np.int8], NDArray[np.bool_],
-                           NDArray[np.bool_]]:
-    """A plan's ``rows, weights, gait, contacts, stitches`` (see ``synthesis.Plan``) for speeds
-    ``v (C, T)`` (the library's unit), smoothed ``path (C, T, 3)``, scales ``h (C,)``, stride
-    tempos ``tempo (C,)`` (synthesis.character_tempo) and each decision's draws ``(C, decisions,
-    hubs)``; of the first ``frames`` frames (default: all T),
-    the schedule made from all T."""
-    if not AVAILABLE:
-        raise RuntimeError("synth_core.compiled.plan_kernels needs numba; use the numpy backend")
-    C, T = v.shape[0], v.shape[1] if frames is None else min(frames, v.shape[1])
-    rows = np.empty((C, T, 4), np.int32)
-    weights = np.empty((C, T, 3), np.float32)
-    gait = np.empty((C, T), np.int8)
-    contacts = np.empty((C, T, 4), bool)
-    stitches = np.empty((C, T), bool)
-    c = np.ascontiguousarray
-    k = tb.kinds
-    _plan_all(k.offset, k.frames, k.clips, k.cyclic, k.source, k.target, k.tr_kind, k.entry, k.exit, tb.total,
-              tb.low, tb.high, tb.curve_at, tb.curves, contacts_of, slowest, fastest, max_rate, slow, share,
-              margin, len(tb.low), step, ahead, creep, c(v, np.float64), c(path, np.float64),
-              c(h, np.float64), c(tempo, np.float64), c(draws), numba.get_num_threads(), rows, weights, gait,
-              contacts, stitches)
-    return rows, weights, gait, contacts, stitches
+@jit()
+def _direction(g: Any, j: int) -> Any:
+    """The path's ground direction at its point j (np.gradient's: central, one-sided at its ends)."""
+    m = g.shape[0]
+    if m < 2:
+        return 0.0, 0.0
+    if j == 0:
+        return g[1, 0] - g[0, 0], g[1, 1] - g[0, 1]
+    if j == m - 1:
+        return g[j, 0] - g[j - 1, 0], g[j, 1] - g[j - 1, 1]
+    return (g[j + 1, 0] - g[j - 1, 0]) / 2.0, (g[j + 1, 1] - g[j - 1, 1]) / 2.0
 
 
-# --- the live mode's blocks (synth_core.runtime.live) --------------------------------------------------
-#
-# The live plan carries each character's pieces in a few slots (start frame, kind, first clip
-# frame, the kind's clock and the distance at its start) from block to block; its numpy
-# reference is LiveSynth._scan and LiveSynth._block_rows. Here, as above, one character at a
-# time in parallel, in the reference's operations and order: the plans are equal bit for bit.
-
-@_jit()
-def _live_scan(c: int, t0: int, n: int, v: Any, pts: Any, h: float, tempo: float, high: Any, max_rate: float,
-               slowest: int, slow: float, share: float, n_hubs: int, creep: float, total: Any, clock_in: Any,
-               walked_in: Any, start: Any, kind: Any, clock0: Any, trav0: Any, busy: Any, clocks: Any,
-               walked: Any) -> None:
-    """Frames [t0, t0 + n) of character c: its clocks ``(n_hubs + 1, n + 1)`` and distance
-    ``(n + 1,)`` from the carried ones; the distance at their start of pieces starting there;
-    the end of a transition under way, if it is there (LiveSynth._start_distances and
-    _end_transitions)."""
-    never = _NEVER
-    for hub in range(n_hubs + 1):
-        if hub < len(high) and high[hub] > -np.inf and hub != STATIC:
-            acc = clock_in[hub, c]
-            clocks[hub, 0] = acc
-            for t in range(n):
-                acc += _rate(v[t], hub, high, max_rate, slowest, slow, share) * tempo
-                clocks[hub, t + 1] = acc
-        else:  # plain time
-            for t in range(n + 1):
-                clocks[hub, t] = float(t0 + t)
-    acc = walked_in[c]
-    walked[0] = acc
-    for t in range(n):
-        dx = pts[t + 1, 0] - pts[t, 0]
-        dz = pts[t + 1, 2] - pts[t, 2]
-        acc += math.sqrt(dx * dx + dz * dz)
-        walked[t + 1] = acc
-    S = start.shape[1]
-    for j in range(1, S):
-        s = start[c, j]
-        if s >= t0 and s < t0 + n:
-            trav0[c, j] = walked[s - t0]
-    if busy[c] != never:
-        return
-    j = 0  # the slot before the gait not started yet (the transition's)
-    for k in range(1, S):
-        if start[c, k] == never:
-            j = k - 1
-            break
-    b = start[c, j]
-    if b >= t0 + n:
-        return
-    at = trav0[c, j] / h
-    for t in range(n):
-        if (walked[t] / h - at) + creep * float(t0 + t - b) >= total[kind[c, j]] and t0 + t > b:
-            start[c, j + 1] = t0 + t
-            clock0[c, j + 1] = clocks[min(kind[c, j + 1], n_hubs), t]
-            trav0[c, j + 1] = walked[t]
-            busy[c] = t0 + t
-            return
+@jit()
+def headings(g: Any, off: int, ends: bool, fps: float, min_speed: float, last_dir: Any, moved: Any,
+             held: Any) -> None:
+    """Each character's heading direction ``held (C, n, 2)`` over frames ``[t0, t0 + n)``, its path's
+    ground points ``g (C, m, 2)`` holding frame t0 at ``off`` and (for a character standing until
+    then) as far ahead as known (``ends``: to the path's end): the path's direction, held where it
+    moves slower than ``min_speed``; before the first move, the first move's; NaN where none is
+    known yet. ``last_dir (C, 2)`` and ``moved (C,)`` carried on."""
+    n = held.shape[1]
+    for c in range(g.shape[0]):
+        hx, hz = last_dir[c, 0], last_dir[c, 1]
+        first = -1
+        for i in range(n):
+            dx, dz = _direction(g[c], off + i)
+            if math.sqrt(dx * dx + dz * dz) * fps >= min_speed:
+                hx, hz = dx, dz
+                if first < 0:
+                    first = i
+            held[c, i, 0], held[c, i, 1] = hx, hz
+        if first >= 0:
+            last_dir[c, 0], last_dir[c, 1] = hx, hz
+        if moved[c]:
+            continue
+        fx, fz = np.nan, np.nan  # before its first move it faces the way it first moves
+        if first >= 0:
+            fx, fz = held[c, first, 0], held[c, first, 1]
+        else:
+            for j in range(off + n, g.shape[1] if ends else g.shape[1] - 1):
+                dx, dz = _direction(g[c], j)
+                if math.sqrt(dx * dx + dz * dz) * fps >= min_speed:
+                    fx, fz = dx, dz
+                    break
+        for i in range(n if first < 0 else first):
+            held[c, i, 0], held[c, i, 1] = fx, fz
+        moved[c] = first >= 0
 
 
-@_jit(parallel=True)
-def _live_block(offset: Any, frames_of: Any, clips: Any, cyclic: Any, source: Any, target: Any, total: Any,
-                high: Any, curve_at: Any, curves: Any, contacts_of: Any, max_rate: float, slowest: int,
-                slow: float, share: float, margin: int,
-                n_hubs: int, creep: float, t0: int, v: Any, pts: Any, h: Any, tempo: Any, clock: Any,
-                walked_in: Any,
-                start: Any, kind: Any, first: Any, clock0: Any, trav0: Any, before: Any, busy: Any,
-                with_rows: bool, out_step: int, workers: int, rows: Any, weights: Any, gait: Any,
-                contacts: Any, stitches: Any, walked_out: Any) -> None:
-    C, n = v.shape
-    S = start.shape[1]
-    workers = min(C, workers)
-    for worker in _prange(workers):
-        clocks = np.empty((n_hubs + 1, n + 1))
-        walked = np.empty(n + 1)
-        for c in range(worker, C, workers):
-            hc = h[c]
-            _live_scan(c, t0, n, v[c], pts[c], hc, tempo[c], high, max_rate, slowest, slow, share, n_hubs,
-                       creep, total, clock,
-                       walked_in, start, kind, clock0, trav0, busy, clocks, walked)
-            walked_out[c] = walked[n]
-            if not with_rows:
-                continue
-            for hub in range(n_hubs + 1):
-                clock[hub, c] = clocks[hub, n]
-            # The frame's rows, fade, gait and contacts below are _frames' too, written twice on
-            # purpose: shared as one function (its tables and outputs as arguments), the batch
-            # plan took 1.7x as long (_frames 0.067 -> 0.117 us a character-frame, even inlined).
-            for tt in range(-t0 % out_step, n, out_step):  # the frames sent: multiples of out_step
-                t = t0 + tt
-                i = tt // out_step  # its row in the outputs
-                e = 1  # the slot playing: the last started
-                for j in range(2, S):
-                    if t >= start[c, j]:
-                        e += 1
-                k = kind[c, e]
-                local = int(math.floor(float(first[c, e]) + clocks[min(k, n_hubs), tt] - clock0[c, e] + 0.5))
-                ws = (walked[tt] / hc - trav0[c, e] / hc) + creep * float(local)
-                r0, r1, w = _row(k, local, v[c, tt], ws, True, offset, frames_of, clips, cyclic, curve_at,
-                                 curves)
-                rows[c, i, 0], rows[c, i, 1], weights[c, i, 0] = r0, r1, w
-                rows[c, i, 2], rows[c, i, 3], weights[c, i, 1] = r0, r1, w
-                weights[c, i, 2] = 0.0
-                since = t - start[c, e]
-                if (e >= 2 or before[c]) and since < margin:  # the piece before fades out
-                    pk = kind[c, e - 1]
-                    p_local = int(math.floor(float(first[c, e - 1]) + clocks[min(pk, n_hubs), tt]
-                                             - clock0[c, e - 1] + 0.5))
-                    if not cyclic[pk]:  # a finished transition stays at its end
-                        p_local = np.iinfo(np.int32).max
-                    p0, p1, pw = _row(pk, p_local, v[c, tt], 0.0, False, offset, frames_of, clips, cyclic,
-                                      curve_at, curves)
-                    u = (since + 1) / (margin + 1)
-                    rows[c, i, 2], rows[c, i, 3], weights[c, i, 1] = p0, p1, pw
-                    weights[c, i, 2] = 1 - u * u * (3 - 2 * u)
-                first_half = (r0 - offset[k]) < frames_of[k] // 2
-                gait[c, i] = source[k] if first_half else target[k]
-                for f in range(4):
-                    contacts[c, i, f] = contacts_of[r0, f]
-                stitch = False
-                if t >= 1:
-                    for j in range(1, S):
-                        stitch = stitch or start[c, j] == t
-                stitches[c, i] = stitch
-
-
-def live_block(tb: Tables, contacts_of: NDArray[np.bool_], max_rate: float, slowest: int, slow: float,
-               share: float, margin: int, creep: float,
-               t0: int, v: NDArray[np.float64], pts: NDArray[np.float64], h: NDArray[np.float64],
-               tempo: NDArray[np.float64], clock: NDArray[np.float64], walked: NDArray[np.float64],
-               slots: tuple[NDArray[Any], ...], before: NDArray[np.bool_], busy: NDArray[np.int64],
-               out: tuple[NDArray[Any], ...] | None, out_step: int = 1) -> NDArray[np.float64]:
-    """Frames ``[t0, t0 + n)`` of a live plan (``v (C, n)`` speeds, ``pts (C, n + 1, 3)`` path):
-    the pieces' ``slots`` (start, kind, first, clock0, trav0, each ``(C, SLOTS)``) and ``busy``
-    brought up to date; with ``out`` (rows, weights, gait, contacts, stitches, each ``(C, n',
-    ...)``) the rows of the frames sent -- those a multiple of ``out_step``, n' of them -- too,
-    and ``clock (kinds, C)`` carried on to ``t0 + n``. Returns the distance walked at ``t0 + n``
-    (to carry when ``out`` is given)."""
-    if not AVAILABLE:
-        raise RuntimeError("synth_core.compiled.plan_kernels needs numba; use the numpy backend")
-    C, n = v.shape
-    walked_out = np.empty(C)
-    with_rows = out is not None
-    if out is None:
-        none = np.empty((C, 0, 4), np.int32)
-        out = (none, np.empty((C, 0, 3), np.float32), np.empty((C, 0), np.int8), np.empty((C, 0, 4), bool),
-               np.empty((C, 0), bool))
-    k = tb.kinds
-    start, kind, first, clock0, trav0 = slots
-    rows, weights, gait, contacts, stitches = out
-    sent = -(-(t0 + n) // out_step) - -(-t0 // out_step)
-    assert not with_rows or all(a.shape[:2] == (C, sent) for a in out), "out: a row per frame sent"
-    _live_block(k.offset, k.frames, k.clips, k.cyclic, k.source, k.target, tb.total, tb.high, tb.curve_at,
-                tb.curves, contacts_of, max_rate, slowest, slow, share, margin, len(tb.low), creep, t0, v,
-                pts, h, tempo, clock, walked, start, kind, first, clock0, trav0, before, busy, with_rows,
-                out_step, numba.get_num_threads(), rows, weights, gait, contacts, stitches, walked_out)
-    return walked_out
-
-
-@_jit()
-def _points_fine(last: Any, pts: Any, limit: float) -> bool:
+@jit()
+def points_fine(last: Any, pts: Any, limit: float) -> bool:
+    """Whether every point of ``pts (C, n, 3)`` is finite and within ``limit`` of the one before
+    (``last (C, 3)``: each character's point before them; NaN: none)."""
     ok = True
     for c in range(pts.shape[0]):
         px, py, pz = last[c, 0], last[c, 1], last[c, 2]
@@ -508,60 +357,17 @@ def _points_fine(last: Any, pts: Any, limit: float) -> bool:
     return ok
 
 
-def live_points_fine(last: NDArray[np.float64], pts: NDArray[np.float64], limit: float) -> bool:
-    """Whether every point of ``pts (C, n, 3)`` is finite and within ``limit`` of the one before
-    (``last (C, 3)``: each character's point before them; NaN: none). False sends a caller to its
-    own checks for what is wrong and where (:meth:`synth_core.runtime.live.LiveSynth.check`, whose numpy
-    took a millisecond of a 2,000-horse tick's serial part)."""
-    if not AVAILABLE:
-        raise RuntimeError("synth_core.compiled.plan_kernels needs numba; use the numpy backend")
-    return bool(_points_fine(np.ascontiguousarray(last, np.float64), np.ascontiguousarray(pts, np.float64),
-                             float(limit)))
+@dataclass(frozen=True)
+class Kernels:
+    """The planner's entry points; :data:`COMPILED` and :data:`REFERENCE` have the same signatures."""
+
+    name: str
+    advance: Any  # see advance()
+    headings: Any  # see headings()
+    points_fine: Any  # see points_fine()
 
 
-@_jit()
-def _live_headings(pts: Any, off: int, fps: float, min_speed: float, last_dir: Any, moved: Any,
-                   yaw: Any, never: Any) -> None:
-    n = yaw.shape[1]
-    m = pts.shape[1]
-    for c in range(pts.shape[0]):
-        hx, hz = last_dir[c, 0], last_dir[c, 1]
-        first = -1
-        for i in range(n):
-            j = off + i
-            if m < 2:
-                dx = dz = 0.0
-            elif j == 0:
-                dx, dz = pts[c, 1, 0] - pts[c, 0, 0], pts[c, 1, 1] - pts[c, 0, 1]
-            elif j == m - 1:
-                dx, dz = pts[c, j, 0] - pts[c, j - 1, 0], pts[c, j, 1] - pts[c, j - 1, 1]
-            else:
-                dx = (pts[c, j + 1, 0] - pts[c, j - 1, 0]) / 2.0  # np.gradient's central difference
-                dz = (pts[c, j + 1, 1] - pts[c, j - 1, 1]) / 2.0
-            if math.sqrt(dx * dx + dz * dz) * fps >= min_speed:
-                hx, hz = dx, dz
-                if first < 0:
-                    first = i
-            yaw[c, i] = math.atan2(hx, hz)
-        never[c] = not moved[c] and first < 0
-        if first >= 0:
-            if not moved[c]:  # starts moving in this block: before, it faces that way
-                for i in range(first):
-                    yaw[c, i] = yaw[c, first]
-            last_dir[c, 0], last_dir[c, 1] = hx, hz
-            moved[c] = True
-
-
-def live_headings(pts: NDArray[np.float64], off: int, n: int, fps: float, min_speed: float,
-                  last_dir: NDArray[np.float64], moved: NDArray[np.bool_]) -> tuple[NDArray[np.float64],
-                                                                                  NDArray[np.bool_]]:
-    """A live block's yaw ``(C, n)``, as :meth:`synth_core.runtime.live.LiveSynth._headings` makes it:
-    ``pts (C, m, 2)`` the path's ground coordinates around the block (its frame 0 at ``pts``'
-    ``off``); ``last_dir`` and ``moved`` carried on. Also which characters have not moved yet
-    (their yaw, the known path's first move, is the caller's)."""
-    if not AVAILABLE:
-        raise RuntimeError("synth_core.compiled.plan_kernels needs numba; use the numpy backend")
-    C = pts.shape[0]
-    yaw, never = np.empty((C, n)), np.empty(C, np.bool_)
-    _live_headings(np.ascontiguousarray(pts), off, fps, min_speed, last_dir, moved, yaw, never)
-    return yaw, never
+_PLAIN = interpreted(globals())
+REFERENCE = Kernels("numpy", *(_PLAIN.get(name, globals()[name]) for name in ("advance", "headings",
+                                                                              "points_fine")))
+COMPILED = Kernels("numba", advance, headings, points_fine) if AVAILABLE else REFERENCE

@@ -19,7 +19,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.ndimage import gaussian_filter1d
 
-from synth_core.compiled.kernels import AVAILABLE
+from synth_core.compiled.jit import AVAILABLE
 
 if AVAILABLE:
     import numba

@@ -1,19 +1,22 @@
 """Live synthesis: trajectory points arrive a few at a time (a crowd simulation as it runs) and
-poses come back for every frame the plan can settle -- :func:`synth_core.runtime.synthesis.plan` made
-incrementally, frame block by frame block, with its state carried between blocks.
+poses come back for every frame the plan can settle: the batch's planner
+(:class:`synth_core.runtime.plan.Planner`, one state machine for both) advanced frame block by
+frame block as the points arrive, its state carried between blocks.
 
 Every step of the batch plan is causal but for a bounded look-ahead, which is the latency:
 
 - smoothing reads ``radius`` points ahead (4 sigma);
 - a frame's speed is interpolated between segment centres, so it waits for the segment after
   its own (up to 1.5 segments ahead), and a gait is chosen on the speed ``LOOKAHEAD`` segments
-  ahead of its decision, waiting up to a stride for its entry phase (``horizon``: the larger);
+  ahead of its decision (decided once the speeds up to a stride past that are known, ``horizon``:
+  so the windows come as they did when the entry phase was searched ahead; the planner, stepping
+  frame by frame, no longer needs them);
 - a transition ends where the character has covered its distance -- found as the path arrives.
 
 So a frame is planned about ``horizon + 1.5 m + radius`` frames after its point arrived and
 sent ``lock_lag`` frames later (:attr:`LiveSynth.latency_frames`; horse, 60 fps:
-112 + 84 + 16 + 2 + 20 = 234 frames, 3.9 s), and then it is exactly the frame the batch plan of
-the whole trajectory has (tested, foot lock off), but for:
+112 + 84 + 16 + 2 + 20 = 234 frames, 3.9 s), and then its plan is exactly the batch plan of the
+whole trajectory's, bit for bit (tests/test_plan.py), but for:
 
 - the heading of a character standing before it first moves: the batch turns it to where it
   will go; live does that only if the move is already known, else keeps ``heading``;
@@ -32,140 +35,36 @@ batch's 1.1 (no lag: 0.7 mm p95, 2.0 mm mean).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-from typing import Any
-
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from synth_core import TEMPO_SPREAD
-from synth_core.compiled import kernels, plan_kernels, render_pool
+from synth_core.compiled import backend as backends
+from synth_core.compiled import kernels, render_pool
 from synth_core.compiled.scratch import Scratch
 from synth_core.runtime import gaussian
 from synth_core.runtime.bank import Bank
+from synth_core.runtime.columns import Columns, PlannedColumns
 from synth_core.runtime.draws import SCHEDULE_STREAM, character_keys, uniform
 from synth_core.runtime.footlock import EASE_FRAMES, PAD
-from synth_core.runtime.streaming import Window, lock_context
-from synth_core.runtime.synthesis import (
+from synth_core.runtime.plan import (
     MARGIN,
-    MAX_RATE,
-    MIN_TURN_SPEED,
     N_HUBS,
-    STAND_SHARE,
+    Decisions,
     Floats,
-    Plan,
-    _choose,
-    _kinds,
-    _plan_tables,
-    blend_rows,
-    character_scales,
-    character_tempo,
-    clip_range,
+    Headings,
+    Planner,
     decision_step,
-    distance_since,
-    entry_frame,
-    hub_clocks,
     lookahead,
-    render,
-    stride_clocks,
-    switch,
+    tables,
 )
+from synth_core.runtime.streaming import Window, lock_context
+from synth_core.runtime.synthesis import character_scales, character_tempo, render
 from synth_core.runtime.terrain import HeightField, on_ground
-from synth_core.runtime.trajectory import _GROUND, DEFAULT_SIGMA, TELEPORT_M, TrajectoryError
+from synth_core.runtime.trajectory import DEFAULT_SIGMA, GROUND, TELEPORT_M, TrajectoryError
 
-NEVER = np.iinfo(np.int64).max // 4
-SLOTS = 5  # pieces per character: the one before, the one playing, then up to a gait, a transition
-# and the gait after it (a decision made for a transition ending before the next one)
 KEEP_PLANS = 1  # of the slowest cycle: planned frames kept as the foot lock's context
 LOCK_LAG = 20  # frames planned but not yet sent, so that most plants a frame is in have ended
-
-
-@dataclass
-class _Pieces:
-    """Per character (C, SLOTS), chronological: start frame, kind, first clip frame, the clock of
-    its kind at its start, the distance travelled (unscaled) at its start."""
-
-    start: NDArray[np.int64]
-    kind: NDArray[np.int64]
-    first: NDArray[np.int64]
-    clock0: Floats
-    trav0: Floats
-    before: NDArray[np.bool_]  # slot 0 holds a piece (the first piece has none before it)
-
-
-class _Columns:
-    """Frames ``[start, stop)`` of per-character arrays ``(C, frames, ...)`` with room to grow:
-    new frames are written in place at the end and old ones dropped from the front (concatenating
-    the whole of them for every block cost a tenth of a session's time)."""
-
-    def __init__(self, C: int, layout: list[tuple[tuple[int, ...], type]], room: int = 0) -> None:
-        self.C, self.layout = C, layout
-        self.start = 0  # frame of the first kept
-        self.lo = self.hi = 0  # the columns kept
-        self.arrays = self._alloc(room)  # room: twice the frames usually kept, so moves are rare
-
-    def _alloc(self, cap: int) -> list[NDArray[Any]]:
-        return [np.empty((self.C, cap, *tail), dtype) for tail, dtype in self.layout]
-
-    @property
-    def frames(self) -> int:
-        return self.hi - self.lo
-
-    @property
-    def stop(self) -> int:
-        return self.start + self.frames
-
-    def columns(self, a: int, b: int) -> list[NDArray[Any]]:
-        """Frames ``[a, b)`` (within ``[start, stop)``) of each array: views."""
-        i = self.lo - self.start
-        return [x[:, a + i:b + i] for x in self.arrays]
-
-    def reserve(self, n: int) -> list[NDArray[Any]]:
-        """The next ``n`` frames, to be filled."""
-        cap = self.arrays[0].shape[1]
-        if self.hi + n > cap:  # move the kept frames to the front, into larger arrays if need be
-            kept = self.hi - self.lo
-            # In place when that leaves half the room free, or when the frames kept are no more
-            # than those coming (a big block, as at the finish: the copy costs no more than the
-            # writing; fresh arrays would cost page faults on top).
-            in_place = kept + n <= cap // 2 or (kept + n <= cap and kept <= n)
-            arrays = self.arrays if in_place else self._alloc(2 * (kept + n))
-            for new, old in zip(arrays, self.arrays, strict=True):
-                new[:, :kept] = old[:, self.lo:self.hi]
-            self.arrays, self.lo, self.hi = arrays, 0, kept
-        self.hi += n
-        return self.columns(self.stop - n, self.stop)
-
-    def drop_before(self, frame: int) -> None:
-        frame = min(frame, self.stop)
-        if frame > self.start:
-            self.lo += frame - self.start
-            self.start = frame
-
-
-class _Planned(_Columns):
-    """The planned frames kept (the foot lock's context): only those sent, every ``out_step``-th
-    of the library's, its columns numbered by frame sent (library frame // out_step). Kept at
-    the library's rate, each window's frames were a strided view, copied in strides for the
-    render kernel (7% of a 30 fps session), and the plan's rows made for frames never read."""
-
-    def __init__(self, scales: Floats, room: int) -> None:
-        super().__init__(len(scales), [((4,), np.int32), ((3,), np.float32), ((), np.float64),
-                                       ((3,), np.float64), ((4,), np.bool_), ((), np.bool_), ((), np.int8)],
-                         room)
-        self.scales = scales
-
-    def _plan(self, arrays: list[NDArray[Any]]) -> Plan:
-        rows, weights, yaw, path, contacts, stitches, gait = arrays
-        return Plan(rows, weights, yaw, path, self.scales, contacts, stitches, gait)
-
-    def plan(self) -> Plan:
-        """The frames kept, ``[start, stop)``."""
-        return self._plan(self.columns(self.start, self.stop))
-
-    def reserve_plan(self, n: int) -> Plan:
-        """The next ``n`` frames, to be filled."""
-        return self._plan(self.reserve(n))
 
 
 class LiveSynth:
@@ -210,10 +109,7 @@ class LiveSynth:
         self.lock_lag = lock_lag if foot_lock else 0
         self.rendered = 0  # library frames rendered
         self.settled = 0  # library frames planned to send: [rendered, settled) wait for take()
-        self.compiled = backend == "numba" or (backend == "auto" and kernels.AVAILABLE)
-        # The plan's blocks by plan_kernels.live_block (the same plan, bit for bit; False: the
-        # numpy reference, which tests compare it with).
-        self.plan_compiled = self.compiled
+        self.compiled = backends.compiled(backend)
         # first: the index of these characters' first in the session (a shard of it: see
         # synth_core.runtime.live_shards), so each draws as it would among all of them.
         self.keys = character_keys(seed, C, seeds, first)
@@ -222,19 +118,19 @@ class LiveSynth:
             bad = int(np.flatnonzero(~(np.isfinite(self.scales) & (self.scales > 0)))[0])
             raise TrajectoryError(f"scale: must be a positive number, got {self.scales[bad]}", bad)
         self.tempo = character_tempo(self.keys, self.scales, size_matching, tempo_spread)
-        self.pace = self.scales * self.tempo  # path speed over this: the library's (synthesis.plan)
-        self.slow = clip_range(bank, min(bank.speeds))[0]  # the walk plays slower below this
+        self.pace = self.scales * self.tempo  # path speed over this: the library's (plan.plan)
         ratio = bank.fps / fps
         self.out_step = int(round(ratio)) if abs(ratio - round(ratio)) < 1e-9 else 1
-        self.kinds = _kinds(bank)
+        self.frames_of = tables(bank).frames  # of each piece kind
         self.m = bank.mean_cycle
         self.step = decision_step(self.m)
-        # Speeds a decision needs known: the one it reads, and those of every frame up to its
-        # gait's entry phase (the stride clock; decided up to a step early, a stride at most).
-        self.horizon = max(lookahead(self.m), self.step + int(self.kinds.frames[1:N_HUBS].max()))
+        # Speeds known before a decision is made: the one it reads, and those of every frame up to
+        # its gait's entry phase (decided up to a step early, a stride at most) -- which the
+        # planner, stepping frame by frame, no longer needs: kept so that windows are sent as
+        # before (a shorter latency is a later change).
+        self.horizon = max(lookahead(self.m), self.step + int(self.frames_of[1:N_HUBS].max()))
         self.pad = int(np.ceil(4 * sigma)) if sigma > 0 else 0
         self.radius = int(4.0 * sigma + 0.5) if sigma > 0 else 0
-        self.tables = _plan_tables(bank)  # the kinds' tables as the compiled blocks read them
         # Input (at fps) and the library-rate points made from it.
         self.inputs = np.zeros((C, 0, 3))
         self.inputs_start = 0  # global index of inputs[:, 0]
@@ -248,31 +144,25 @@ class LiveSynth:
         # Smoothed path, segment speeds, and what the plan carries from block to block.
         # Room for the path the finish adds too (see _end): growing at the finish moved it into
         # fresh memory, 20-30 ms of a 2,000-horse session's finish (page faults).
-        self.path = _Columns(C, [((3,), np.float64)], 2 * self.latency_frames + self._end_frames)
+        self.path = Columns(C, [((3,), np.float64)], 2 * self.latency_frames + self._end_frames)
         self.n_path = 0
         self.seg = np.zeros((C, 0))  # segment speeds / (scale x tempo): the library's speeds
         self.seg_start = 0
         self.n_seg = 0
-        self.walked = np.zeros(C)  # unscaled distance along the path up to the next frame planned
-        self.clock = np.zeros((N_HUBS + 1, C))  # each kind's clock at the next frame planned
-        self.last_dir = np.zeros((C, 2))
-        self.moved = np.zeros(C, bool)
-        self.current = np.zeros(C, np.int64)
-        self.busy = np.zeros(C, np.int64)
+        # The plan and the heading, carried from block to block.
+        self.planner = Planner(bank, self.scales, self.tempo, margin, backend)
+        self.heading_state = Headings(C, backend)
         self.decisions = 0
+        self.no_decision = Decisions(0, np.zeros((C, 0)), np.zeros((C, 0, N_HUBS)))  # a block without one
         self.planned = 0
         self.emitted = 0
-        start = np.full((C, SLOTS), NEVER, np.int64)
-        start[:, 1] = 0  # standing: the idle from frame 0
-        self.pieces = _Pieces(start, np.zeros((C, SLOTS), np.int64), np.zeros((C, SLOTS), np.int64),
-                              np.zeros((C, SLOTS)), np.zeros((C, SLOTS)), np.zeros(C, bool))
         # Planned frames kept as the foot lock's context (see _emit).
-        self.buffer = _Planned(self.scales, -(-2 * (self.lock_lag + self.kept_frames + 2 * self.step)
+        self.buffer = PlannedColumns(self.scales, -(-2 * (self.lock_lag + self.kept_frames + 2 * self.step)
                                               // self.out_step))
         # The feet of the frames sent and of those after them posed by the foot lock so far (frames
         # [0, known_feet) of each character's): see kernels.render_window.
         # One row of (frames, C, 4, 3): its views are C-contiguous, as the kernel takes them.
-        self.feet = _Columns(1, [((C, 4, 3), np.float64)],
+        self.feet = Columns(1, [((C, 4, 3), np.float64)],
                              self.buffer.arrays[0].shape[1] + self._end_frames // self.out_step + 1)
         self.known_feet = np.zeros(C, np.int64)
         # What the sink reads of the legs on the last PAD frames sent (see kernels.Posed).
@@ -288,7 +178,7 @@ class LiveSynth:
     def kept_frames(self) -> int:
         """Planned frames before the next to send kept for the foot lock: whole plants reaching
         back past PAD, at most KEEP_PLANS of the slowest cycle."""
-        return PAD + EASE_FRAMES + KEEP_PLANS * int(self.kinds.frames[1:N_HUBS].max())
+        return PAD + EASE_FRAMES + KEEP_PLANS * int(self.frames_of[1:N_HUBS].max())
 
     @property
     def latency_frames(self) -> int:
@@ -333,9 +223,11 @@ class LiveSynth:
         C = len(self.scales)
         if arr.ndim != 3 or arr.shape[0] != C or arr.shape[2] != 3 or arr.shape[1] < 1:
             raise TrajectoryError(f"points: expected shape ({C}, n >= 1, 3), got {arr.shape}")
-        if self.plan_compiled:
+        if self.compiled:  # a fast pass (its numpy took a millisecond of a 2,000-horse tick's serial part)
             last = self.inputs[:, -1] if self.inputs.shape[1] else np.full((C, 3), np.nan)
-            if plan_kernels.live_points_fine(last, arr, TELEPORT_M):
+            # Contiguous: one compiled signature for every call (none compiled mid-session).
+            if self.planner.kernels.points_fine(np.ascontiguousarray(last), np.ascontiguousarray(arr),
+                                                float(TELEPORT_M)):
                 return arr  # else found and named below
         finite = np.isfinite(arr).all(axis=(1, 2))
         if not finite.all():
@@ -444,7 +336,7 @@ class LiveSynth:
         if whole > self.n_seg:
             a, b = self.n_seg * m, whole * m + 1
             pts = self._path(a, b)
-            step = np.linalg.norm(np.diff(pts[..., _GROUND], axis=1), axis=-1)
+            step = np.linalg.norm(np.diff(pts[..., GROUND], axis=1), axis=-1)
             counts = np.full(whole - self.n_seg, m)  # as segment_speeds divides, for the same bits
             speeds = step.reshape(len(step), -1, m).sum(axis=2) / counts * self.bank.fps
             self.seg = np.concatenate([self.seg, speeds / self.pace[:, None]], axis=1)
@@ -484,224 +376,46 @@ class LiveSynth:
                 ready = min(ready, limit)
             if t0 >= ready:
                 break
+            decisions = self.no_decision
             if t0 == a:
                 ahead = a + lookahead(self.m)
                 if limit is not None:
                     ahead = min(ahead, limit - 1)  # the batch's decisions read its last frame there
                 if a + self.horizon >= v_ready:
                     break
-                self._decide(a, ahead)
+                decisions = self._decision(ahead)
             t1 = min(ready, (self.decisions) * self.step)
-            if t1 <= t0:
-                break
-            self._plan_block(t0, t1)
+            self._plan_block(t0, t1, decisions)
         stop = self.planned if limit is not None else self.planned - self.lock_lag
         self.settled = max(self.settled, stop)
 
-    def _decide(self, a: int, ahead: int) -> None:
-        """Decision k at frame a on the speed at frame ``ahead`` (as :func:`synthesis.schedule`'s
-        loop body: for the characters free now or before the next decision)."""
+    def _decision(self, ahead: int) -> Decisions:
+        """The next gait decision (at frame ``decisions * step``): on the speed at frame ``ahead``."""
         k = self.decisions
         self.decisions += 1
-        # The clocks and distance of the frames up to the next decision (known), so transitions
-        # ending before it are found now (the batch knows every end beforehand).
-        v = self._speeds(np.arange(a, a + self.step))
-        pts = self._path(a, a + self.step + 1)
-        if self.plan_compiled:
-            self._compiled_block(a, v, pts, None)
-        else:
-            self._scan(a, v, pts)
-        self._normalize(a)
-        draws = uniform(self.keys, SCHEDULE_STREAM + k, N_HUBS)
-        nxt = _choose(self.bank, self.current, self._speeds(np.array([ahead]))[:, 0], draws)
-        go = np.flatnonzero((self.busy < a + self.step) & (nxt != self.current))
-        if len(go) == 0:
-            return
-        P = self.pieces
-        cur, new = self.current[go], nxt[go]
-        d = np.maximum(a, self.busy[go])
-        j = 1 + (self.busy[go] > a)  # the slot of the gait playing from d
-        n = np.arange(len(go))
-        # The gait's stride clock on to its entry phase (these characters only: a stride ahead).
-        v = self._speeds(np.arange(a, a + self.horizon + 1), go)
-        clock = hub_clocks(self.bank, cur, v, a, self.clock[:, go], self.tempo[go])
-        wait, tr, resume = switch(self.kinds, cur, new, P.first[go, j], clock[n, d - a] - P.clock0[go, j])
-        begin = entry_frame(clock, d - a, wait) + a
-        assert (begin <= a + self.horizon).all(), "the horizon covers a stride from the decision on"
-        P.start[go, j + 1], P.kind[go, j + 1], P.first[go, j + 1] = begin, tr, 0
-        P.clock0[go, j + 1] = begin.astype(np.float64)  # a transition's clock is time
-        P.start[go, j + 2], P.kind[go, j + 2], P.first[go, j + 2] = NEVER, new, resume
-        self.busy[go] = NEVER
-        self.current[go] = new
+        draws = uniform(self.keys, SCHEDULE_STREAM + k, N_HUBS)[:, None]
+        return Decisions(k, self._speeds(np.array([ahead])), draws)
 
-    def _scan(self, t0: int, v: Floats, pts: Floats) -> tuple[Floats, Floats]:
-        """Frames [t0, t0 + n) (``v (C, n)``, ``pts (C, n + 1, 3)``): the clocks and distance at
-        frames t0 .. t0 + n from the carried ones, and the pieces' starts and ends there
-        (the numpy reference of :func:`plan_kernels.live_block`'s scan)."""
-        n = v.shape[1]
-        clocks = stride_clocks(self.bank, self.kinds, v, t0, self.clock, self.tempo)
-        step = np.linalg.norm(np.diff(pts[..., _GROUND], axis=1), axis=-1)
-        walked = np.cumsum(np.concatenate([self.walked[:, None], step], axis=1), axis=1)  # (C, n+1)
-        self._start_distances(t0, n, walked)
-        self._end_transitions(t0, n, walked, clocks)
-        return clocks, walked
-
-    def _start_distances(self, t0: int, n: int, walked: Floats) -> None:
-        """The distance travelled at their start of the pieces starting within frames ``[t0, t0 + n)``
-        (``walked (C, >= n)``: from frame t0 on)."""
-        P = self.pieces
-        sc, sj = np.nonzero((P.start[:, 1:] >= t0) & (P.start[:, 1:] < t0 + n))
-        P.trav0[sc, sj + 1] = walked[sc, P.start[sc, sj + 1] - t0]
-
-    def _end_transitions(self, t0: int, n: int, walked: Floats, clocks: Floats) -> None:
-        """Transitions under way (their gait's start not found yet: the slot after the
-        transition's holds it, not started) that end within frames ``[t0, t0 + n)``: at the first
-        frame after its start where its distance is covered. ``walked (C, >= n)``,
-        ``clocks (kinds, C, >= n)``: from frame t0 on."""
-        P, h = self.pieces, self.scales
-        pc = np.flatnonzero(self.busy == NEVER)
-        j = (P.start[pc, 1:] == NEVER).argmax(axis=1)  # the slot before the gait not started
-        b = P.start[pc, j]
-        pc, j, b = pc[b < t0 + n], j[b < t0 + n], b[b < t0 + n]
-        if len(pc) == 0:
-            return
-        dist = distance_since(walked[pc, :n] / h[pc, None], self.bank.creep, b, t0,
-                              at=P.trav0[pc, j, None] / h[pc, None])
-        covered = dist >= self.tables.total[P.kind[pc, j]][:, None]
-        done = covered & (np.arange(t0, t0 + n)[None, :] > b[:, None])
-        hit = done.any(axis=1)
-        ec, ej, et = pc[hit], j[hit] + 1, done[hit].argmax(axis=1)
-        P.start[ec, ej] = t0 + et
-        P.clock0[ec, ej] = clocks[np.minimum(P.kind[ec, ej], N_HUBS), ec, et]
-        P.trav0[ec, ej] = walked[ec, et]
-        self.busy[ec] = t0 + et
-
-    def _normalize(self, t: int) -> None:
-        """Slots shifted so slot 1 is the piece playing at frame t."""
-        P = self.pieces
-        for _ in range(SLOTS - 2):
-            shift = P.start[:, 2] <= t
-            if not shift.any():
-                return
-            for arr in (P.start, P.kind, P.first, P.clock0, P.trav0):
-                arr[shift, :-1] = arr[shift, 1:]
-            P.start[shift, -1] = NEVER
-            P.before[shift] = True
-
-    def _plan_block(self, t0: int, t1: int) -> None:
-        """Frames [t0, t1): no decision falls inside."""
-        self._normalize(t0)
-        n = t1 - t0
+    def _plan_block(self, t0: int, t1: int, decisions: Decisions) -> None:
+        """Frames [t0, t1), with the decision made at t0 if there is one."""
         v = self._speeds(np.arange(t0, t1))
         pts = self._path(t0, t1 + 1)
         k = self.out_step
-        sent = slice(-t0 % k, n, k)  # the block's frames sent (multiples of k)
+        sent = slice(-t0 % k, t1 - t0, k)  # the block's frames sent (multiples of k)
         block = self.buffer.reserve_plan(-(-t1 // k) - -(-t0 // k))  # written in place
-        out: tuple[NDArray[Any], ...] = (block.rows, block.weights, block.gait, block.contacts,
-                                         block.stitches)
-        if self.plan_compiled:
-            self._compiled_block(t0, v, pts, out)
-        else:
-            for dest, part in zip(out, self._block_rows(t0, t1, v, pts), strict=True):
-                dest[...] = part[:, sent]
+        self.planner.advance(t0, v, pts, decisions, block, k)
         block.yaw[...] = self._headings(t0, t1)[:, sent]
         block.path[...] = pts[:, sent]
         self.planned = t1
 
-    def _compiled_block(self, t0: int, v: Floats, pts: Floats, out: tuple[NDArray[Any], ...] | None) -> None:
-        """:func:`plan_kernels.live_block`: the scan of frames [t0, t0 + n) (as :meth:`_decide`
-        makes it, ``out`` None) or the block's rows as :meth:`_block_rows` (into ``out``)."""
-        P = self.pieces
-        walked = plan_kernels.live_block(
-            self.tables, self.bank.contacts, MAX_RATE, min(self.bank.speeds), self.slow, STAND_SHARE,
-            self.margin, self.bank.creep, t0, v, pts, self.scales, self.tempo,
-            self.clock, self.walked, (P.start, P.kind, P.first, P.clock0, P.trav0), P.before, self.busy, out,
-            self.out_step)
-        if out is not None:
-            self.walked = walked
-
-    def _block_rows(self, t0: int, t1: int, v: Floats, pts: Floats) -> tuple[NDArray[Any], ...]:
-        """The numpy reference of a block's rows, weights, gait, contacts and stitches (the
-        clocks and distance carried on to t1)."""
-        bank, kinds, P = self.bank, self.kinds, self.pieces
-        C, n = len(self.scales), t1 - t0
-        t = np.arange(t0, t1)
-        clocks, walked = self._scan(t0, v, pts)  # to t1: the next block starts from there
-        h = self.scales[:, None]
-        c_all = np.arange(C)
-        # Which slot plays each frame, and the slot before it.
-        e = 1 + (t[None, :, None] >= P.start[:, None, 2:]).sum(axis=2)
-        cc = c_all[:, None]
-        kind, first = P.kind[cc, e], P.first[cc, e]
-        start, clock0, trav0 = P.start[cc, e], P.clock0[cc, e], P.trav0[cc, e]
-        tt = np.broadcast_to(np.arange(n)[None, :], (C, n))
-        local = np.floor(first + clocks[np.minimum(kind, N_HUBS), cc, tt] - clock0 + 0.5).astype(np.int64)
-        walked_since = (walked[:, :n] / h - trav0 / h) + bank.creep * local
-        since = t[None, :] - start
-        fc, ft = np.nonzero(((e >= 2) | P.before[:, None]) & (since < self.margin))  # a piece before
-        pe = e[fc, ft] - 1
-        p_kind = P.kind[fc, pe]
-        p_local = np.floor(P.first[fc, pe] + clocks[np.minimum(p_kind, N_HUBS), fc, ft]
-                           - P.clock0[fc, pe] + 0.5).astype(np.int64)
-        rows, weights, gait = blend_rows(bank, kinds, self.margin, kind, local, v, walked_since, since,
-                                         (fc, ft), p_kind, p_local)
-        stitches = (t[None, :] >= 1) & ((P.start[:, 1:, None] == t[None, None, :]).any(axis=1))
-        self.clock = clocks[:, :, n].copy()
-        self.walked = walked[:, n].copy()
-        return rows, weights, gait, bank.contacts[rows[..., 0]], stitches
-
     def _headings(self, t0: int, t1: int) -> Floats:
-        """(C, n) yaw as :func:`synthesis.headings` (gradient; held while slow; before the first
-        move, the heading of the first move -- where it is known yet, else ``heading``)."""
+        """(C, n) yaw of frames [t0, t1) (plan.Headings); a character standing until then faces
+        where it will first go if that is known yet, else ``heading``."""
         lo = max(t0 - 1, 0)
-        hi = min(t1 + 1, self.n_path)
-        pts = self._path(lo, hi)[..., _GROUND]
-        if self.plan_compiled:  # the same, a character at a time (a tenth of a shard's tick in numpy)
-            yaw, never = plan_kernels.live_headings(pts, t0 - lo, t1 - t0, self.bank.fps, MIN_TURN_SPEED,
-                                                    self.last_dir, self.moved)
-            if never.any():
-                yaw[never] = self._first_move(never, t1)[:, None]
-            return yaw
-        d = np.gradient(pts, axis=1) if pts.shape[1] > 1 else np.zeros_like(pts)
-        if lo == 0 and pts.shape[1] > 1:
-            d[:, 0] = pts[:, 1] - pts[:, 0]
-        d = d[:, t0 - lo:t0 - lo + (t1 - t0)]
-        moving = np.linalg.norm(d, axis=-1) * self.bank.fps >= MIN_TURN_SPEED
-        n = t1 - t0
-        idx = np.maximum.accumulate(np.where(moving, np.arange(n), -1), axis=1)
-        held = np.where(idx[..., None] >= 0, np.take_along_axis(d, np.maximum(idx, 0)[..., None], axis=1),
-                        self.last_dir[:, None, :])
-        yaw = np.arctan2(held[..., 0], held[..., 1])
-        never = ~self.moved & ~moving.any(axis=1)  # not moved yet by t1: where will it go?
-        if never.any():
-            ahead = self._first_move(never, t1)
-            yaw[never] = ahead[:, None]
-        early = ~self.moved & moving.any(axis=1)  # starts moving in this block: before, face that way
-        if early.any():
-            ec = np.flatnonzero(early)
-            f = moving[ec].argmax(axis=1)
-            first_yaw = np.arctan2(d[ec, f, 0], d[ec, f, 1])
-            before = np.arange(n)[None, :] < f[:, None]
-            yaw[ec] = np.where(before, first_yaw[:, None], yaw[ec])
-        last = moving.any(axis=1)
-        self.last_dir[last] = d[last, n - 1 - moving[last, ::-1].argmax(axis=1)]
-        self.moved |= last
-        return np.asarray(yaw)
-
-    def _first_move(self, who: NDArray[np.bool_], t1: int) -> Floats:
-        """Yaw of each `who` character's first moving frame at or after t1 in the known path,
-        else ``heading``."""
-        pts = self._path(t1 - 1, self.n_path)[who][..., _GROUND]
-        yaw = np.full(int(who.sum()), self.heading)
-        if pts.shape[1] < 3:
-            return yaw
-        d = np.gradient(pts, axis=1)[:, 1:-1]  # frames t1 .. n_path - 2: central differences
-        moving = np.linalg.norm(d, axis=-1) * self.bank.fps >= MIN_TURN_SPEED
-        has = moving.any(axis=1)
-        f = moving.argmax(axis=1)
-        dd = d[np.arange(len(d)), f]
-        yaw[has] = np.arctan2(dd[has, 0], dd[has, 1])
-        return yaw
+        facing = np.full(len(self.scales), self.heading)
+        ground = self._path(lo, t1 + 1)[..., GROUND]
+        return self.heading_state.advance(ground, t0 - lo, t1 - t0, self.bank.fps, facing,
+                                          ahead=lambda who: self._path(lo, self.n_path)[who][..., GROUND])
 
     def _emit(self, start: int, stop: int) -> Window:
         """Render planned frames [start, stop) (every ``out_step``-th frame of the library's)."""

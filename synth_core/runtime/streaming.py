@@ -3,7 +3,7 @@ and every frame is the number :func:`synth_core.runtime.synthesis.synthesize` gi
 
 Why the windows can be exact:
 
-- the plan of the first frames is the whole plan's (:func:`synth_core.runtime.synthesis.plan` with
+- the plan of the first frames is the whole plan's (:func:`synth_core.runtime.plan.plan` with
   ``frames``; draws are per character and per decision, :mod:`synth_core.runtime.draws`), so the first
   window waits only for its own frames' plan; the rest use the whole plan, made meanwhile;
 - a frame's pose is its plan row's, but the foot lock looks further: a planted foot goes to its

@@ -45,7 +45,7 @@ TELEPORT_M = 5.0  # a jump longer than this between two frames is not locomotion
 MAX_COORDINATE_M = 1e6
 ALL_INVALID = "every character was invalid"  # the refusal when skip_invalid leaves none
 MAX_RESAMPLE = 8.0  # refuse trajectories needing more than 8x the frames
-_GROUND = [0, 2]
+GROUND = [0, 2]  # the ground plane's axes (x, z): Y is up
 ROWS = 256  # characters checked and smoothed at a time: their arrays stay in cache (a batch of
 # 2,000 done at once cost twice as much per point as one of 500)
 _R = TypeVar("_R")
@@ -192,7 +192,7 @@ def smooth(positions: Floats, sigma: float) -> Floats:
 def segment_speeds(positions: Floats, m: int, fps: float, along_ground: bool = False) -> Floats:
     """(C, K) ground speed of each m-frame segment, m/s (the last may be shorter);
     ``along_ground``: along the path's slope, not over the map (positions on a terrain)."""
-    axes = slice(None) if along_ground else _GROUND
+    axes = slice(None) if along_ground else GROUND
     step = np.linalg.norm(np.diff(positions[..., axes], axis=1), axis=-1)  # (C, F-1)
     F1 = step.shape[1]
     K = max(1, -(-F1 // m))

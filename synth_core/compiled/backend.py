@@ -1,0 +1,25 @@
+"""Which code runs: the one place a backend name becomes the compiled kernels or the reference.
+
+``"numba"``: the compiled kernels; ``"numpy"``: the references (the planner's own source run by the
+interpreter, :data:`synth_core.compiled.plan_kernels.REFERENCE`; the render's numpy
+:func:`synth_core.runtime.synthesis.render`); ``"auto"``: numba where it is installed.
+"""
+
+from __future__ import annotations
+
+from synth_core.compiled.jit import AVAILABLE
+from synth_core.compiled.plan_kernels import COMPILED, REFERENCE, Kernels
+
+BACKENDS = ("auto", "numba", "numpy")
+
+
+def compiled(name: str) -> bool:
+    """Whether backend ``name`` runs the compiled kernels."""
+    if name not in BACKENDS:
+        raise ValueError(f"backend: must be one of {BACKENDS}, got {name!r}")
+    return name == "numba" or (name == "auto" and AVAILABLE)
+
+
+def planner(name: str) -> Kernels:
+    """The planner's kernels of backend ``name``."""
+    return COMPILED if compiled(name) else REFERENCE

@@ -1,0 +1,51 @@
+"""One source, two runs: numba compiles the planner's scalar code, and the interpreter runs that
+same code as its reference (:func:`interpreted`), so the two cannot drift apart.
+
+No fastmath here (unlike the render kernels' few safe flags): the plan must come out the same bit
+for bit whichever runs it -- a rounding apart can move a ``floor()`` (a stride frame, a clip) and so
+a contact flag.
+"""
+
+from __future__ import annotations
+
+import types
+from collections.abc import Callable
+from typing import Any, Literal, TypeVar, cast
+
+try:
+    import numba
+    AVAILABLE = True
+except ImportError:  # pragma: no cover - numba is a dependency; the interpreter runs the same code
+    AVAILABLE = False
+
+F = TypeVar("F", bound=Callable[..., Any])
+prange: Any = numba.prange if AVAILABLE else range
+
+
+def jit(parallel: bool = False, inline: Literal["never", "always"] = "never") -> Callable[[F], F]:
+    """numba's ``njit`` (cached; ``nogil``: a service calls these from worker threads, its event
+    loop keeps answering), or the function itself without numba. ``inline="always"``: into its
+    callers, by numba (a call passing arrays costs their reference counts, per frame)."""
+    def wrap(f: F) -> F:
+        if not AVAILABLE:
+            return f
+        return cast(F, numba.njit(cache=True, parallel=parallel, nogil=True, inline=inline)(f))
+    return wrap
+
+
+def interpreted(namespace: dict[str, Any]) -> dict[str, Callable[..., Any]]:
+    """The :func:`jit` functions of a module (its ``globals()``) as the interpreter runs them: each
+    one's Python source, calling the others' Python source too (and ``prange`` as ``range``)."""
+    scope = dict(namespace, prange=range)
+    plain: dict[str, Callable[..., Any]] = {}
+    for name, obj in namespace.items():
+        f = getattr(obj, "py_func", None)  # a numba dispatcher's own function
+        if isinstance(f, types.FunctionType) and f.__module__ == namespace["__name__"]:
+            plain[name] = types.FunctionType(f.__code__, scope, f.__name__, f.__defaults__, f.__closure__)
+    scope.update(plain)
+    return plain
+
+
+def threads() -> int:
+    """Threads a parallel kernel may use here (a render-pool thread's own setting: one)."""
+    return int(numba.get_num_threads()) if AVAILABLE else 1

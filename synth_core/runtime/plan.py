@@ -1,0 +1,304 @@
+"""The plan (Sung 2011, section 6, steps 1-2): which clips every frame of every character blends.
+
+One planner serves the batch and the live mode. Its design:
+
+- **One state machine, written once** (:mod:`synth_core.compiled.plan_kernels`): each character's
+  plan is stepped frame by frame -- transition ends, gait decisions, transition entries, the
+  frame's table rows, the stride clocks -- carrying a small state (:class:`Planner`).
+- **The batch plan is the live plan run over the whole trajectory**: :func:`plan` makes a
+  :class:`Planner` and advances it over every frame in one call; a live session
+  (:mod:`synth_core.runtime.live`) advances its own block by block as points arrive. Same code,
+  same state, so live frames are the batch's by construction; what differs is only the input
+  (the batch knows the whole path: its end, and where a standing character will first go).
+- **One source, two backends**: numba compiles the machine, and the interpreter runs the same
+  source as the reference (:func:`synth_core.compiled.jit.interpreted`), behind one interface
+  (:class:`synth_core.compiled.plan_kernels.Kernels`) that
+  :func:`synth_core.compiled.backend.planner` picks from a backend name.
+- Around it, in numpy: the library's tables (:func:`tables`), each frame's speed
+  (:func:`frame_speeds`) and each decision's random draws (:mod:`synth_core.runtime.draws`).
+
+The rules the machine follows. Every character starts standing and moves through the motion
+graph one hub at a time. A segment's speed ``s / (h k)`` (scale h, stride tempo k) picks the gait:
+the current one while its range covers the speed (hysteresis), else one of the gaits covering it
+-- at random where ranges overlap -- reached one transition per step; gaits are chosen
+``DECISION_SHARE`` times a segment on the speed ``LOOKAHEAD`` segments ahead, as transitions take
+time. A transition starts when the stride reaches the phase the clip starts from and plays by
+distance; the next gait picks up at the phase the transition ends in, so the footfall sequence
+carries on across it. Within a gait every speed-map clip has the same frames and contacts, so the
+stride phase runs on (k clip frames per output frame, up to ``MAX_RATE`` faster above the fastest
+clip, down to ``STAND_SHARE`` below the slowest gait's slowest) and the speed only moves the pair
+of clips blended, ``M = (1 - a) M_i + a M_j``. Where a piece starts, the piece before it fades
+out over ``margin`` frames.
+"""
+
+from __future__ import annotations
+
+import functools
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from synth_core.compiled import plan_kernels as pk
+from synth_core.compiled.backend import planner
+from synth_core.compiled.jit import threads
+from synth_core.runtime.bank import Bank
+from synth_core.runtime.draws import SCHEDULE_STREAM, uniform_streams
+from synth_core.runtime.trajectory import GROUND, Prepared
+
+Floats = NDArray[np.float64]
+MARGIN = 10  # frames over which a finished piece fades out where the next starts
+N_HUBS = 5  # static, walk, trot, canter, gallop
+# Below its slowest clip's speed the slowest gait plays that clip's stride slower (its feet keep
+# pace with a slow path, as an animal creeping walks with long stances), down to this share of
+# its pace; slower still, a character stands. (At 0.5, with the stride at full pace, creeping
+# horses stood while their root crept on over the pinned hooves, which lifted 25 cm.)
+STAND_SHARE = 0.08
+MIN_TURN_SPEED = 0.05  # m/s: slower than this the heading holds (a standing animal does not spin)
+LOOKAHEAD = 2  # segments: gaits are chosen on the speed this far ahead, as transitions take time
+DECISION_SHARE = 4  # gait decisions this many times a segment
+MAX_RATE = 1.6  # a gait asked to go faster than its fastest clip plays its stride up to this fast
+
+
+@dataclass(frozen=True, eq=False)
+class Plan:
+    """What every (character, frame) shows, before any pose is built: table rows and weights.
+
+    ``rows (C, T, 4)``: the two clip rows blended of the piece playing, then the two of the piece
+    fading out (the same rows where none is); ``weights (C, T, 3)``: the second row's weight of
+    each pair, then the fading piece's share (0: no fade). The pose is
+    ``blend(blend(r0, r1, w), blend(p0, p1, pw), keep)`` -- nlerps -- turned to ``yaw`` and put on
+    ``path``; :func:`synth_core.runtime.synthesis.render` builds it (numpy) and
+    :mod:`synth_core.compiled.kernels` (numba) too.
+    """
+
+    rows: NDArray[np.int32]
+    weights: NDArray[np.float32]
+    yaw: Floats  # (C, T) heading, radians about +Y, 0 = +Z
+    path: Floats  # (C, T, 3) smoothed trajectory
+    scales: Floats  # (C,)
+    contacts: NDArray[np.bool_]  # (C, T, 4)
+    stitches: NDArray[np.bool_]  # (C, T)
+    gait: NDArray[np.int8]  # (C, T)
+
+    def window(self, start: int, stop: int, step: int = 1) -> Plan:
+        """Frames ``[start, stop)`` (every ``step``-th) of every character."""
+        t = slice(start, stop, step)
+        return Plan(self.rows[:, t], self.weights[:, t], self.yaw[:, t], self.path[:, t], self.scales,
+                    self.contacts[:, t], self.stitches[:, t], self.gait[:, t])
+
+
+def empty_plan(characters: int, frames: int, scales: Floats) -> Plan:
+    """A plan's arrays for ``frames`` frames, to be filled."""
+    C, T = characters, frames
+    return Plan(np.empty((C, T, 4), np.int32), np.empty((C, T, 3), np.float32), np.empty((C, T)),
+                np.empty((C, T, 3)), scales, np.empty((C, T, 4), bool), np.empty((C, T), bool),
+                np.empty((C, T), np.int8))
+
+
+@dataclass(frozen=True)
+class Tables:
+    """What the planner reads of a library: per piece kind (hubs 0-4, then the transitions) its
+    place in the bank's table and its curve, per pair of hubs their transition, and the scalars."""
+
+    offset: NDArray[np.int64]  # first table row
+    frames: NDArray[np.int64]
+    clips: NDArray[np.int64]
+    cyclic: NDArray[np.bool_]  # a gait (a hub), not a transition
+    source: NDArray[np.int64]  # hub left (a hub: itself)
+    target: NDArray[np.int64]  # hub reached (a hub: itself)
+    tr_kind: NDArray[np.int64]  # (5, 5) kind of the transition between two hubs, -1 none
+    entry: NDArray[np.int64]  # (5, 5) its first clip frame's phase in the gait left
+    exit: NDArray[np.int64]  # (5, 5) its last's in the gait reached
+    total: Floats  # a transition's distance (0: a gait)
+    low: Floats  # per hub: lowest speed it covers (inf: none; see coverage)
+    high: Floats  # per hub: highest speed it covers (-inf: none)
+    curve_at: NDArray[np.int64]  # (kinds, 2): where a kind's curve sits in ``curves``, its length
+    curves: Floats  # hubs: clip speeds; transitions: their frames' progress (distance)
+    contacts: NDArray[np.bool_]  # (rows, 4) the bank's
+    slowest: int  # slowest and fastest hub with clips
+    fastest: int
+    slow: float  # the slowest gait's slowest clip speed (it plays slower below)
+    creep: float  # the bank's
+
+    def args(self) -> tuple[Any, ...]:
+        """The kernel's arguments from ``offset`` to ``creep`` (see plan_kernels.advance)."""
+        return (self.offset, self.frames, self.clips, self.cyclic, self.source, self.target, self.tr_kind,
+                self.entry, self.exit, self.total, self.low, self.high, self.curve_at, self.curves,
+                self.contacts, self.slowest, self.fastest, MAX_RATE, self.slow, STAND_SHARE)
+
+
+@functools.lru_cache(maxsize=8)  # per bank (identity): made once, not per plan
+def tables(bank: Bank) -> Tables:
+    """The planner's :class:`Tables` of ``bank``."""
+    pieces = [bank.gaits.get(h, bank.idle) if h else bank.idle for h in range(N_HUBS)]
+    trs = sorted(bank.transitions.items())
+    pieces += [p for _, p in trs]
+    tr_kind = np.full((N_HUBS, N_HUBS), -1)
+    entry = np.zeros((N_HUBS, N_HUBS), np.int64)
+    exit_ = np.zeros((N_HUBS, N_HUBS), np.int64)
+    for k, ((a, b), p) in enumerate(trs):
+        tr_kind[a, b], entry[a, b], exit_[a, b] = N_HUBS + k, p.entry, p.exit
+    total = np.zeros(len(pieces))
+    curve_at = np.zeros((len(pieces), 2), np.int64)
+    curves: list[Floats] = []
+    kind_curves = [*bank.speeds.items(), *((int(tr_kind[a, b]), d) for (a, b), d in bank.progress.items())]
+    for kind, curve in kind_curves:
+        curve_at[kind] = sum(len(c) for c in curves), len(curve)
+        curves.append(np.asarray(curve, np.float64))
+        total[kind] = 0.0 if kind < N_HUBS else curve[-1]
+    low, high = coverage(bank)
+    return Tables(np.array([p.offset for p in pieces]), np.array([p.frames for p in pieces]),
+                  np.array([p.clips for p in pieces]), np.array([True] * N_HUBS + [False] * len(trs)),
+                  np.array(list(range(N_HUBS)) + [a for (a, _), _ in trs]),
+                  np.array(list(range(N_HUBS)) + [b for (_, b), _ in trs]), tr_kind, entry, exit_, total,
+                  low, high, curve_at, np.concatenate(curves) if curves else np.zeros(0), bank.contacts,
+                  min(bank.speeds), max(bank.speeds), clip_range(bank, min(bank.speeds))[0], bank.creep)
+
+
+def coverage(bank: Bank) -> tuple[Floats, Floats]:
+    """Per hub, the lowest and highest speed it covers (inf, -inf: none). The slowest gait
+    covers down to STAND_SHARE of its slowest clip (played slower); below that a character stands."""
+    low = np.full(N_HUBS, np.inf)
+    high = np.full(N_HUBS, -np.inf)
+    for h, s in bank.speeds.items():
+        low[h], high[h] = s[0], s[-1]
+    slowest = min(bank.speeds)
+    low[slowest] = STAND_SHARE * low[slowest]
+    return low, high
+
+
+def clip_range(bank: Bank, hub: int) -> tuple[float, float]:
+    """A hub's (slowest, fastest) clip speed as its stride clock reads them: the slowest gait
+    plays slower below its slowest clip; others never (slowest 0)."""
+    s = bank.speeds[hub]
+    return (float(s[0]) if hub == min(bank.speeds) else 0.0), float(s[-1])
+
+
+def decision_step(m: int) -> int:
+    """Frames between gait decisions."""
+    return max(1, m // DECISION_SHARE)
+
+
+def lookahead(m: int) -> int:
+    """Frames from a gait decision to the speed it reads."""
+    return int(LOOKAHEAD * m)
+
+
+def frame_speeds(speeds: Floats, m: int, T: int) -> Floats:
+    """(C, T): segment speeds interpolated linearly between segment centres."""
+    K = speeds.shape[1]
+    pos = (np.arange(T) - (m - 1) / 2) / m
+    k0 = np.clip(np.floor(pos).astype(np.int64), 0, K - 1)
+    k1 = np.minimum(k0 + 1, K - 1)
+    f = np.clip(pos - k0, 0.0, 1.0)
+    return np.asarray(speeds[:, k0] * (1 - f) + speeds[:, k1] * f)
+
+
+@dataclass(frozen=True)
+class Decisions:
+    """Gait decisions ``first, first + 1, ...`` (decision k at frame ``k * step``): the speed each
+    reads ``(C, K)`` and its draws ``(C, K, N_HUBS)``."""
+
+    first: int
+    speed: Floats
+    draws: Floats
+
+
+class Headings:
+    """The headings of ``characters`` characters, frame block by frame block: the heading held
+    and whether each has moved yet, carried between blocks."""
+
+    def __init__(self, characters: int, backend: str = "auto") -> None:
+        self.kernels = planner(backend)
+        self.last_dir = np.zeros((characters, 2))  # the heading held, as a ground direction
+        self.moved = np.zeros(characters, bool)  # moved yet (else it faces where it will first go)
+
+    def advance(self, ground: Floats, off: int, n: int, fps: float, facing: Floats, ends: bool = False,
+                ahead: Callable[[NDArray[np.int64]], Floats] | None = None) -> Floats:
+        """(C, n) yaw (about +Y, 0 = +Z) of frames ``[t0, t0 + n)``: the tangent of the path's
+        ground points ``ground (C, m, 2)`` (frame t0 at ``off``), held where the character moves
+        slower than MIN_TURN_SPEED (a standing animal does not spin with its trajectory's jitter);
+        before it first moves, the way it first moves -- searched on in ``ground`` (to its end if
+        ``ends``: the path's end), or in ``ahead(characters)``, their ground from the same point
+        on as far as known -- else ``facing (C,)``."""
+        held = np.empty((ground.shape[0], n, 2))
+        self.kernels.headings(ground, off, ends, fps, MIN_TURN_SPEED, self.last_dir, self.moved, held)
+        unknown = np.flatnonzero(np.isnan(held[:, 0, 0]))  # NaN over every frame before a first move
+        if len(unknown) and ahead is not None:  # standing so far: where will they go? (their state
+            # is as it was: no move in these frames, so they are asked again, on the longer path)
+            again = held[unknown]
+            self.kernels.headings(ahead(unknown), off, ends, fps, MIN_TURN_SPEED, self.last_dir[unknown],
+                                  self.moved[unknown], again)
+            held[unknown] = again
+        yaw = np.arctan2(held[..., 0], held[..., 1])
+        return np.asarray(np.where(np.isnan(yaw[:, :1]), facing[:, None], yaw)) if len(unknown) else yaw
+
+
+def headings(path: Floats, fps: float, frames: int | None = None, backend: str = "auto") -> Floats:
+    """(C, T) yaw of a whole path ``(C, T, 3)`` (:meth:`Headings.advance`); a character that never
+    moves faces its path's first step. ``frames``: the first ``frames`` only (the same numbers)."""
+    ground = np.ascontiguousarray(path[..., GROUND])
+    T = ground.shape[1]
+    n = T if frames is None else min(frames, T)
+    first_step = ground[:, min(1, T - 1)] - ground[:, 0]
+    facing = np.arctan2(first_step[:, 0], first_step[:, 1])
+    return Headings(len(ground), backend).advance(ground, 0, n, fps, facing, ends=True)
+
+
+class Planner:
+    """The plans of ``len(scales)`` characters, advanced frame block by frame block (the state of
+    :mod:`synth_core.compiled.plan_kernels`' machine carried between blocks). ``tempo (C,)``: clip
+    frames per output frame (synthesis.character_tempo)."""
+
+    def __init__(self, bank: Bank, scales: Floats, tempo: Floats, margin: int = MARGIN,
+                 backend: str = "auto") -> None:
+        self.tables, self.kernels = tables(bank), planner(backend)
+        self.scales, self.tempo, self.margin = scales, tempo, margin
+        self.step = decision_step(bank.mean_cycle)
+        self.ints, self.floats = pk.initial_state(len(scales), N_HUBS)
+
+    def advance(self, t0: int, v: Floats, pts: Floats, decisions: Decisions, out: Plan,
+                out_step: int = 1) -> None:
+        """Frames ``[t0, t0 + n)`` of speeds ``v (C, n)`` (the library's: over scale and tempo)
+        and path ``pts (C, >= n, 3)`` from frame t0 on (its frame t0 + n, if given, carries the
+        distance walked on), with ``decisions`` made there; the rows, weights, gait, contacts and
+        stitches of frames a multiple of ``out_step`` into ``out``'s arrays (one per frame)."""
+        tb = self.tables
+        self.kernels.advance(t0, v, pts, self.scales, self.tempo, decisions.speed, decisions.draws,
+                             decisions.first, self.step, self.ints, self.floats, *tb.args(), self.margin,
+                             tb.creep, out_step, threads(), out.rows, out.weights, out.gait, out.contacts,
+                             out.stitches)
+
+
+def plan(bank: Bank, prep: Prepared, h: Floats, keys: NDArray[np.uint64], margin: int = MARGIN,
+         frames: int | None = None, compiled: bool = False) -> Plan:
+    """The batch plan: a :class:`Planner` advanced over the whole trajectory.
+
+    ``frames``: plan only the first ``frames`` frames (all, when that is hardly fewer) -- exactly as
+    the whole plan has them (the planner is causal but for its decisions' look-ahead; a streamed
+    batch's first window needs no more). ``compiled``: by the compiled kernels (else the reference:
+    the same numbers, bit for bit)."""
+    path = prep.positions
+    C, T = path.shape[:2]
+    m = prep.segment
+    tempo = np.ones(C) if prep.tempo is None else prep.tempo
+    keep = T if frames is None or frames + lookahead(m) + 1 >= T else max(frames, 1)
+    read = T if keep == T else keep + lookahead(m) + 1  # the speeds its decisions read
+    # The library motion's speed for each character: at its scale and tempo (character_tempo).
+    # Distances stay over h alone: a transition plays by distance, and its clip's planted feet
+    # stay planted only if it plays at the path's distance at the character's size.
+    v = frame_speeds(prep.segment_speeds / (h * tempo)[:, None], m, read)
+    step = decision_step(m)
+    at = np.arange(-(-keep // step)) * step
+    decisions = Decisions(0, np.ascontiguousarray(v[:, np.minimum(at + lookahead(m), read - 1)]),
+                          uniform_streams(keys, SCHEDULE_STREAM, len(at), N_HUBS))
+    backend = "numba" if compiled else "numpy"
+    out = empty_plan(C, keep, h)
+    planner = Planner(bank, h, tempo, margin, backend)
+    planner.advance(0, np.ascontiguousarray(v[:, :keep]), path, decisions, out)
+    out.yaw[...] = headings(path, bank.fps, keep, backend)
+    out.path[...] = path[:, :keep]
+    return out
