@@ -181,6 +181,6 @@ def test_the_cli_synthesizes_a_built_in_animal_without_the_service(
     code = "from quadsynth.cli import main; raise SystemExit(main(sys.argv[1:]))"
     done = run_refusing(outside_the_core("synth_core", "quadsynth"), code, "synth",
                         "--trajectories", str(core_cli_files["herd"]), "--animal", "dog",
-                        "--out", str(tmp_path / "out"))
+                        "--bvh", "--out", str(tmp_path / "out"))
     assert done.returncode == 0, done.stderr[-3000:]
     assert len(list((tmp_path / "out").rglob("*.bvh"))) == 3
