@@ -1,6 +1,7 @@
 """QuadSynth synthesis core: Sung 2011, "Fast Motion Synthesis of Massive Number of Quadruped Animals".
 
-Pure numpy/scipy. Never imports web code (fastapi, pydantic, service).
+numpy and scipy; numba for the compiled kernels (without it the same source runs interpreted, the
+same motion); pygltflib for glTF. Never imports web code (fastapi, pydantic, service).
 
 Glossary of array shapes, stated once (every module refers here):
 
