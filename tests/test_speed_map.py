@@ -11,6 +11,7 @@ from synth_core.build import ik
 from synth_core.build.animals import (
     build_builtin,
     clip_glide,
+    clip_strict_skate,
     footfall_gaps,
     map_positions,
     report,
@@ -198,6 +199,7 @@ def test_graph_rejects_bad_hubs_and_reports_a_broken_route(libraries: dict[str, 
 
 
 GLIDE_BAR = 0.10  # issue 27: near-ground glide, the real MANN dog's 0.066-0.106
+STRICT_SKATE_BAR_MM = 3.0  # issue 27: strict plant skate p95, the edge suite's target
 
 
 def test_the_dogs_slowed_clips_do_not_skim_the_ground(libraries: dict[str, Library]) -> None:
@@ -210,3 +212,15 @@ def test_the_dogs_slowed_clips_do_not_skim_the_ground(libraries: dict[str, Libra
         for gait, speed_map in lib.maps.items():
             glide = clip_glide(speed_map, ground)
             assert glide.max() <= GLIDE_BAR, (animal, gait, glide.max(), int(glide.argmax()))
+
+
+def test_no_speed_map_clip_drags_a_foot_along_the_ground(libraries: dict[str, Library]) -> None:
+    """Issue 27: a foot within 1 cm of the ground for 3+ frames does not move, whatever the
+    annotation says, at every speed of every speed map. The built-in dog's paws came down still
+    moving forward 8-10 mm in their last frame, just under 1 cm up: its fastest gallop clip
+    skated 10.3 mm p95, canter 7.2, trot 5.2 (the horse's, higher at that frame, 0)."""
+    for animal, lib in libraries.items():
+        ground = library_ground(lib)
+        for gait, speed_map in lib.maps.items():
+            skate = clip_strict_skate(speed_map, ground)
+            assert skate.max() <= STRICT_SKATE_BAR_MM, (animal, gait, skate.max(), int(skate.argmax()))

@@ -48,15 +48,31 @@ def map_positions(speed_map: SpeedMap) -> np.ndarray:
     return np.asarray(pos)
 
 
-def clip_glide(speed_map: SpeedMap, ground: float) -> np.ndarray:
-    """Per clip (N,), the near-ground glide ratio (:func:`metrics.near_ground_glide`) of its
-    feet after FK, three loops back to back (the root carried on), heights over ``ground``."""
+def _looped_feet(speed_map: SpeedMap) -> tuple[np.ndarray, np.ndarray]:
+    """Every clip's feet (N, 3F, 4, 3) and root (N, 3F, 3) after FK, three loops back to back
+    (the root carried on), so a plant or swing over a clip's seam is measured whole."""
     feet = map_positions(speed_map)[:, :, speed_map.skeleton.foot_joints]
     advance = np.stack([cycle_displacement(r) for r in speed_map.root_pos])
     looped = np.concatenate([feet + k * advance[:, None, None] for k in range(3)], axis=1)
     root = np.concatenate([speed_map.root_pos + k * advance[:, None] for k in range(3)], axis=1)
+    return looped, root
+
+
+def clip_glide(speed_map: SpeedMap, ground: float) -> np.ndarray:
+    """Per clip (N,), the near-ground glide ratio (:func:`metrics.near_ground_glide`) of its
+    feet after FK, three loops back to back (the root carried on), heights over ``ground``."""
+    looped, root = _looped_feet(speed_map)
     return np.array([M.near_ground_glide(f, f[..., UP_AXIS] - ground, r).ratio
                      for f, r in zip(looped, root, strict=True)])  # per clip: a ratio of means
+
+
+def clip_strict_skate(speed_map: SpeedMap, ground: float) -> np.ndarray:
+    """Per clip (N,), the p95 strict plant skate (mm, :func:`metrics.strict_plants` then
+    :func:`metrics.foot_skate`: feet within 1 cm of ``ground`` for 3+ frames, whatever the
+    annotation says) of its feet after FK, three loops back to back."""
+    looped, _ = _looped_feet(speed_map)
+    return np.array([M.foot_skate(f, M.strict_plants(M.foot_heights(f, ground))).p95_mm
+                     for f in looped])
 
 
 def footfall_gaps(speed_map: SpeedMap, positions: np.ndarray) -> np.ndarray:

@@ -138,7 +138,7 @@ class FootPlan:
 
 
 def plan_foot(planted: NDArray[np.bool_], root_z: Floats, neutral_z: float, lift: Floats,
-              ease_down: Floats | float = 0.25) -> FootPlan:
+              ease_down: Floats | float = 0.25, lift_fall: Floats | float = 1.2) -> FootPlan:
     """Plants at the root's mid-stance place (square when open-ended) and swings between them."""
     T = len(planted)
     stance = runs(planted)
@@ -169,11 +169,11 @@ def plan_foot(planted: NDArray[np.bool_], root_z: Floats, neutral_z: float, lift
     z_swing = _eased_over_ground(z_body, swinging, planted, start, stop, plant_z, prev_c, lo, td, span,
                                  np.broadcast_to(ease_down, (T,)))
     z_swing = np.where(before_first, plant_z[0], np.where(after_last, plant_z[-1], z_swing))
-    # Lifts steeply and comes down a little less steeply, peaking just before mid-swing (a hoof's
-    # flight peaks around mid-swing, gait-reference table 4): the toe is soon clear of the ground
-    # it would otherwise skim (the real dog's feet spend a frame or two below 2.5 cm at each end).
-    # A short swing (the first steps of a start) lifts the foot less.
-    bump = lift_profile(s)
+    # Lifts steeply and comes down as steeply or a little less (``lift_fall``), peaking at or just
+    # before mid-swing (a hoof's flight peaks around mid-swing, gait-reference table 4): the toe is
+    # soon clear of the ground it would otherwise skim (the real dog's feet spend a frame or two
+    # below 2.5 cm at each end). A short swing (the first steps of a start) lifts the foot less.
+    bump = lift_profile(s, lift_fall)
     short = np.clip((span - 1.0) / (FULL_FLEX_SWING_S * FPS), 0.0, 1.0) ** 0.4
     y_swing = np.where(before_first | after_last, 0.0, lift * short * bump)
     z = np.where(planted, plant_z[prev_c], z_swing)
@@ -183,13 +183,14 @@ def plan_foot(planted: NDArray[np.bool_], root_z: Floats, neutral_z: float, lift
                     np.where(planted, np.nan, span - 1.0))
 
 
-# Swing height profile s^LIFT_RISE (1 - s)^LIFT_FALL, scaled to peak at 1.
-LIFT_RISE, LIFT_FALL = 1.0, 1.2  # rises steeply: the toe is clear of the ground within a frame or two
+# Swing height profile s^LIFT_RISE (1 - s)^fall (fall: the gait's ``lift_fall``), scaled to peak at 1.
+LIFT_RISE = 1.0  # rises steeply: the toe is clear of the ground within a frame or two
 
 
-def lift_profile(s: Floats) -> Floats:
-    peak = LIFT_RISE / (LIFT_RISE + LIFT_FALL)
-    return np.asarray(s**LIFT_RISE * (1 - s) ** LIFT_FALL / (peak**LIFT_RISE * (1 - peak) ** LIFT_FALL))
+def lift_profile(s: Floats, fall: Floats | float = 1.2) -> Floats:
+    fall = np.asarray(fall, dtype=np.float64)
+    peak = LIFT_RISE / (LIFT_RISE + fall)
+    return np.asarray(s**LIFT_RISE * (1 - s) ** fall / (peak**LIFT_RISE * (1 - peak) ** fall))
 # The foot's world speed ramps up over this share of its swing after lift-off (and down to rest
 # over the gait's ``touchdown_ease`` before touchdown): lift quickly, slow before touchdown, as
 # the MANN dog's feet do.
@@ -332,7 +333,7 @@ def synthesize(skeleton: Skeleton, track: Track, name: str, gait: str | None) ->
         foot_planted = planted[:, k]
         for _ in range(MAX_EARLY_LIFT_FRAMES + 1):
             lift = v["step_height"] * leg_length * FOOT_LIFT[limb.foot]
-            plan = plan_foot(foot_planted, root_z, neutral, lift, v["touchdown_ease"])
+            plan = plan_foot(foot_planted, root_z, neutral, lift, v["touchdown_ease"], v["lift_fall"])
             solution = _solve_limb(skeleton, limb, plan, trunk_pos, global_pitch, v,
                                    _rest_protraction(limb, rest_pos))
             # A foot left behind at (or beyond) the leg's full reach on its last stance frame lifts
