@@ -355,6 +355,13 @@ class LiveSession:
         out = self._receive(wait) if wait > 0 else []
         return out + self._receive(0)
 
+    def set_ground(self, ground: dict[str, Any] | None, wait: float = 0.0) -> list[Chunk]:
+        """The terrain from the next frames rendered on (:func:`ground` makes one; None: the
+        points' y again); the chunks that arrived meanwhile, as :meth:`push`."""
+        self.ws.send(msgpack.packb({"type": "ground", "ground": ground}, use_bin_type=True))
+        out = self._receive(wait) if wait > 0 else []
+        return out + self._receive(0)
+
     def finish(self) -> list[Chunk]:
         """The trajectories end here: every chunk still to come, up to the session's end."""
         self.ws.send(msgpack.packb({"type": "finish"}))

@@ -203,7 +203,8 @@ class LiveRequest(BaseModel):
                                                                  "move is known")
     size_matching: SizeMatching = Field(default="froude", description=SIZE_MATCHING_DOC)
     tempo_spread: float = Field(default=0.06, ge=0, le=0.25, description=TEMPO_SPREAD_DOC)
-    ground: GroundIn | None = Field(default=None, description=GROUND_DOC + "; sent once, for the session")
+    ground: GroundIn | None = Field(default=None, description=GROUND_DOC + "; a `ground` message "
+                                    "changes it during the session")
     characters: list[LiveCharacter] = Field(min_length=1)
 
 

@@ -15,14 +15,15 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
+from pydantic import ValidationError
 
 from api_schemas import LiveRequest
-from api_schemas.models import DETAILS
+from api_schemas.models import DETAILS, GroundIn
 from api_schemas.wire import WireError, unblob
 from service import encode
 from service.chunk import packed_chunk
 from service.encode import Packing
-from service.errors import ApiError
+from service.errors import ApiError, from_validation
 from service.jobs import ground_field, validate
 from service.packing import skeleton_id
 from service.settings import Settings
@@ -30,6 +31,7 @@ from service.ws_session import Session
 from synth_core.runtime.bank import Bank
 from synth_core.runtime.live_shards import LiveShards
 from synth_core.runtime.streaming import Window
+from synth_core.runtime.terrain import HeightField
 from synth_core.runtime.trajectory import TrajectoryError
 
 
@@ -66,6 +68,21 @@ def new_details(p: Packing, body: dict[str, Any]) -> Packing:
             raise ApiError(422, f"details[{i}]",
                            f"must be one of {', '.join(DETAILS)} or null, got {d!r:.40}")
     return replace(p, details=tuple(p.default if d is None else d for d in details))
+
+
+def new_ground(body: dict[str, Any]) -> HeightField | None:
+    """A ``ground`` message's height field (null: the points' y from now on); 422 naming the
+    field (``ground.heights``, ...) as for the session's opening ``ground``."""
+    if "ground" not in body:
+        raise ApiError(422, "ground", "a ground message needs `ground`: a height field "
+                                      "{heights, origin, spacing} or null (docs/terrain.md)")
+    if body["ground"] is None:
+        return None
+    try:
+        ground = GroundIn.model_validate(body["ground"])
+    except ValidationError as exc:
+        raise from_validation(exc, "ground") from None
+    return ground_field(ground)
 
 
 def live_error(exc: TrajectoryError, field: str) -> ApiError:
@@ -168,6 +185,9 @@ class LiveRun:
                 return
             if message.get("type") == "lod":  # the characters' details from the next chunk on
                 self.p = new_details(self.p, message)
+                continue
+            if message.get("type") == "ground":  # the terrain of the frames rendered from now on
+                synth.set_ground(new_ground(message))
                 continue
             finishing = message.get("type") == "finish"
             await self.tick(functools.partial(synth.finish, W) if finishing else

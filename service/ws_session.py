@@ -124,11 +124,11 @@ class Session:
             self.cancel.set()
         elif kind in ("synthesize", "live"):
             self.take_request(kind, body)
-        elif kind in ("points", "finish", "lod"):
+        elif kind in ("points", "finish", "lod", "ground"):
             self.take_points(kind, body, len(raw))
         else:
             raise _protocol(INVALID_DATA, "type", f"unknown message type {kind!r}; expected synthesize, "
-                                                  "live, points, lod, finish, ack, ping or cancel")
+                                                  "live, points, lod, ground, finish, ack, ping or cancel")
 
     def take_ack(self, body: dict[str, Any]) -> None:
         chunk = body.get("chunk")

@@ -16,7 +16,7 @@ from api_schemas.wire import blob, unblob
 from synth_core.runtime.terrain import MAX_CELLS, HeightField
 from tests.helpers.requests import LIMITS, batch, post, refused
 from tests.helpers.servers import running
-from tests.helpers.stream import closed_with, send, stream_all, ws_url
+from tests.helpers.stream import closed_with, receive, send, stream_all, ws_url
 
 
 @pytest.fixture(scope="module")
@@ -111,3 +111,47 @@ def test_a_live_session_takes_its_ground_once_at_the_start(server: str) -> None:
     field = HeightField.make(np.tile(0.3 * xs, (60, 1)), (-10.0, -10.0), 0.5)
     above = root[..., 1] - field.sample(root[..., 0], root[..., 2])
     assert 0.5 < above.min() and above.max() < 2.5  # standing on the slope (the paths' y is 0)
+
+
+def test_a_live_sessions_ground_is_replaced_by_a_ground_message(server: str) -> None:
+    """Flat at first (the points' y, 0), then a ground message puts a 30% slope under the frames
+    rendered from then on, then `ground: null` gives the points' y back; a bad grid is refused
+    naming the field, as in the opening message."""
+    xs = np.arange(-10.0, 30.0, 0.5)
+    heights = np.tile(0.3 * xs, (60, 1)).astype(np.float32)
+    field = HeightField.make(heights, (-10.0, -10.0), 0.5)
+    paths = _straight(2, 900)
+    pieces: list[list[Any]] = [[], [], []]
+    with Client(server) as client, client.live(["a", "b"], fps=60, encoding="f32") as session:
+        for part, (a, b) in enumerate(((0, 300), (300, 600), (600, 900))):
+            if part == 1:
+                pieces[part] += session.set_ground(_ground(heights))
+            if part == 2:
+                pieces[part] += session.set_ground(None)
+            for i in range(a, b, 20):
+                pieces[part] += session.push(paths[:, i:i + 20], wait=0.2)
+        pieces[2] += session.finish()
+    roots = [np.concatenate([c.root for c in p], axis=1) for p in pieces]
+    assert all(r.shape[1] > 100 for r in roots), [r.shape for r in roots]
+    flat = roots[0][..., 1]
+    # Frames rendered after the message: the frames of points sent before it too (the latency),
+    # but every one of them on the slope, which is over a metre high under them (flat would miss it).
+    on = roots[1]
+    above = on[..., 1] - field.sample(on[..., 0], on[..., 2])
+    assert flat.min() - 0.15 < above.min() and above.max() < flat.max() + 0.15, (above.min(), above.max())
+    assert field.sample(on[..., 0], on[..., 2]).min() > 1.0
+    back = roots[2][:, -60:, 1]  # flat again by the end (the change's own frames may still carry the slope)
+    assert flat.min() - 0.03 < back.min() and back.max() < flat.max() + 0.03  # on the slope: over 3 m up
+    with connect(ws_url(server), compression=None) as ws:
+        send(ws, {"type": "live", "characters": [{"id": "a"}]})
+        assert receive(ws)["type"] == "start"
+        send(ws, {"type": "ground", "ground": {**_ground(heights), "spacing": -1.0}})
+        closed_with(ws, 1007, 422, "ground.spacing", "greater than")
+    with connect(ws_url(server), compression=None) as ws:
+        send(ws, {"type": "live", "characters": [{"id": "a"}]})
+        assert receive(ws)["type"] == "start"
+        send(ws, {"type": "ground", "ground": _ground(np.full((3, 3), np.inf, np.float32))})
+        closed_with(ws, 1007, 422, "ground.heights", "finite")
+    with connect(ws_url(server), compression=None) as ws:
+        send(ws, {"type": "ground", "ground": None})
+        closed_with(ws, 1008, 422, "type", "without a live session")

@@ -29,11 +29,11 @@ def chromium_binary() -> str:
 
 
 def view(node: str, chromium: str, url: str, herd: int, seconds: float, screenshot: Path,
-         animal: str = "horse") -> dict[str, object]:
-    """What js/browser/viewer-run.js saw (its JSON)."""
+         animal: str = "horse", query: str = "") -> dict[str, object]:
+    """What js/browser/viewer-run.js saw (its JSON); `query`: more URL parameters."""
     run = subprocess.run([node, "js/browser/viewer-run.js", "--url", url, "--chromium", chromium,
                           "--animal", animal, "--herd", str(herd), "--seconds", str(seconds),
-                          "--screenshot", str(screenshot)],
+                          "--screenshot", str(screenshot), "--query", query],
                          cwd=REPO, capture_output=True, text=True, timeout=300)
     assert run.returncode == 0, run.stdout[-3000:] + run.stderr[-3000:]
     result: dict[str, object] = json.loads(run.stdout.strip().splitlines()[-1])
@@ -62,3 +62,26 @@ def test_the_viewer_streams_and_draws_a_live_herd_in_chromium(url: str, tmp_path
     out = REPO / "out"
     out.mkdir(exist_ok=True)
     shutil.copy(tmp_path / "viewer.png", out / f"viewer-test-{animal}.png")
+
+
+def test_the_viewer_walks_a_live_herd_on_hills_it_draws(url: str, tmp_path: Path) -> None:
+    """`?terrain=hills`: the page makes a height field, sends it as the live session's `ground`
+    and draws it; the service stands the herd on it (the points' y stay 0), so every animal's
+    lowest foot is near the drawn ground under it, not at y = 0."""
+    chromium, node = chromium_binary(), node_binary()
+    seen = view(node, chromium, url, 20, 6, tmp_path / "viewer.png", "horse", "&terrain=hills")
+    print(json.dumps({k: v for k, v in seen.items() if k not in ("samples", "terrainFeet")}))
+    errors = [e for e in seen["consoleErrors"] if "/mesh.glb" not in str(e)]  # type: ignore[attr-defined]
+    assert errors == [] and seen["errors"] == []
+    terrain, feet = seen["terrain"], seen["terrainFeet"]
+    assert isinstance(terrain, dict) and isinstance(feet, dict), (terrain, feet)
+    assert terrain["vertices"] == terrain["nx"] * terrain["nz"] and terrain["high"] - terrain["low"] > 1.0
+    lowest, under = feet["lowestFootOverGround"], feet["groundUnderRoot"]
+    print(json.dumps(feet))
+    assert len(lowest) == len(under) == 20
+    # A herd standing on y = 0 instead would be up to a metre off these hills.
+    assert max(abs(u) for u in under) > 0.2, under
+    assert all(-0.02 < h < 0.1 for h in lowest), lowest
+    out = REPO / "out"
+    out.mkdir(exist_ok=True)
+    shutil.copy(tmp_path / "viewer.png", out / "viewer-test-terrain.png")

@@ -2,7 +2,7 @@
 // service, watch a live herd for a while, and print what happened as JSON: chunks, frames,
 // pixels the herd covers, console errors, first-animal time, client frame time, stalls.
 //   node js/browser/viewer-run.js --url http://127.0.0.1:8000 --chromium /usr/bin/chromium \
-//        --herd 1000 --seconds 20 [--animal horse] [--screenshot docs/viewer.png]
+//        --herd 1000 --seconds 20 [--animal horse] [--screenshot docs/viewer.png] [--query '&terrain=hills']
 import { mkdtempSync, rmSync } from 'node:fs';
 import { tmpdir } from 'node:os';
 import { join } from 'node:path';
@@ -41,12 +41,14 @@ try {
     result.samples.push({ t: Date.now(), chunks: s.chunks, frames: s.frames, aheadS: s.aheadS, stalls: s.stalls,
       stalledS: s.stalledS, frameMs: s.frameMs, renderFps: s.renderFps, latencyS: s.latencyS });
   }
-  const s = await page.evaluate(() => ({ ...window.quadsynthViewer, pixels: window.quadsynthViewer.herdPixels() }));
+  const s = await page.evaluate(() => ({ ...window.quadsynthViewer, pixels: window.quadsynthViewer.herdPixels(),
+    terrainFeet: window.quadsynthViewer.terrainFeet?.() ?? null }));
   Object.assign(result, {
     openMs: s.openMs, startMs: s.startMs, leadSentMs: s.leadSentMs, firstChunkMs: s.firstChunkMs, firstDrawMs: s.firstDrawMs, chunks: s.chunks, frames: s.frames,
     pixels: s.pixels, mode: s.mode, errors: s.errors, reconnects: s.reconnects, stalls: s.stalls,
     stalledS: s.stalledS, renderFps: s.renderFps, frameMs: s.frameMs, frameMsP95: s.frameMsP95,
     latencyS: s.latencyS, aheadS: s.aheadS, drawn: s.drawn, arrivals: s.arrivals, streamFps: s.streamFps,
+    terrain: s.terrain ?? null, terrainFeet: s.terrainFeet,
   });
   if (opt.screenshot) await page.screenshot({ path: opt.screenshot });
 } finally {

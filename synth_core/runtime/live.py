@@ -202,6 +202,10 @@ class LiveSynth:
         self._advance()
         return self.take(frames)
 
+    def set_ground(self, ground: HeightField | None) -> None:
+        """The terrain the frames rendered from now on stand on (None: the points' y)."""
+        self.ground = ground
+
     def take(self, frames: int | None = None) -> Window | None:
         """The next frames settled and not yet given, at most ``frames`` of them (None: all);
         None when there are none."""

@@ -23,6 +23,7 @@ from synth_core.compiled import render_pool
 from synth_core.runtime.bank import Bank
 from synth_core.runtime.live import LiveSynth
 from synth_core.runtime.streaming import Window
+from synth_core.runtime.terrain import HeightField
 from synth_core.runtime.trajectory import TrajectoryError
 
 MIN_SHARD = 500  # characters: below this a shard's thread hops cost more than they save
@@ -111,6 +112,11 @@ class LiveShards:
     def take(self, frames: int | None = None) -> list[Window] | None:
         """:meth:`LiveSynth.take` for every shard."""
         return self._windows(self._run(lambda i, p: p.take(frames)))
+
+    def set_ground(self, ground: HeightField | None) -> None:
+        """:meth:`LiveSynth.set_ground` for every shard (between steps: none is rendering)."""
+        for part in self.parts:
+            part.set_ground(ground)
 
     @staticmethod
     def _windows(windows: list[Window | None]) -> list[Window] | None:

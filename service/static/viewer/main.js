@@ -1,10 +1,12 @@
 // The herd viewer: a herd simulated in the page, its points streamed live to /v1/stream, the
-// poses that come back drawn with three.js. URL parameters: ?animal=horse&herd=200&auto=1.
+// poses that come back drawn with three.js. URL parameters: ?animal=horse&herd=200&auto=1, and
+// terrain=hills: the herd walks on rolling hills (a height field sent as the session's `ground`).
 import * as THREE from 'three';
 import { OrbitControls, GLTFLoader } from 'three';
-import { QuadSynthClient, GAITS } from 'quadsynth-client';
+import { QuadSynthClient, GAITS, blob, worldPose } from 'quadsynth-client';
 import { Player } from './player.js';
 import { BoneHerd, SkinnedHerd, GAIT_COLOURS, restHeight } from './render.js';
+import { hills, groundRequest, heightAt, terrainMesh } from './terrain.js';
 
 const POINTS_FPS = 30;
 const SKINNED_MAX = 64; // a skinned mesh is a draw call per animal: beyond this, instanced bones
@@ -41,7 +43,7 @@ scene.add(sun);
 scene.fog = new THREE.Fog('#cfd8dc', 250, 900);
 // The ground grid as a texture on the ground plane (5 m cells): lines drawn as triangles, with
 // mipmaps, so it shows under software GL too (its GL lines did not) and does not shimmer afar.
-function gridTexture() {
+function gridTexture(repeat = 4000 / 5) {
   const canvas = document.createElement('canvas');
   canvas.width = canvas.height = 256;
   const g = canvas.getContext('2d');
@@ -53,13 +55,14 @@ function gridTexture() {
   const texture = new THREE.CanvasTexture(canvas);
   texture.colorSpace = THREE.SRGBColorSpace;
   texture.wrapS = texture.wrapT = THREE.RepeatWrapping;
-  texture.repeat.set(4000 / 5, 4000 / 5);
+  texture.repeat.set(repeat, repeat);
   texture.anisotropy = 8;
   return texture;
 }
-const ground = new THREE.Mesh(new THREE.PlaneGeometry(4000, 4000).rotateX(-Math.PI / 2),
+const flatGround = new THREE.Mesh(new THREE.PlaneGeometry(4000, 4000).rotateX(-Math.PI / 2),
   new THREE.MeshLambertMaterial({ map: gridTexture() }));
-scene.add(ground);
+scene.add(flatGround);
+let ground = flatGround; // the terrain's mesh instead when there is one
 const camera = new THREE.PerspectiveCamera(45, 1, 0.5, 3000);
 const controls = new OrbitControls(camera, renderer.domElement);
 controls.enableDamping = true;
@@ -109,10 +112,14 @@ async function start(animal, count) {
   }
   herd ??= new BoneHerd(scene, skeleton, count);
   stats.mode = herd instanceof SkinnedHerd ? 'skinned mesh' : 'instanced bones';
+  // The herd's loop is centred on the origin (herd-sim.js): the hills cover it and the herd.
+  const field = params.get('terrain') === 'hills'
+    ? hills(Math.max(30, Math.ceil(Math.sqrt(count)) * 1.6 * height * 2) + Math.sqrt(count) * 1.6 * height + 20, height) : null;
+  showTerrain(field);
   stats.animals = count;
   stats.openMs = performance.now();
   const worker = new Worker('/viewer/static/stream-worker.js', { type: 'module' });
-  const me = { worker, herd, player: null, scales: null, count, sent: 0, perPoint: 1 };
+  const me = { worker, herd, skeleton, height, field, player: null, scales: null, count, sent: 0, perPoint: 1 };
   run = me;
   worker.onmessage = (ev) => {
     if (run !== me) return;
@@ -125,8 +132,9 @@ async function start(animal, count) {
       me.perPoint = m.perPoint;
       const size = Math.sqrt(count) * 1.6 * height;
       const [x, z] = m.centre;
-      controls.target.set(x, height * 0.5, z);
-      camera.position.set(x + size + 6 * height, size * 0.7 + 3 * height, z - size - 6 * height);
+      const y = field ? heightAt(field, x, z) : 0;
+      controls.target.set(x, y + height * 0.5, z);
+      camera.position.set(x + size + 6 * height, y + size * 0.7 + 3 * height, z - size - 6 * height);
       dirty = true;
     } else if (m.type === 'chunk') {
       if (stats.firstChunkMs === null) stats.firstChunkMs = performance.now();
@@ -145,7 +153,19 @@ async function start(animal, count) {
   };
   worker.onerror = (ev) => showError(ev.message ?? 'the stream worker failed');
   worker.postMessage({ type: 'start', origin: location.origin, animal, count, gaits: skeleton.detail.gaits,
-    spacing: 1.6 * height, pointsFps: POINTS_FPS, maxBodyBytes: limits.max_body_bytes });
+    spacing: 1.6 * height, pointsFps: POINTS_FPS, maxBodyBytes: limits.max_body_bytes,
+    ground: field ? groundRequest(field, blob) : null });
+}
+
+/** Draw `field` (null: the flat grid) as the ground. */
+function showTerrain(field) {
+  if (ground !== flatGround) { scene.remove(ground); ground.geometry.dispose(); ground.material.map.dispose(); ground.material.dispose(); }
+  ground = field ? terrainMesh(field, gridTexture(1)) : flatGround;
+  if (field) scene.add(ground);
+  flatGround.visible = !field;
+  stats.terrain = field ? { nx: field.nx, nz: field.nz, spacing: field.spacing, vertices: ground.geometry.attributes.position.count,
+    low: field.heights.reduce((a, b) => Math.min(a, b)), high: field.heights.reduce((a, b) => Math.max(a, b)) } : null;
+  dirty = true;
 }
 
 function stop() {
@@ -159,16 +179,34 @@ function stop() {
   Object.assign(stats, { firstChunkMs: null, firstDrawMs: null, chunks: 0, frames: 0, stalls: 0, stalledS: 0, drawn: 0 });
 }
 
-/** Follow the herd: move the camera with the animals' mean root, keeping the user's view. */
-function follow(frame, count, dt) {
-  let x = 0, z = 0;
-  for (let c = 0; c < count; c++) { x += frame.root[frame.rootAt(c)]; z += frame.root[frame.rootAt(c) + 2]; }
-  x /= count; z /= count;
+/** Follow the herd: move the camera with the animals' mean root, keeping the user's view (up and
+ * down too over a terrain). */
+function follow(frame, me, dt) {
+  let x = 0, y = 0, z = 0;
+  for (let c = 0; c < me.count; c++) {
+    x += frame.root[frame.rootAt(c)]; y += frame.root[frame.rootAt(c) + 1]; z += frame.root[frame.rootAt(c) + 2];
+  }
+  x /= me.count; y /= me.count; z /= me.count;
   const k = 1 - Math.exp(-2 * dt); // the same catch-up per second at any draw rate
   const dx = (x - controls.target.x) * k, dz = (z - controls.target.z) * k;
-  controls.target.x += dx; controls.target.z += dz;
-  camera.position.x += dx; camera.position.z += dz;
+  const dy = me.field ? (y - 0.5 * me.height - controls.target.y) * k : 0;
+  controls.target.x += dx; controls.target.y += dy; controls.target.z += dz;
+  camera.position.x += dx; camera.position.y += dy; camera.position.z += dz;
 }
+
+/** The frame shown, over the terrain (the browser test's "the herd walks on it" check): per animal,
+ * its lowest foot's height over the ground under it, and the ground's height under its root. */
+stats.terrainFeet = () => {
+  const me = run, frame = me?.shown;
+  if (!me?.field || !frame) return null;
+  const lowest = [], under = [];
+  for (let c = 0; c < me.count; c++) {
+    const { positions: p } = worldPose(me.skeleton, frame.root, frame.rootAt(c), frame.rotations, frame.rotAt(c), me.scales[c]);
+    lowest.push(Math.min(...me.skeleton.footJoints.map((j) => p[j * 3 + 1] - heightAt(me.field, p[j * 3], p[j * 3 + 2]))));
+    under.push(heightAt(me.field, frame.root[frame.rootAt(c)], frame.root[frame.rootAt(c) + 2]));
+  }
+  return { frame: frame.frame, lowestFootOverGround: lowest, groundUnderRoot: under };
+};
 
 const frameTimes = [];
 
@@ -186,8 +224,9 @@ function tick(now) {
     const frame = me.player.advance(dt);
     if (frame && frame.frame !== shown) {
       shown = frame.frame;
+      me.shown = frame;
       me.herd.update(frame, me.scales, $('gaitColour').checked);
-      follow(frame, me.count, dt);
+      follow(frame, me, dt);
       stats.drawn += 1;
       dirty = true;
       frameTimes.push(performance.now() - t0);
@@ -235,7 +274,7 @@ function showStats() {
 stats.herdPixels = () => {
   const gl = renderer.getContext(), w = gl.drawingBufferWidth, h = gl.drawingBufferHeight;
   const read = () => { const px = new Uint8Array(w * h * 4); gl.readPixels(0, 0, w, h, gl.RGBA, gl.UNSIGNED_BYTE, px); return px; };
-  const meshes = scene.children.filter((o) => o !== ground && !o.isLight);
+  const meshes = scene.children.filter((o) => o !== ground && o !== flatGround && !o.isLight);
   meshes.forEach((o) => { o.visible = false; });
   renderer.render(scene, camera);
   const empty = read();

@@ -8,13 +8,16 @@ import { HerdSim } from '/viewer/static/herd-sim.js';
 
 let run = null;
 
-async function start({ origin, animal, count, gaits, spacing, pointsFps, maxBodyBytes }) {
+async function start({ origin, animal, count, gaits, spacing, pointsFps, maxBodyBytes, ground }) {
   const client = new QuadSynthClient(origin, { codec: { encode, decode } });
   const sim = new HerdSim(count, gaits, { fps: pointsFps, spacing, seed: 1 });
   const me = { sim, sent: 0 };
   run = me;
   const characters = Array.from({ length: count }, (_, c) => ({ id: `${animal}-${c}` }));
-  const session = await client.live({ animal, fps: pointsFps, seed: 1, encoding: 's48', characters }, {
+  // With a ground (the page's height field) the points' y is not read: the service stands the
+  // herd on the terrain.
+  const request = { animal, fps: pointsFps, seed: 1, encoding: 's48', characters, ...(ground ? { ground } : {}) };
+  const session = await client.live(request, {
     onChunk: (chunk) => {
       if (run !== me) return;
       // Arrays of their own to hand over (moved, not copied): root, gait and contacts may be
