@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from synth_core.compiled import kernels
+from synth_core.compiled import ground_kernels, kernels
 from synth_core.motion.skeleton import forward_kinematics
 from synth_core.quality import metrics as M
 from synth_core.quality.evaluate import TERRAIN_TARGETS, edge_suite, passes, world_positions
@@ -181,4 +181,4 @@ def test_compiled_sampling_is_the_numpy_sampling() -> None:
     heights = rng.normal(size=(30, 50))
     x, z = rng.uniform(-3.0, 30.0, (2, 7, 11))  # some outside the grid
     want = sample(heights, -1.0, 0.5, 0.5, x, z)
-    assert np.array_equal(kernels.ground_samples(heights, -1.0, 0.5, 0.5, x, z), want)
+    assert np.array_equal(ground_kernels.ground_samples(heights, -1.0, 0.5, 0.5, x, z), want)

@@ -23,13 +23,15 @@ from __future__ import annotations
 import functools
 import math
 from collections.abc import Callable
-from typing import TYPE_CHECKING, Any, Literal, NamedTuple, TypeVar, cast
+from typing import TYPE_CHECKING, Any, NamedTuple, TypeVar
 
 import numpy as np
 from numpy.typing import NDArray
 
 from synth_core import UP_AXIS
 from synth_core.build.ik import HINGE_AXIS_MIN_SIN, limb_rigs
+from synth_core.compiled.ground_kernels import ground_at
+from synth_core.compiled.jit import render_jit
 from synth_core.compiled.scratch import Scratch
 from synth_core.runtime.footlock import EASE_FRAMES, MAX_SINK, PAD, REACH, TERRAIN_MAX_SINK
 from synth_core.runtime.terrain import BUMP_LEAST
@@ -51,24 +53,7 @@ _EPS = 1e-9
 F = TypeVar("F", bound=Callable[..., Any])
 
 
-# Fast-math flags that change no finite result's rounding: no reassociation, no contraction to
-# fused multiply-adds, no approximate reciprocals or functions. With reassociation, LLVM's
-# choices depended on how a kernel's callees reach it -- compiled in the process or loaded from
-# numba's cache as bitcode -- and a kernel compiled in one process rounded differently from the
-# same kernel loaded from the cache in another (a batch's windows then differed from the whole
-# batch in the last bits); the other three can depend on it the same way.
-# Keeping only these three cost the kernel 0-5% (one thread, 500 x 500 horses, interleaved).
-_FASTMATH = {"nnan", "ninf", "nsz"}
-
-
-def _jit(parallel: bool = False, inline: Literal["never", "always"] = "never") -> Callable[[F], F]:
-    # nogil: a service calls these from a worker thread; its event loop must keep answering.
-    def wrap(f: F) -> F:
-        if not AVAILABLE:
-            return f
-        return cast(F, numba.njit(cache=True, parallel=parallel, fastmath=_FASTMATH, error_model="numpy",
-                                  nogil=True, inline=inline)(f))
-    return wrap
+_jit = render_jit
 
 
 _prange: Any = numba.prange if AVAILABLE else range
@@ -508,37 +493,6 @@ NOWHERE = -(1 << 62)  # Posed.legs_at of a character whose last window kept no l
 
 
 @_jit()
-def _ground_at(heights: Any, x0: float, z0: float, spacing: float, x: float, z: float) -> float:
-    """terrain.sample at one point (the same arithmetic, in the same order)."""
-    nz, nx = heights.shape
-    fx = min(max((x - x0) / spacing, 0.0), nx - 1.0)
-    fz = min(max((z - z0) / spacing, 0.0), nz - 1.0)
-    j = min(int(fx), nx - 2)
-    i = min(int(fz), nz - 2)
-    u, v = fx - j, fz - i
-    near = heights[i, j] * (1.0 - u) + heights[i, j + 1] * u
-    far = heights[i + 1, j] * (1.0 - u) + heights[i + 1, j + 1] * u
-    return float(near * (1.0 - v) + far * v)
-
-
-@_jit(parallel=True)
-def _ground_many(heights: Any, x0: float, z0: float, spacing: float, x: Any, z: Any, out: Any) -> None:
-    for i in _prange(x.shape[0]):
-        out[i] = _ground_at(heights, x0, z0, spacing, x[i], z[i])
-
-
-def ground_samples(heights: NDArray[np.float64], x0: float, z0: float, spacing: float,
-                   x: NDArray[np.float64], z: NDArray[np.float64]) -> NDArray[np.float64]:
-    """terrain.sample, compiled (the same numbers): the body's footprint samples 20 points a
-    character-frame, which numpy's gathers made 10 us of it (more than the whole flat render)."""
-    x, z = np.broadcast_arrays(np.asarray(x, np.float64), np.asarray(z, np.float64))
-    out = np.empty(x.size)
-    _ground_many(heights, float(x0), float(z0), float(spacing), np.ascontiguousarray(x).ravel(),
-                 np.ascontiguousarray(z).ravel(), out)
-    return out.reshape(x.shape)
-
-
-@_jit()
 def _swing_share(targets: Any, f: int, last: int, u: int, nxt: int) -> float:
     """terrain.swing_share of frame u of a swing from plant frame ``last`` to ``nxt``."""
     gone = math.hypot(targets[u, f, 0] - targets[last, f, 0], targets[u, f, 2] - targets[last, f, 2])
@@ -555,7 +509,7 @@ def _ground_targets(targets: Any, contacts: Any, heights: Any, x0: float, z0: fl
     T = targets.shape[0]
     for f in range(4):
         for t in range(T):
-            under[t] = _ground_at(heights, x0, z0, spacing, targets[t, f, 0] * h, targets[t, f, 2] * h) / h
+            under[t] = ground_at(heights, x0, z0, spacing, targets[t, f, 0] * h, targets[t, f, 2] * h) / h
         t = 0
         while t < T:
             if contacts[t, f]:

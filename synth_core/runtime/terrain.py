@@ -35,12 +35,14 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from synth_core import UP_AXIS
+from synth_core.compiled import ground_kernels
+from synth_core.compiled.jit import AVAILABLE
 from synth_core.motion import quat
 from synth_core.motion.skeleton import forward_kinematics
 
 if TYPE_CHECKING:
     from synth_core.runtime.bank import Bank
-    from synth_core.runtime.synthesis import Plan
+    from synth_core.runtime.plan import Plan
     from synth_core.runtime.trajectory import Prepared
 
 Floats = NDArray[np.float64]
@@ -98,9 +100,7 @@ class HeightField:
 
     def sample(self, x: ArrayLike, z: ArrayLike) -> Floats:
         """The ground's height at ``(x, z)`` (any matching shapes), bilinear."""
-        from synth_core.compiled import kernels  # here: the kernels import this module
-
-        how = kernels.ground_samples if kernels.AVAILABLE else sample
+        how = ground_kernels.ground_samples if AVAILABLE else sample
         return how(self.heights, self.origin[0], self.origin[1], self.spacing,
                    np.asarray(x, np.float64), np.asarray(z, np.float64))
 
@@ -128,7 +128,7 @@ def read(path: str | Path) -> HeightField:
 
 
 def sample(heights: Floats, x0: float, z0: float, spacing: float, x: Floats, z: Floats) -> Floats:
-    """Bilinear heights at (x, z), clamped to the grid (the compiled kernels' ``_ground_at`` does
+    """Bilinear heights at (x, z), clamped to the grid (the compiled ``ground_kernels.ground_at`` does
     the same arithmetic in the same order)."""
     nz, nx = heights.shape
     fx = np.clip((x - x0) / spacing, 0.0, nx - 1.0)
