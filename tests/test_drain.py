@@ -16,7 +16,8 @@ import pytest
 
 from api_schemas.wire import blob
 from synth_core.quality import herd_sim as crowd
-from tests.helpers.servers import free_port, running, start, wait_until_live
+from tests.helpers.servers import free_port, running, start, wait_for, wait_until_live
+from tests.helpers.stream import ws_url
 
 MSGPACK = "application/vnd.msgpack"
 
@@ -51,20 +52,6 @@ def test_sigterm_with_two_workers_is_not_ready_at_once_then_refuses_connections(
         if proc.poll() is None:
             proc.kill()
             proc.wait()
-
-
-def wait_for(url: str, name: str, value: float, timeout: float = 60.0) -> None:
-    """Until the one-worker server's metric ``name`` reads ``value`` (its state, polled)."""
-    from tests.helpers.servers import metric
-
-    deadline = time.monotonic() + timeout
-    while metric(url, name) != value:
-        assert time.monotonic() < deadline, f"{name} never reached {value}: {metric(url, name)}"
-        time.sleep(0.02)
-
-
-def ws_url(url: str) -> str:
-    return url.replace("http", "ws", 1) + "/v1/stream"
 
 
 def test_a_websocket_session_waiting_for_the_pool_is_told_1001_on_sigterm(tmp_path: Path) -> None:
