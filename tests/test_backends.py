@@ -8,7 +8,7 @@ from dataclasses import fields
 import numpy as np
 import pytest
 
-from service.libraries import builtin_library
+from synth_core.build.library_store import builtin_library
 from synth_core.compiled import backend
 from synth_core.compiled import plan_kernels as pk
 from synth_core.compiled.jit import AVAILABLE
