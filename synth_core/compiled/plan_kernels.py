@@ -5,14 +5,17 @@ Every frame ``t`` of a character, in this order (Sung 2011 section 6, steps 1-2;
 
 1. a transition under way ends at the first frame after its start where the character has covered
    its distance; its gait starts there, at the clip frame the transition ends in;
-2. at a decision frame (every ``step`` frames) the gait is chosen on the speed ``lookahead`` ahead
+2. a character that has stopped (:func:`_settle`) stands at once: the idle takes over, whatever
+   played fading out from where it is (a start, the static -> walk transition, is let be);
+3. at a decision frame (every ``step`` frames) the gait is chosen on the speed ``lookahead`` ahead
    (:func:`_choose`); a change is *asked*: a character free now changes at once, one whose
    transition ends before the next decision changes as it ends, others not;
-3. a change waits for the gait's stride clock to reach the transition's entry phase: the
+4. a change waits for the gait's stride clock to reach the transition's entry phase: the
    transition starts at the first frame where it has;
-4. the frame's table rows: the piece playing at its clip frame (the stride clock since it started)
+5. the frame's table rows: the piece playing at its clip frame (the stride clock since it started)
    and, over ``margin`` frames after a start, the piece before it fading out;
-5. every kind's stride clock and the distance walked move on to the next frame.
+6. every kind's stride clock, the distance walked and how long the path has stood still move on
+   to the next frame.
 
 The state a character carries from frame to frame -- so from a live tick to the next -- is two
 small rows, ``ints`` and ``floats`` (the fields below). The batch plan is this machine run over
