@@ -6,13 +6,12 @@ Every frame ``t`` of a character, in this order (Sung 2011 section 6, steps 1-2;
 1. a transition under way ends at the first frame after its start where the character has covered
    its distance; its gait starts there, at the clip frame the transition ends in;
 2. a character that has stopped (:func:`_settle`) stands at once: the idle takes over, whatever
-   played fading out from where it is (a start, the static -> walk transition, only once its path
-   is still again: the segment speed is slow yet as a path starts);
+   played fading out from where it is (a start, the static -> walk transition, is let be);
 3. at a decision frame (every ``step`` frames) the gait is chosen on the speed ``lookahead`` ahead
    (:func:`_choose`); a change is *asked*: a character free now changes at once, one whose
    transition ends before the next decision changes as it ends, others not;
-4. a change waits for the gait's stride clock to reach the transition's entry phase (a start from
-   standing, for the path to move): the transition starts at the first frame where it has;
+4. a change waits for the gait's stride clock to reach the transition's entry phase: the
+   transition starts at the first frame where it has;
 5. the frame's table rows: the piece playing at its clip frame (the stride clock since it started)
    and, over ``margin`` frames after a start, the piece before it fading out;
 6. every kind's stride clock, the distance walked and how long the path has stood still move on
@@ -71,13 +70,10 @@ FREE, WAITING, MOVING = 0, 1, 2
 
 
 def initial_state(characters: int, hubs: int) -> tuple[Any, Any]:
-    """``(ints, floats)`` of characters standing at frame 0 (the idle playing from its frame 0),
-    their paths taken as still until they step."""
+    """``(ints, floats)`` of characters standing at frame 0 (the idle playing from its frame 0)."""
     ints = np.zeros((characters, N_INTS), np.int64)
     ints[:, ASKED] = -1
-    floats = np.zeros((characters, CLOCKS + hubs + 1))
-    floats[:, STILL] = np.inf
-    return ints, floats
+    return ints, np.zeros((characters, CLOCKS + hubs + 1))
 
 
 @jit(inline="always")
@@ -194,11 +190,12 @@ def _change(s: Any, f: Any, new: int, frames_of: Any, tr_kind: Any, entry: Any, 
 @jit(inline="always")
 def _settle(s: Any, f: Any, t: int, travelled: float, cyclic: Any, curve_at: Any, curves: Any,
             creep: float) -> None:
-    """A stopped character settles: the idle takes over at frame t, the piece playing fading out
-    from where it is -- a transition from the frame it shows, held. Stopped: slower than the
-    slowest gait goes, or its path still for ``still_frames`` (the segment speeds see a stop a
-    segment late). Transitions play by distance, so on a stopped path the chain down to standing
-    (trot -> walk -> static) took hundreds of frames, the animal frozen mid-stride on two legs."""
+    """A stopped character settles: the idle takes over at frame t, the piece playing (a gait, or
+    a transition that does not leave standing) fading out from where it is -- a transition from
+    the frame it shows, held. Stopped: slower than the slowest gait goes, or its path still for
+    ``still_frames`` (the segment speeds see a stop a segment late). Transitions play by distance,
+    so on a stopped path the chain down to standing (trot -> walk -> static) took hundreds of
+    frames, the animal frozen mid-stride on two legs."""
     held = -1
     if not cyclic[s[KIND]]:
         at, n = curve_at[s[KIND], 0], curve_at[s[KIND], 1]
@@ -284,8 +281,7 @@ def _character(t0: int, v: Any, pts: Any, h: float, tempo: float, asked_speed: A
             s[STAGE], started = FREE, True
             if s[ASKED] >= 0 and t < s[ASKED_UNTIL]:  # asked before, for as it ends
                 _change(s, f, s[ASKED], frames_of, tr_kind, entry, exit_)
-        slow_now = v[i] < low[slowest] and source[s[KIND]] != STATIC  # (not a start: v lags it)
-        if s[KIND] != STATIC and (f[STILL] >= still_frames or slow_now):
+        if (v[i] < low[slowest] or f[STILL] >= still_frames) and source[s[KIND]] != STATIC:
             _settle(s, f, t, travelled, cyclic, curve_at, curves, creep)
             started = True
         if t == ask:
@@ -297,9 +293,7 @@ def _character(t0: int, v: Any, pts: Any, h: float, tempo: float, asked_speed: A
                 elif nxt != s[CURRENT]:
                     s[ASKED], s[ASKED_UNTIL] = nxt, t + step
             ask, k = ask + step, k + 1
-        # A start (the static -> walk transition) waits for the path to move: started on the
-        # speed ahead, it lifted a foot and crept on it, held up, for as long as the path stood.
-        if s[STAGE] == WAITING and f[CLOCKS + s[FROM]] >= f[DUE] and (s[FROM] != STATIC or f[STILL] == 0):
+        if s[STAGE] == WAITING and f[CLOCKS + s[FROM]] >= f[DUE]:
             _start(s, f, s[TRANSITION], 0, t, float(t), travelled)  # a transition's clock is time
             s[STAGE], started = MOVING, True
         if t == sent:
