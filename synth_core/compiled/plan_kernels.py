@@ -5,14 +5,17 @@ Every frame ``t`` of a character, in this order (Sung 2011 section 6, steps 1-2;
 
 1. a transition under way ends at the first frame after its start where the character has covered
    its distance; its gait starts there, at the clip frame the transition ends in;
-2. at a decision frame (every ``step`` frames) the gait is chosen on the speed ``lookahead`` ahead
+2. a character that has stopped (:func:`_settle`) stands at once: the idle takes over, whatever
+   played fading out from where it is (a start, the static -> walk transition, is let be);
+3. at a decision frame (every ``step`` frames) the gait is chosen on the speed ``lookahead`` ahead
    (:func:`_choose`); a change is *asked*: a character free now changes at once, one whose
    transition ends before the next decision changes as it ends, others not;
-3. a change waits for the gait's stride clock to reach the transition's entry phase: the
+4. a change waits for the gait's stride clock to reach the transition's entry phase: the
    transition starts at the first frame where it has;
-4. the frame's table rows: the piece playing at its clip frame (the stride clock since it started)
+5. the frame's table rows: the piece playing at its clip frame (the stride clock since it started)
    and, over ``margin`` frames after a start, the piece before it fading out;
-5. every kind's stride clock and the distance walked move on to the next frame.
+6. every kind's stride clock, the distance walked and how long the path has stood still move on
+   to the next frame.
 
 The state a character carries from frame to frame -- so from a live tick to the next -- is two
 small rows, ``ints`` and ``floats`` (the fields below). The batch plan is this machine run over
@@ -61,7 +64,8 @@ TRAV0 = 1
 PREV_CLOCK0 = 2
 DUE = 3  # the stride clock (of FROM) at which the transition may start
 WALKED = 4  # distance along the path (unscaled) at the next frame
-CLOCKS = 5  # + kind row (hubs, then every transition's: time): stride frames played by the next frame
+STILL = 5  # frames the path has stood still (each step under ``still_step``) by the next frame
+CLOCKS = 6  # + kind row (hubs, then every transition's: time): stride frames played by the next frame
 FREE, WAITING, MOVING = 0, 1, 2
 
 
@@ -184,6 +188,49 @@ def _change(s: Any, f: Any, new: int, frames_of: Any, tr_kind: Any, entry: Any, 
 
 
 @jit(inline="always")
+def _settle(s: Any, f: Any, t: int, travelled: float, cyclic: Any, curve_at: Any, curves: Any,
+            creep: float) -> None:
+    """A stopped character settles: the idle takes over at frame t, the piece playing (a gait, or
+    a transition that does not leave standing) fading out from where it is -- a transition from
+    the frame it shows, held. Stopped: slower than the slowest gait goes, or its path still for
+    ``still_frames`` (the segment speeds see a stop a segment late). Transitions play by distance,
+    so on a stopped path the chain down to standing (trot -> walk -> static) took hundreds of
+    frames, the animal frozen mid-stride on two legs."""
+    held = -1
+    if not cyclic[s[KIND]]:
+        at, n = curve_at[s[KIND], 0], curve_at[s[KIND], 1]
+        walked = (travelled - f[TRAV0]) + creep * float(t - s[START])
+        held = min(int(math.floor(_interp(walked, curves, at, n))), n - 1)
+    _start(s, f, STATIC, 0, t, f[CLOCKS + STATIC], travelled)
+    if held >= 0:
+        s[PREV_FIRST] = held
+    s[STAGE], s[CURRENT], s[ASKED] = FREE, STATIC, -1
+
+
+@jit(inline="always")
+def _walk_on(f: Any, pts: Any, i: int, still: float) -> None:
+    """The distance walked and the frames stood still (steps under ``still``) by point i + 1."""
+    dx = pts[i + 1, 0] - pts[i, 0]
+    dz = pts[i + 1, 2] - pts[i, 2]
+    step = math.sqrt(dx * dx + dz * dz)
+    f[WALKED] += step
+    f[STILL] = f[STILL] + 1.0 if step < still else 0.0
+
+
+@jit(inline="always")
+def _tick(f: Any, t: int, v: float, tempo: float, high: Any, max_rate: float, slowest: int, slow: float,
+          share: float) -> None:
+    """Every kind's stride clock on to frame t + 1: the gaits' at their rate for speed ``v``;
+    standing's and the transitions': time."""
+    n_hubs = len(high)
+    for hub in range(n_hubs + 1):
+        if hub < n_hubs and hub != STATIC and high[hub] > -np.inf:
+            f[CLOCKS + hub] += _rate(v, hub, high, max_rate, slowest, slow, share) * tempo
+        else:
+            f[CLOCKS + hub] = float(t + 1)
+
+
+@jit(inline="always")
 def _frame_rows(kind: int, local: int, walked: float, since: int, p_kind: int, p_local: int, v: float,
                 offset: Any, frames_of: Any, clips: Any, cyclic: Any, source: Any, target: Any, curve_at: Any,
                 curves: Any, contacts_of: Any, margin: int, o: int, rows: Any, weights: Any,
@@ -211,8 +258,8 @@ def _character(t0: int, v: Any, pts: Any, h: float, tempo: float, asked_speed: A
                step: int, s: Any, f: Any, offset: Any, frames_of: Any, clips: Any, cyclic: Any, source: Any,
                target: Any, tr_kind: Any, entry: Any, exit_: Any, total: Any, low: Any, high: Any,
                curve_at: Any, curves: Any, contacts_of: Any, slowest: int, fastest: int, max_rate: float,
-               slow: float, share: float, margin: int, creep: float, out_step: int, rows: Any, weights: Any,
-               gait: Any, contacts: Any, stitches: Any) -> None:
+               slow: float, share: float, still_step: float, still_frames: float, margin: int, creep: float,
+               out_step: int, rows: Any, weights: Any, gait: Any, contacts: Any, stitches: Any) -> None:
     """Frames ``[t0, t0 + len(v))`` of one character (speeds ``v``, path ``pts`` from frame t0 on):
     its state ``s``, ``f`` carried on; the outputs' row i is frame ``t`` = the i-th multiple of
     ``out_step`` from t0 on. Decision ``k0 + k`` (at frame ``(k0 + k) step``) reads
@@ -230,9 +277,13 @@ def _character(t0: int, v: Any, pts: Any, h: float, tempo: float, asked_speed: A
                 (travelled - f[TRAV0]) + creep * float(t - s[START]) >= total[s[KIND]]):
             to = s[TO]
             _start(s, f, to, s[RESUME], t, f[CLOCKS + min(to, n_hubs)], travelled)
+            s[PREV_FIRST] = HELD  # the finished transition fades out from its last frame
             s[STAGE], started = FREE, True
             if s[ASKED] >= 0 and t < s[ASKED_UNTIL]:  # asked before, for as it ends
                 _change(s, f, s[ASKED], frames_of, tr_kind, entry, exit_)
+        if (v[i] < low[slowest] or f[STILL] >= still_frames) and source[s[KIND]] != STATIC:
+            _settle(s, f, t, travelled, cyclic, curve_at, curves, creep)
+            started = True
         if t == ask:
             if 0 <= k < asked_speed.shape[0]:
                 nxt = _choose(s[CURRENT], asked_speed[k], draws[k], low, high, slowest, fastest)
@@ -250,7 +301,7 @@ def _character(t0: int, v: Any, pts: Any, h: float, tempo: float, asked_speed: A
             local = int(math.floor(s[FIRST] + f[CLOCKS + min(kind, n_hubs)] - f[CLOCK0] + 0.5))
             p_local = -1  # the piece before, fading out over the margin after a start (-1: none)
             if s[HAS_PREV] and since < margin:
-                p_local = HELD if not cyclic[pk] else int(
+                p_local = s[PREV_FIRST] if not cyclic[pk] else int(
                     math.floor(s[PREV_FIRST] + f[CLOCKS + min(pk, n_hubs)] - f[PREV_CLOCK0] + 0.5))
             walked_since = (travelled - f[TRAV0]) + creep * local
             gait[o] = _frame_rows(kind, local, walked_since, since, pk, p_local, v[i], offset,
@@ -258,15 +309,9 @@ def _character(t0: int, v: Any, pts: Any, h: float, tempo: float, asked_speed: A
                                   margin, o, rows, weights, contacts)
             stitches[o] = started and t >= 1
             sent, o = sent + out_step, o + 1
-        for hub in range(n_hubs + 1):
-            if hub < n_hubs and hub != STATIC and high[hub] > -np.inf:
-                f[CLOCKS + hub] += _rate(v[i], hub, high, max_rate, slowest, slow, share) * tempo
-            else:  # standing and transitions: time
-                f[CLOCKS + hub] = float(t + 1)
+        _tick(f, t, v[i], tempo, high, max_rate, slowest, slow, share)
         if i + 1 < pts.shape[0]:
-            dx = pts[i + 1, 0] - pts[i, 0]
-            dz = pts[i + 1, 2] - pts[i, 2]
-            f[WALKED] = walked + math.sqrt(dx * dx + dz * dz)
+            _walk_on(f, pts, i, still_step * h)
 
 
 @jit(parallel=True)
@@ -274,8 +319,8 @@ def advance(t0: int, v: Any, pts: Any, h: Any, tempo: Any, asked_speed: Any, dra
             ints: Any, floats: Any, offset: Any, frames_of: Any, clips: Any, cyclic: Any, source: Any,
             target: Any, tr_kind: Any, entry: Any, exit_: Any, total: Any, low: Any, high: Any, curve_at: Any,
             curves: Any, contacts_of: Any, slowest: int, fastest: int, max_rate: float, slow: float,
-            share: float, margin: int, creep: float, out_step: int, workers: int, rows: Any, weights: Any,
-            gait: Any, contacts: Any, stitches: Any) -> None:
+            share: float, still_step: float, still_frames: float, margin: int, creep: float, out_step: int,
+            workers: int, rows: Any, weights: Any, gait: Any, contacts: Any, stitches: Any) -> None:
     """:func:`_character` for every character ``c`` (row c of every array but the tables),
     characters in parallel on ``workers`` threads."""
     C = v.shape[0]
@@ -285,8 +330,8 @@ def advance(t0: int, v: Any, pts: Any, h: Any, tempo: Any, asked_speed: Any, dra
             _character(t0, v[c], pts[c], h[c], tempo[c], asked_speed[c], draws[c], k0, step, ints[c],
                        floats[c], offset, frames_of, clips, cyclic, source, target, tr_kind, entry, exit_,
                        total, low, high, curve_at, curves, contacts_of, slowest, fastest, max_rate, slow,
-                       share, margin, creep, out_step, rows[c], weights[c], gait[c], contacts[c],
-                       stitches[c])
+                       share, still_step, still_frames, margin, creep, out_step, rows[c], weights[c], gait[c],
+                       contacts[c], stitches[c])
 
 
 @jit()

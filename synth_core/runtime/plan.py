@@ -28,7 +28,11 @@ carries on across it. Within a gait every speed-map clip has the same frames and
 stride phase runs on (k clip frames per output frame, up to ``MAX_RATE`` faster above the fastest
 clip, down to ``STAND_SHARE`` below the slowest gait's slowest) and the speed only moves the pair
 of clips blended, ``M = (1 - a) M_i + a M_j``. Where a piece starts, the piece before it fades
-out over ``margin`` frames.
+out over ``margin`` frames. A character whose path stops (slower than a standing one's, or still
+for ``STILL_S``) stands at once: the idle fades in over the margin, from whatever gait or
+transition played (issue 27: transitions play by distance, so the chain trot -> walk -> static
+on a stopped path took hundreds of frames, the animal frozen mid-stride); it leaves standing
+by the static -> walk transition, as from the start.
 """
 
 from __future__ import annotations
@@ -56,6 +60,11 @@ N_HUBS = 5  # static, walk, trot, canter, gallop
 # its pace; slower still, a character stands. (At 0.5, with the stride at full pace, creeping
 # horses stood while their root crept on over the pinned hooves, which lifted 25 cm.)
 STAND_SHARE = 0.08
+# A path whose every step for this long is slower than a standing character's (STAND_SHARE of the
+# slowest clip) has stopped: the character settles into the idle at once (see plan_kernels). The
+# segment speeds alone see a stop a segment late; longer than a 10 Hz simulator's tick (0.1 s),
+# or its held points would read as stops.
+STILL_S = 0.2
 MIN_TURN_SPEED = 0.05  # m/s: slower than this the heading holds (a standing animal does not spin)
 LOOKAHEAD = 2  # segments: gaits are chosen on the speed this far ahead, as transitions take time
 DECISION_SHARE = 4  # gait decisions this many times a segment
@@ -122,12 +131,15 @@ class Tables:
     fastest: int
     slow: float  # the slowest gait's slowest clip speed (it plays slower below)
     creep: float  # the bank's
+    still_step: float  # m per frame (the library's): a path's step slower than this stands still
+    still_frames: float  # frames of such steps that make a stop
 
     def args(self) -> tuple[Any, ...]:
         """The kernel's arguments from ``offset`` to ``creep`` (see plan_kernels.advance)."""
         return (self.offset, self.frames, self.clips, self.cyclic, self.source, self.target, self.tr_kind,
                 self.entry, self.exit, self.total, self.low, self.high, self.curve_at, self.curves,
-                self.contacts, self.slowest, self.fastest, MAX_RATE, self.slow, STAND_SHARE)
+                self.contacts, self.slowest, self.fastest, MAX_RATE, self.slow, STAND_SHARE, self.still_step,
+                self.still_frames)
 
 
 @functools.lru_cache(maxsize=8)  # per bank (identity): made once, not per plan
@@ -150,12 +162,14 @@ def tables(bank: Bank) -> Tables:
         curves.append(np.asarray(curve, np.float64))
         total[kind] = 0.0 if kind < N_HUBS else curve[-1]
     low, high = coverage(bank)
+    slow = clip_range(bank, min(bank.speeds))[0]
     return Tables(np.array([p.offset for p in pieces]), np.array([p.frames for p in pieces]),
                   np.array([p.clips for p in pieces]), np.array([True] * N_HUBS + [False] * len(trs)),
                   np.array(list(range(N_HUBS)) + [a for (a, _), _ in trs]),
                   np.array(list(range(N_HUBS)) + [b for (_, b), _ in trs]), tr_kind, entry, exit_, total,
                   low, high, curve_at, np.concatenate(curves) if curves else np.zeros(0), bank.contacts,
-                  min(bank.speeds), max(bank.speeds), clip_range(bank, min(bank.speeds))[0], bank.creep)
+                  min(bank.speeds), max(bank.speeds), slow, bank.creep, STAND_SHARE * slow / bank.fps,
+                  float(round(STILL_S * bank.fps)))
 
 
 def coverage(bank: Bank) -> tuple[Floats, Floats]:

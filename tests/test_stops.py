@@ -1,0 +1,149 @@
+"""Stopping (issue 27): a character whose path stops settles into the idle stance -- four feet
+down, the body still -- within about one stride, judged after FK on the output motion, in the
+batch and in a live session; a pause goes through standing and starting again leaves it by the
+static -> walk transition."""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+
+import numpy as np
+import pytest
+
+from synth_core.build.animals import build_builtin
+from synth_core.build.motion_graph import HUBS
+from synth_core.motion.skeleton import forward_kinematics
+from synth_core.quality import edge, evaluate
+from synth_core.runtime.bank import STATIC, Bank, build_bank
+from synth_core.runtime.live import LiveSynth
+from synth_core.runtime.plan import decision_step, lookahead
+from synth_core.runtime.synthesis import Options, Result, synthesize
+
+WALK = HUBS.index("walk")
+ANIMALS = ["horse", "dog"]
+
+
+@functools.lru_cache(maxsize=2)
+def animal_bank(animal: str) -> Bank:
+    return build_bank(build_builtin(animal))
+
+
+def stop_scenario(bank: Bank, name: str) -> edge.Scenario:
+    gaits = {HUBS[h]: (float(s[0]), float(s[-1])) for h, s in bank.speeds.items()}
+    return edge.scenarios(gaits, bank.fps, 0, [name])[0]
+
+
+def stops(positions: np.ndarray) -> list[tuple[int, int, int]]:
+    """Per character of the input, each stop: (the first frame the path stands still, the frame
+    it moves again or its end)."""
+    step = np.linalg.norm(np.diff(positions[..., [0, 2]], axis=1), axis=-1) > 1e-6
+    out: list[tuple[int, int, int]] = []
+    for c in range(len(step)):
+        moving = np.flatnonzero(step[c])
+        for s in moving[np.diff(np.append(moving, step.shape[1])) > 1] + 1:
+            again = moving[moving >= s]
+            out.append((c, int(s), int(again[0]) if len(again) else positions.shape[1]))
+    return out
+
+
+def idle_foot_sway(bank: Bank) -> float:
+    """How far (m, over the ground) the idle clip's own feet move from its first frame: an idle
+    shifts its weight, so a standing foot without the foot lock moves as much."""
+    idle = slice(bank.idle.offset, bank.idle.offset + bank.idle.frames)
+    root = np.zeros((bank.idle.frames, 3), np.float32)
+    pos, _ = forward_kinematics(bank.skeleton, root, bank.poses[idle])
+    feet = np.asarray(pos, np.float64)[:, bank.skeleton.foot_joints][..., [0, 2]]
+    return float(np.linalg.norm(feet - feet[:1], axis=-1).max())
+
+
+def stride_before(bank: Bank, result: Result, c: int, stop: int) -> int:
+    """The stride period (frames) of the gait the character had as it began to brake."""
+    gait = int(result.gait[c, max(stop - int(bank.fps), 0)])
+    return int(bank.gaits[gait].frames)
+
+
+def assert_settles(bank: Bank, result: Result, positions: np.ndarray) -> int:
+    """Every stop of ``positions`` long enough: from one stride after it on, the character
+    stands (the idle), all four feet strictly planted after FK, and its body still (root over
+    the ground within 1 cm of where it is a stride after the stop and moving under 1 mm a frame,
+    as the idle breathes; every foot within the idle clip's own sway + 5 mm) -- up to the plan's
+    look-ahead before it moves again (a start is anticipated); returns
+    how many stops were checked."""
+    fk = evaluate.feet_after_fk(bank, result, evaluate.library_reference(bank))
+    sway = idle_foot_sway(bank) + 0.005
+    checked = 0
+    for c, stop, again in stops(positions):
+        stride = stride_before(bank, result, c, stop)
+        # Gaits are chosen on the speed ahead: a start may begin that far before the path moves.
+        ahead = lookahead(bank.mean_cycle) + decision_step(bank.mean_cycle)
+        end = again - ahead if again < positions.shape[1] else again
+        settled = stop + stride
+        if end <= settled:
+            continue
+        t = slice(settled, end)
+        assert (result.gait[c, t] == STATIC).all(), (c, stop)
+        down = fk.down[c, t].all(axis=-1)
+        assert down.all(), (c, stop, settled + int(np.argmin(down)))
+        assert np.abs(fk.heights[c, t]).max() < 0.01
+        root = result.root_pos[c, t].astype(np.float64)
+        body = np.linalg.norm((root - root[0])[:, [0, 2]], axis=-1)  # (the idle breathes: up and down)
+        body_step = np.linalg.norm(np.diff(root, axis=0), axis=-1)
+        feet = np.linalg.norm(fk.feet[c, t] - fk.feet[c, settled], axis=-1)
+        assert body.max() < 0.01 and body_step.max() < 0.001 and feet.max() < sway, (
+            c, stop, body.max(), body_step.max(), feet.max())
+        checked += 1
+    return checked
+
+
+@pytest.mark.parametrize("animal", ANIMALS)
+def test_a_stop_settles_into_the_idle_within_a_stride(animal: str) -> None:
+    """Stopping from a walk, a trot and a canter: before, the horse stood on two diagonal legs
+    for the whole stand (its trot -> walk and walk -> static transitions play by distance, and a
+    stopped path covers none)."""
+    bank = animal_bank(animal)
+    sc = stop_scenario(bank, "stop_and_stand")
+    result = synthesize(bank, sc.positions, bank.fps, scales=sc.scales, options=Options(seed=0))
+    assert assert_settles(bank, result, sc.positions) == len(sc.positions)
+
+
+@pytest.mark.parametrize("animal", ANIMALS)
+def test_a_live_session_settles_as_the_batch(animal: str) -> None:
+    """The same stops fed to a live session in random ticks: its motion settles as well. (The
+    plan's, without the live foot lock: with it, a standing foot is moved 4-8 cm once or twice
+    over the stand, where the batch's lock keeps it -- the live lock's, not the plan's.)"""
+    bank = animal_bank(animal)
+    sc = stop_scenario(bank, "stop_and_stand")
+    batch = synthesize(bank, sc.positions, bank.fps, scales=sc.scales, options=Options(seed=0))
+    live = LiveSynth(bank, len(sc.positions), bank.fps, scales=sc.scales, seed=0, foot_lock=False)
+    rng = np.random.default_rng(1)
+    windows = []
+    i = 0
+    while i < sc.positions.shape[1]:
+        n = int(rng.integers(1, 45))
+        windows.append(live.append(sc.positions[:, i:i + n]))
+        i += n
+    windows.append(live.finish())
+    sent = [w for w in windows if w is not None]
+    root, rotations, gait, contacts = (np.concatenate([getattr(w, f) for w in sent], axis=1)
+                                       for f in ("root_pos", "rotations", "gait", "contacts"))
+    result = dataclasses.replace(batch, root_pos=root, rotations=rotations, gait=gait, contacts=contacts)
+    assert assert_settles(bank, result, sc.positions) == len(sc.positions)
+
+
+@pytest.mark.parametrize("animal", ANIMALS)
+def test_a_pause_stands_and_starting_again_goes_through_static_to_walk(animal: str) -> None:
+    """Stop-go with pauses of 0.3 s to 3 s: a pause long enough to settle settles (not a march on
+    the spot), and every character leaves standing by the walk (static -> walk), never straight
+    into a trot."""
+    bank = animal_bank(animal)
+    sc = stop_scenario(bank, "stop_go")
+    result = synthesize(bank, sc.positions, bank.fps, scales=sc.scales, options=Options(seed=0))
+    assert assert_settles(bank, result, sc.positions) >= 1
+    for c in range(len(sc.positions)):
+        g = result.gait[c]
+        left = np.flatnonzero((g[:-1] == STATIC) & (g[1:] != STATIC))
+        assert (g[left + 1] == WALK).all(), c
+    for c, stop, again in stops(sc.positions):
+        if again - stop > 2 * stride_before(bank, result, c, stop):
+            assert (result.gait[c, stop:again] == STATIC).any(), (c, stop)
