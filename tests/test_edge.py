@@ -164,3 +164,15 @@ def test_eval_refuses_edge_options_without_the_edge_suite_and_unknown_scenarios(
     assert "--scenario and --out: only with --suite edge" in capsys.readouterr().err
     assert main(["eval", "--suite", "edge", "--animal", "dog", "--scenario", "moonwalk"]) == 2
     assert "scenario: unknown ['moonwalk']" in capsys.readouterr().err
+
+
+def test_the_worst_scenario_is_ranked_over_terrain_misses_too() -> None:
+    """A suite with terrain scenarios ranks them by their terrain targets' misses as well (the
+    whole edge suite's report picked its worst moment and crashed on a terrain figure)."""
+    flat_figure, (_, flat_limit) = next(iter(evaluate.EDGE_TARGETS.items()))
+    ground_figure, (_, ground_limit) = next(iter(evaluate.TERRAIN_TARGETS.items()))
+    suite = {"scenarios": {
+        "flat": {"beyond_target": {flat_figure: abs(flat_limit) or 1.0}, "failed": [flat_figure]},
+        "hill": {"beyond_target": {ground_figure: 3 * (abs(ground_limit) or 1.0)}, "failed": [ground_figure]},
+    }}
+    assert evaluate.worst_scenario(suite) == "hill"

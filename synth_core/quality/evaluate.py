@@ -470,9 +470,10 @@ def severity(entry: dict[str, Any]) -> tuple[float, int]:
     """How badly a scenario fails: its misses summed, each in units of its target (a 30 cm jump
     against 6 cm is 4; a limb flip against none is 1 per flip), then how many targets it misses.
     A refused scenario is the worst."""
+    targets = EDGE_TARGETS | TERRAIN_TARGETS  # a terrain scenario misses terrain targets too
     if "error" in entry:
-        return (float("inf"), len(EDGE_TARGETS) + 1)
-    excess = sum(value / (abs(EDGE_TARGETS[f][1]) or 1.0) for f, value in entry["beyond_target"].items())
+        return (float("inf"), len(targets) + 1)
+    excess = sum(value / (abs(targets[f][1]) or 1.0) for f, value in entry["beyond_target"].items())
     return (excess, len(entry["failed"]))
 
 
