@@ -23,7 +23,7 @@ from synth_core.quality import herd_sim as crowd
 from synth_core.runtime.bank import Bank
 from synth_core.runtime.live import LiveSynth
 from tests.helpers.requests import LIMITS, post
-from tests.helpers.servers import free_port, metric, running, start, wait_until_live
+from tests.helpers.servers import free_port, metric, running, start, wait_until_ready
 from tests.helpers.stream import closed_with, receive, send, stream_all, ws_url
 
 STREAM_LIMITS = {**LIMITS, "QUADSYNTH_WS_WINDOW": "2", "QUADSYNTH_WS_SEND_TIMEOUT_S": "1.5"}
@@ -33,9 +33,7 @@ def launch(tmp: Path, env: dict[str, str]) -> tuple[Any, str]:
     port = free_port()
     proc = start(["--port", str(port), "--log-level", "warning"], tmp, env)
     url = f"http://127.0.0.1:{port}"
-    wait_until_live(proc, url)
-    while httpx.get(f"{url}/readyz").status_code != 200:
-        time.sleep(0.1)
+    wait_until_ready(proc, url)
     return proc, url
 
 

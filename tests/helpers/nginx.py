@@ -15,7 +15,7 @@ import httpx
 import pytest
 
 from tests.helpers import REPO
-from tests.helpers.servers import free_port, start, wait_until_live
+from tests.helpers.servers import free_port, start, wait_until_ready
 
 QUEUED = 3  # per replica, behind its one request in flight
 REPLICA_ENV = {"QUADSYNTH_MAX_IN_FLIGHT": "1", "QUADSYNTH_MAX_QUEUED": str(QUEUED),
@@ -67,9 +67,7 @@ def nginx_cluster(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Cluster]
                                 stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
     try:
         for proc, url in zip(procs, urls, strict=True):
-            wait_until_live(proc, url)
-            while httpx.get(f"{url}/readyz").status_code != 200:
-                time.sleep(0.1)
+            wait_until_ready(proc, url)
         url = f"http://127.0.0.1:{front}"
         deadline = time.monotonic() + 10
         while True:

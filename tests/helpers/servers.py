@@ -52,6 +52,17 @@ def wait_until_live(proc: subprocess.Popen[bytes], url: str) -> None:
     raise AssertionError(f"server did not answer /livez within {STARTUP_TIMEOUT_S} s")
 
 
+def wait_until_ready(proc: subprocess.Popen[bytes], url: str) -> None:
+    """Until the server at ``url`` answers /livez, then /readyz 200 (every library loaded)."""
+    wait_until_live(proc, url)
+    deadline = time.monotonic() + STARTUP_TIMEOUT_S
+    while httpx.get(f"{url}/readyz").status_code != 200:
+        if time.monotonic() > deadline:
+            raise AssertionError(f"server not ready within {STARTUP_TIMEOUT_S} s: "
+                                 f"{httpx.get(f'{url}/readyz').text}")
+        time.sleep(0.1)
+
+
 @contextmanager
 def running(tmp_path: Path,
             env: dict[str, str] | None = None) -> Iterator[tuple[str, subprocess.Popen[bytes]]]:
@@ -60,13 +71,7 @@ def running(tmp_path: Path,
     proc = start(["--port", str(port), "--log-level", "warning"], tmp_path, env)
     url = f"http://127.0.0.1:{port}"
     try:
-        wait_until_live(proc, url)
-        deadline = time.monotonic() + STARTUP_TIMEOUT_S
-        while httpx.get(f"{url}/readyz").status_code != 200:
-            if time.monotonic() > deadline:
-                raise AssertionError(f"server not ready within {STARTUP_TIMEOUT_S} s: "
-                                     f"{httpx.get(f'{url}/readyz').text}")
-            time.sleep(0.1)
+        wait_until_ready(proc, url)
         yield url, proc
     finally:
         if proc.poll() is None:
