@@ -41,6 +41,7 @@ from numpy.typing import ArrayLike, NDArray
 from synth_core import TEMPO_SPREAD
 from synth_core.compiled import backend as backends
 from synth_core.compiled import kernels, render_pool
+from synth_core.compiled.foot_kernels import LEG_WIDTH, NOWHERE
 from synth_core.compiled.scratch import Scratch
 from synth_core.runtime import gaussian
 from synth_core.runtime.bank import Bank
@@ -166,8 +167,8 @@ class LiveSynth:
                              self.buffer.arrays[0].shape[1] + self._end_frames // self.out_step + 1)
         self.known_feet = np.zeros(C, np.int64)
         # What the sink reads of the legs on the last PAD frames sent (see kernels.Posed).
-        self.recent_legs = np.empty((C, PAD, 4, kernels.LEG_WIDTH))
-        self.legs_at = np.full(C, kernels.NOWHERE)
+        self.recent_legs = np.empty((C, PAD, 4, LEG_WIDTH))
+        self.legs_at = np.full(C, NOWHERE)
 
     @property
     def window_frames(self) -> int:
