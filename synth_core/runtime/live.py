@@ -68,6 +68,18 @@ KEEP_PLANS = 1  # of the slowest cycle: planned frames kept as the foot lock's c
 LOCK_LAG = 20  # frames planned but not yet sent, so that most plants a frame is in have ended
 
 
+def _checked_fps(bank: Bank, n_characters: int, fps: float | None, sigma: float) -> float:
+    """The session's input frame rate (default: the library's), its arguments checked."""
+    if not (isinstance(n_characters, int) and n_characters >= 1):
+        raise TrajectoryError(f"characters: need at least one, got {n_characters}")
+    fps = bank.fps if fps is None else float(fps)
+    if not (np.isfinite(fps) and 0 < fps <= bank.fps):
+        raise TrajectoryError(f"fps: must be within (0, {bank.fps:g}] (the library's), got {fps}")
+    if not (np.isfinite(sigma) and 0 <= sigma <= 100):
+        raise TrajectoryError(f"sigma: must be within [0, 100] frames, got {sigma}")
+    return fps
+
+
 class LiveSynth:
     """Characters whose trajectories grow: :meth:`append` points, get back the new frames.
 
@@ -87,20 +99,15 @@ class LiveSynth:
     by a pool thread (see :mod:`synth_core.runtime.live_shards`).
     """
 
-    def __init__(self, bank: Bank, n_characters: int, fps: float | None = None, *,
+    # The session's options are keywords that callers pass through (service, live_shards, tests).
+    def __init__(self, bank: Bank, n_characters: int, fps: float | None = None, *,  # noqa: PLR0913
                  scales: ArrayLike | None = None, seed: int = 0, seeds: ArrayLike | None = None,
                  scale_range: tuple[float, float] = (1.0, 1.0), sigma: float = DEFAULT_SIGMA,
                  margin: int = MARGIN, foot_lock: bool = True, backend: str = "auto",
                  heading: float = 0.0, lock_lag: int = LOCK_LAG, first: int = 0,
                  reuse_windows: bool = False, share_render: bool = False, size_matching: str = "froude",
                  tempo_spread: float = TEMPO_SPREAD, ground: HeightField | None = None) -> None:
-        if not (isinstance(n_characters, int) and n_characters >= 1):
-            raise TrajectoryError(f"characters: need at least one, got {n_characters}")
-        fps = bank.fps if fps is None else float(fps)
-        if not (np.isfinite(fps) and 0 < fps <= bank.fps):
-            raise TrajectoryError(f"fps: must be within (0, {bank.fps:g}] (the library's), got {fps}")
-        if not (np.isfinite(sigma) and 0 <= sigma <= 100):
-            raise TrajectoryError(f"sigma: must be within [0, 100] frames, got {sigma}")
+        fps = _checked_fps(bank, n_characters, fps, sigma)
         C = n_characters
         self.bank, self.fps, self.sigma, self.margin = bank, fps, float(sigma), margin
         self.foot_lock, self.heading = foot_lock, float(heading)
@@ -114,12 +121,25 @@ class LiveSynth:
         # first: the index of these characters' first in the session (a shard of it: see
         # synth_core.runtime.live_shards), so each draws as it would among all of them.
         self.keys = character_keys(seed, C, seeds, first)
+        self._draw_characters(scales, scale_range, size_matching, tempo_spread)
+        self._set_timing(sigma)
+        self._start_input(C)
+        self._start_plan(C, margin, backend)
+        self._start_foot_lock(C)
+
+    def _draw_characters(self, scales: ArrayLike | None, scale_range: tuple[float, float], size_matching: str,
+                         tempo_spread: float) -> None:
+        """Each character's scale, tempo and pace, drawn from its key."""
         self.scales = character_scales(self.keys, scales, scale_range)
         if not (np.isfinite(self.scales) & (self.scales > 0)).all():
             bad = int(np.flatnonzero(~(np.isfinite(self.scales) & (self.scales > 0)))[0])
             raise TrajectoryError(f"scale: must be a positive number, got {self.scales[bad]}", bad)
         self.tempo = character_tempo(self.keys, self.scales, size_matching, tempo_spread)
         self.pace = self.scales * self.tempo  # path speed over this: the library's (plan.plan)
+
+    def _set_timing(self, sigma: float) -> None:
+        """Frame steps, decision step, look-ahead and the smoothing's reach."""
+        bank, fps = self.bank, self.fps
         ratio = bank.fps / fps
         self.out_step = int(round(ratio)) if abs(ratio - round(ratio)) < 1e-9 else 1
         self.frames_of = tables(bank).frames  # of each piece kind
@@ -132,7 +152,9 @@ class LiveSynth:
         self.horizon = max(lookahead(self.m), self.step + int(self.frames_of[1:N_HUBS].max()))
         self.pad = int(np.ceil(4 * sigma)) if sigma > 0 else 0
         self.radius = int(4.0 * sigma + 0.5) if sigma > 0 else 0
-        # Input (at fps) and the library-rate points made from it.
+
+    def _start_input(self, C: int) -> None:
+        """Input (at fps) and the library-rate points made from it, none yet."""
         self.inputs = np.zeros((C, 0, 3))
         self.inputs_start = 0  # global index of inputs[:, 0]
         self.n_inputs = 0
@@ -142,7 +164,9 @@ class LiveSynth:
         self.longer_start = 0
         self.n_raw = 0  # raw points in `longer` (after its head)
         self.ended = False
-        # Smoothed path, segment speeds, and what the plan carries from block to block.
+
+    def _start_plan(self, C: int, margin: int, backend: str) -> None:
+        """Smoothed path, segment speeds, and what the plan carries from block to block."""
         # Room for the path the finish adds too (see _end): growing at the finish moved it into
         # fresh memory, 20-30 ms of a 2,000-horse session's finish (page faults).
         self.path = Columns(C, [((3,), np.float64)], 2 * self.latency_frames + self._end_frames)
@@ -151,13 +175,15 @@ class LiveSynth:
         self.seg_start = 0
         self.n_seg = 0
         # The plan and the heading, carried from block to block.
-        self.planner = Planner(bank, self.scales, self.tempo, margin, backend)
+        self.planner = Planner(self.bank, self.scales, self.tempo, margin, backend)
         self.heading_state = Headings(C, backend)
         self.decisions = 0
         self.no_decision = Decisions(0, np.zeros((C, 0)), np.zeros((C, 0, N_HUBS)))  # a block without one
         self.planned = 0
         self.emitted = 0
-        # Planned frames kept as the foot lock's context (see _emit).
+
+    def _start_foot_lock(self, C: int) -> None:
+        """Planned frames kept as the foot lock's context (see _emit), and the feet it has posed."""
         self.buffer = PlannedColumns(self.scales, -(-2 * (self.lock_lag + self.kept_frames + 2 * self.step)
                                               // self.out_step))
         # The feet of the frames sent and of those after them posed by the foot lock so far (frames
