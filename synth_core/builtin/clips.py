@@ -6,8 +6,9 @@ import json
 from pathlib import Path
 
 from synth_core.builtin.gaits import GAIT_SPECS
-from synth_core.builtin.generator import cyclic_clip, idle_clip, static_spec, transition_clip
+from synth_core.builtin.generator import cyclic_clip, idle_clip, transition_clip
 from synth_core.builtin.skeletons import build_skeleton
+from synth_core.builtin.tracks import static_spec
 from synth_core.motion import bvh
 from synth_core.motion.clip import Motion
 from synth_core.motion.contacts import contacts_json
