@@ -166,7 +166,7 @@ def test_cycles_are_closed_into_loops_or_said_not_to_loop(mann: Library) -> None
 def test_close_loop_removes_a_strides_drift_and_keeps_its_shape() -> None:
     """A joint swinging sin-wise while drifting 12 deg over the stride (the next stride starts
     12 deg on): closed, the stride swings exactly periodically; the loop error names the joint."""
-    from synth_core.build.manifest import close_loop, loop_error
+    from synth_core.build.mocap_clips import close_loop, loop_error
     from synth_core.motion import quat
     from synth_core.motion.clip import Motion
     from tests.helpers.motion import toy_skeleton
