@@ -251,10 +251,33 @@ def _keep_above_ground(toe_target: Floats, ankle_to_toe: Floats, ground: float) 
     return np.where((rise > limit)[..., None], tipped, ankle_to_toe)
 
 
+def _checked_targets(targets: NDArray[np.floating], n_legs: int, ground: float | None) -> Floats:
+    """``targets (..., n_legs, 3)`` as a float64 copy, raised onto ``ground`` (None: left)."""
+    targets = np.array(targets, dtype=np.float64)
+    if targets.shape[-2:] != (n_legs, 3):
+        raise ValueError(f"Expected `targets` to have shape (..., {n_legs}, 3), got {targets.shape}")
+    if ground is not None:
+        targets[..., UP_AXIS] = np.maximum(targets[..., UP_AXIS], ground)
+    return targets
+
+
+def _ankle_goal(ankle_rot: Floats, toe_offset: Floats, p_toe: Floats, target: Floats,
+                ground: float | None) -> tuple[Floats, Floats]:
+    """Step 3 (first, as it fixes where the ankle must go): the ankle's world rotation and the
+    ankle's target. The last bone keeps its world orientation, tipped where the ankle would be
+    under the ground."""
+    ankle_to_toe = quat.rotate(ankle_rot, np.broadcast_to(toe_offset, p_toe.shape))
+    if ground is not None:
+        tipped = _keep_above_ground(target, ankle_to_toe, ground)
+        ankle_rot = quat.mul(quat.between(ankle_to_toe, tipped), ankle_rot)
+        ankle_to_toe = tipped
+    return ankle_rot, target - ankle_to_toe
+
+
 def solve(skeleton: Skeleton, root_pos: NDArray[np.floating], rotations: NDArray[np.floating],
           targets: NDArray[np.floating], rigs: tuple[LimbRig, ...] | None = None,
-          ground: float | None = 0.0, offsets: NDArray[np.floating] | None = None,
-          bends: NDArray[np.floating] | None = None, axes: NDArray[np.floating] | None = None) -> IKResult:
+          ground: float | None = 0.0, bends: NDArray[np.floating] | None = None,
+          axes: NDArray[np.floating] | None = None) -> IKResult:
     """Put each foot's toe on its target: ``targets (..., 4, 3)`` world, FOOT_NAMES order.
 
     ``root_pos (..., 3)`` and local ``rotations (..., J, 4)`` are the pose to adjust (leading
@@ -266,16 +289,11 @@ def solve(skeleton: Skeleton, root_pos: NDArray[np.floating], rotations: NDArray
     hinge side kept continuous); given, it replaces step 1's per-pose choice.
     """
     rigs = limb_rigs(skeleton) if rigs is None else rigs
-    root_pos = np.asarray(root_pos, dtype=np.float64)
     local = np.array(rotations, dtype=np.float64)
-    targets = np.array(targets, dtype=np.float64)
-    if targets.shape[-2:] != (len(rigs), 3):
-        raise ValueError(f"Expected `targets` to have shape (..., {len(rigs)}, 3), got {targets.shape}")
-    if ground is not None:
-        targets[..., UP_AXIS] = np.maximum(targets[..., UP_AXIS], ground)
-    pos, rot = forward_kinematics(skeleton, root_pos, local, offsets)
+    targets = _checked_targets(targets, len(rigs), ground)
+    pos, rot = forward_kinematics(skeleton, np.asarray(root_pos, dtype=np.float64), local)
     pos, rot = np.asarray(pos, np.float64), np.asarray(rot, np.float64)
-    offs = np.asarray(skeleton.offsets if offsets is None else offsets, dtype=np.float64)
+    offs = np.asarray(skeleton.offsets, dtype=np.float64)
     lead = local.shape[:-2]
     stretch = np.ones((*lead, len(rigs)))
     miss = np.zeros((*lead, len(rigs)))
@@ -284,15 +302,8 @@ def solve(skeleton: Skeleton, root_pos: NDArray[np.floating], rotations: NDArray
         target = targets[..., k, :]
         p_root, p_hinge, p_ankle, p_toe = (pos[..., j, :] for j in (rig.upper, rig.hinge, rig.ankle,
                                                                     rig.effector))
-        # Step 3 first, as it fixes where the ankle must go: the last bone keeps its world
-        # orientation, tipped where the ankle would be under the ground.
-        ankle_rot = rot[..., rig.ankle, :]
-        ankle_to_toe = quat.rotate(ankle_rot, np.broadcast_to(offs[..., rig.effector, :], p_toe.shape))
-        if ground is not None:
-            tipped = _keep_above_ground(target, ankle_to_toe, ground)
-            ankle_rot = quat.mul(quat.between(ankle_to_toe, tipped), ankle_rot)
-            ankle_to_toe = tipped
-        ankle_target = target - ankle_to_toe
+        ankle_rot, ankle_target = _ankle_goal(rot[..., rig.ankle, :], offs[..., rig.effector, :], p_toe,
+                                              target, ground)
         # Step 1: the hinge.
         thigh, shin = p_hinge - p_root, p_ankle - p_hinge
         if axes is None:
