@@ -197,6 +197,62 @@ def swing_progress(feet: Floats, lo: NDArray[np.int64], hi: NDArray[np.int64],
     return np.asarray(trust * along + (1 - trust) * timed)
 
 
+def _foot_track(feet: Floats, plants: NDArray[np.int64], shift3: Floats, D: Floats,
+                t: NDArray[np.int64]) -> Floats:
+    """One foot's targets (N, 3F, 3) over the three loops: each plant (``plants`` (P, 2), its
+    ``[start, stop)``) moved along the stride by the root's shift, the swings corrected between.
+    ``feet (N, 3F, 3)``: the source foot's positions, ``shift3 (N, 3F, 3)`` the root's shift,
+    ``D`` the source's cycle displacement."""
+    start, stop = plants[:, 0], plants[:, 1]
+    mid = (start + stop - 1) // 2
+    average = np.stack([feet[:, a:b].mean(axis=1) for a, b in plants], axis=1)  # (N, P, 3)
+    # V: along this foot's stride (to its next footprint; the last looks back), sense and
+    # size from the root's shift at the plant's middle frame.
+    footprints = average[0]  # the source's: the same for every speed
+    if len(plants) > 1:
+        ahead = np.diff(footprints, axis=0, append=2 * footprints[-1:] - footprints[-2:-1])
+    else:  # one plant over all three loops: a foot that never lifts
+        ahead = D[None]
+    ahead[:, UP_AXIS] = 0.0
+    direction = ahead / np.maximum(np.linalg.norm(ahead, axis=-1, keepdims=True), 1e-9)  # (P, 3)
+    root_shift = shift3[:, mid]  # (N, P, 3)
+    d_c = np.linalg.norm(root_shift[..., _HORIZONTAL], axis=-1)
+    sense = np.sign(np.sum(root_shift * direction, axis=-1))
+    plant = average + (sense * d_c)[..., None] * direction
+    # The swing's correction runs from where the foot left its last plant to where it meets
+    # the next one (a foot sliding or settling in its source plant would otherwise jump at
+    # lift-off and drop at touchdown: the real dog's paws by 1-5 cm in a frame).
+    lift_off = plant - feet[:, stop - 1]  # (N, P, 3)
+    touch_down = plant - feet[:, start]
+    # Per frame: the plant it is in, or the plants either side of its swing.
+    prev = np.clip(np.searchsorted(start, t, side="right") - 1, 0, len(plants) - 1)
+    nxt = np.clip(prev + 1, 0, len(plants) - 1)
+    inside = (t >= start[prev]) & (t < stop[prev])
+    lo, hi = stop[prev] - 1, start[nxt]
+    # A shortened step is eased by the source's progress (its ground speed scaled down
+    # evenly); a lengthened one in time, the extra ground covered mid-swing, foot high.
+    shorter = (np.linalg.norm((plant[:, nxt] - plant[:, prev])[..., _HORIZONTAL], axis=-1)
+               < np.linalg.norm((feet[:, hi] - feet[:, lo])[..., _HORIZONTAL], axis=-1))
+    u = np.where(shorter, swing_progress(feet, lo, hi, t)[None],
+                 _smoothstep((t - lo) / np.maximum(hi - lo, 1))[None])
+    u = np.where(t < start[0], 1.0, u)  # before the first plant: heading for it
+    blend = (1 - u)[..., None] * lift_off[:, prev] + u[..., None] * touch_down[:, nxt]
+    # Heights: the plant's offset fades out soon after lift-off and in just before touchdown,
+    # the source's own lift and descent in between. A mocap paw's end site rises 0.5-2 cm as
+    # it rolls through late stance; pinned at the plant's average, the whole swing sank by
+    # that much and skimmed the ground (the real dog's hind paws came in 1 cm lower).
+    # (From the swing's first frame to its last: each rises from, and lands on, its plant
+    # as the source's does, so touchdowns drop no further than the source's.)
+    s = np.clip((t - lo - 1) / np.maximum(hi - lo - 2, 1), 0.0, 1.0)
+    w_lo = 1.0 - _smoothstep(s / HEIGHT_EDGE)
+    w_hi = _smoothstep((s - 1.0 + HEIGHT_EDGE) / HEIGHT_EDGE)
+    w_lo, w_hi = np.where(t < start[0], 0.0, w_lo), np.where(t < start[0], 1.0, w_hi)
+    blend[..., UP_AXIS] = (w_lo[None] * lift_off[:, prev, UP_AXIS]
+                           + w_hi[None] * touch_down[:, nxt, UP_AXIS])
+    swing = feet + blend
+    return np.asarray(np.where(inside[None, :, None], plant[:, prev], swing))
+
+
 def foot_targets(source_feet: NDArray[np.floating], source_root: NDArray[np.floating],
                  new_root: Floats, contacts: NDArray[np.bool_], cyclic: bool = True) -> Floats:
     """Steps 2 and the swing rule: toe targets (N, F, 4, 3) for every frame of every speed.
@@ -221,54 +277,7 @@ def foot_targets(source_feet: NDArray[np.floating], source_root: NDArray[np.floa
         plants = runs(contacts3[:, k])
         if len(plants) == 0:
             continue
-        start, stop = plants[:, 0], plants[:, 1]
-        mid = (start + stop - 1) // 2
-        average = np.stack([feet3[:, a:b, k].mean(axis=1) for a, b in plants], axis=1)  # (N, P, 3)
-        # V: along this foot's stride (to its next footprint; the last looks back), sense and
-        # size from the root's shift at the plant's middle frame.
-        footprints = average[0]  # the source's: the same for every speed
-        if len(plants) > 1:
-            ahead = np.diff(footprints, axis=0, append=2 * footprints[-1:] - footprints[-2:-1])
-        else:  # one plant over all three loops: a foot that never lifts
-            ahead = D[None]
-        ahead[:, UP_AXIS] = 0.0
-        direction = ahead / np.maximum(np.linalg.norm(ahead, axis=-1, keepdims=True), 1e-9)  # (P, 3)
-        root_shift = shift3[:, mid]  # (N, P, 3)
-        d_c = np.linalg.norm(root_shift[..., _HORIZONTAL], axis=-1)
-        sense = np.sign(np.sum(root_shift * direction, axis=-1))
-        plant = average + (sense * d_c)[..., None] * direction
-        # The swing's correction runs from where the foot left its last plant to where it meets
-        # the next one (a foot sliding or settling in its source plant would otherwise jump at
-        # lift-off and drop at touchdown: the real dog's paws by 1-5 cm in a frame).
-        lift_off = plant - feet3[:, stop - 1, k]  # (N, P, 3)
-        touch_down = plant - feet3[:, start, k]
-        # Per frame: the plant it is in, or the plants either side of its swing.
-        prev = np.clip(np.searchsorted(start, t, side="right") - 1, 0, len(plants) - 1)
-        nxt = np.clip(prev + 1, 0, len(plants) - 1)
-        inside = (t >= start[prev]) & (t < stop[prev])
-        lo, hi = stop[prev] - 1, start[nxt]
-        # A shortened step is eased by the source's progress (its ground speed scaled down
-        # evenly); a lengthened one in time, the extra ground covered mid-swing, foot high.
-        shorter = (np.linalg.norm((plant[:, nxt] - plant[:, prev])[..., _HORIZONTAL], axis=-1)
-                   < np.linalg.norm((feet3[:, hi, k] - feet3[:, lo, k])[..., _HORIZONTAL], axis=-1))
-        u = np.where(shorter, swing_progress(feet3[:, :, k], lo, hi, t)[None],
-                     _smoothstep((t - lo) / np.maximum(hi - lo, 1))[None])
-        u = np.where(t < start[0], 1.0, u)  # before the first plant: heading for it
-        blend = (1 - u)[..., None] * lift_off[:, prev] + u[..., None] * touch_down[:, nxt]
-        # Heights: the plant's offset fades out soon after lift-off and in just before touchdown,
-        # the source's own lift and descent in between. A mocap paw's end site rises 0.5-2 cm as
-        # it rolls through late stance; pinned at the plant's average, the whole swing sank by
-        # that much and skimmed the ground (the real dog's hind paws came in 1 cm lower).
-        # (From the swing's first frame to its last: each rises from, and lands on, its plant
-        # as the source's does, so touchdowns drop no further than the source's.)
-        s = np.clip((t - lo - 1) / np.maximum(hi - lo - 2, 1), 0.0, 1.0)
-        w_lo = 1.0 - _smoothstep(s / HEIGHT_EDGE)
-        w_hi = _smoothstep((s - 1.0 + HEIGHT_EDGE) / HEIGHT_EDGE)
-        w_lo, w_hi = np.where(t < start[0], 0.0, w_lo), np.where(t < start[0], 1.0, w_hi)
-        blend[..., UP_AXIS] = (w_lo[None] * lift_off[:, prev, UP_AXIS]
-                               + w_hi[None] * touch_down[:, nxt, UP_AXIS])
-        swing = feet3[:, :, k] + blend
-        targets[:, :, k] = np.where(inside[None, :, None], plant[:, prev], swing)
+        targets[:, :, k] = _foot_track(feet3[:, :, k], plants, shift3, D, t)
     first = F * (copies // 2)
     return np.asarray(targets[:, first:first + F])
 
