@@ -15,6 +15,7 @@ together by hand to keep the herd in step. Gaits and foot contacts ride in each 
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -97,11 +98,21 @@ def inverse_bind_matrices(mesh: SkinnedMesh, scale: float) -> NDArray[np.float32
     return m.transpose(0, 2, 1).reshape(-1, 16).astype("<f4")
 
 
-def _add_character(b: _Builder, skeleton: Skeleton, mesh: SkinnedMesh, mesh_index: int, scale: float,
-                   name: str, prefix: str, root: list[float], posed: bool) -> tuple[int, int]:
+@dataclass(frozen=True)
+class _Model:
+    """The mesh, added to the file once (``mesh_index``), and the skeleton it is bound to."""
+
+    skeleton: Skeleton
+    mesh: SkinnedMesh
+    mesh_index: int
+
+
+def _add_character(b: _Builder, model: _Model, scale: float, name: str, prefix: str, root: list[float],
+                   posed: bool) -> tuple[int, int]:
     """A character's joint nodes, its mesh node and the node its joints hang from (no
     transform), in that order; returns (that rig node, mesh node).
     ``posed``: the nodes hold the bind pose's rotations (else none: the animation sets them)."""
+    skeleton, mesh, mesh_index = model.skeleton, model.mesh, model.mesh_index
     first = len(b.gltf.nodes)
     for j in range(skeleton.n_joints):
         children = [first + k for k in np.flatnonzero(skeleton.parents == j)]
@@ -128,7 +139,7 @@ def mesh_glb(skeleton: Skeleton, animal: str, bind_local: NDArray[np.floating] |
     b = _Builder()
     mesh = build_mesh(skeleton, bind_local)
     mesh_index = _add_mesh(b, mesh, f"{animal} mesh")
-    rig, node = _add_character(b, skeleton, mesh, mesh_index, 1.0, animal, "",
+    rig, node = _add_character(b, _Model(skeleton, mesh, mesh_index), 1.0, animal, "",
                                [float(v) for v in mesh.bind_pos[0]], posed=True)
     b.gltf.scenes.append(G.Scene(name=f"{animal} rest pose", nodes=[rig, node]))
     b.gltf.scene = 0
@@ -152,14 +163,14 @@ def write_glb(skeleton: Skeleton, result: Result, ids: list[str], path: str | Pa
     C, T, J = result.rotations.shape[:3]
     b = _Builder()
     mesh = build_mesh(skeleton, bind_local)
-    mesh_index = _add_mesh(b, mesh, f"{skeleton.name or 'animal'} mesh")
+    model = _Model(skeleton, mesh, _add_mesh(b, mesh, f"{skeleton.name or 'animal'} mesh"))
     animation = G.Animation(name="herd", channels=[], samplers=[])
     times = np.arange(T, dtype="<f4") / np.float32(fps)
     time_acc = b.array(times, "SCALAR", bounds=True)
     scene_nodes = []
     for c in range(C):
-        rig, node = _add_character(b, skeleton, mesh, mesh_index, float(result.scales[c]), str(ids[c]),
-                                     f"{ids[c]}_", [float(v) for v in result.root_pos[c, 0]], posed=False)
+        rig, node = _add_character(b, model, float(result.scales[c]), str(ids[c]), f"{ids[c]}_",
+                                   [float(v) for v in result.root_pos[c, 0]], posed=False)
         b.gltf.nodes[node].extras = character_annotations(result, c, fps, str(ids[c]))
         first = rig - 1 - J
         scene_nodes += [rig, node]

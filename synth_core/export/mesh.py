@@ -238,9 +238,20 @@ def _chain(rest: Floats, joints: list[int], skeleton: Skeleton) -> _Chain:
     return _Chain(np.array(points), owners)
 
 
-def _sweep(skeleton: Skeleton, frame: _Frame, chain: _Chain, radius: Floats | float,
-           profile: object, sides: int, spacing: float, lead_in: int | None = None,
-           caps: tuple[float, float] | None = None, sole: bool = False) -> _Part | None:
+@dataclass(frozen=True)
+class _Rig:
+    """What every part is made against: the skeleton, its bind-pose joint positions ``rest``
+    (J, 3), the body's frame and the spacing of a tube's rings."""
+
+    skeleton: Skeleton
+    rest: Floats
+    frame: _Frame
+    spacing: float
+
+
+def _sweep(rig: _Rig, chain: _Chain, radius: Floats | float, profile: object, sides: int,
+           lead_in: int | None = None, caps: tuple[float, float] | None = None,
+           sole: bool = False) -> _Part | None:
     """A tube along ``chain`` with radius ``profile(a) * radius`` at fraction ``a`` of its length
     (``profile`` a callable on arrays). ``lead_in``: a joint whose bone ends where the chain
     starts, blended into the first ring (a limb's top moves half with the body). ``sole``: the
@@ -248,7 +259,8 @@ def _sweep(skeleton: Skeleton, frame: _Frame, chain: _Chain, radius: Floats | fl
     planted on its toe rolls over it without its sole sinking into the ground."""
     if len(chain.owners) == 0:
         return None
-    s, centres, tangents, lengths = _ring_stations(chain.points, spacing)
+    skeleton, frame = rig.skeleton, rig.frame
+    s, centres, tangents, lengths = _ring_stations(chain.points, rig.spacing)
     if sole:
         tangents[-1] = -frame.up
     owners = chain.owners
@@ -277,83 +289,24 @@ def _ear(skeleton: Skeleton, frame: _Frame, base: Floats, direction: Floats, len
 def _parts(skeleton: Skeleton, rest: Floats) -> list[_Part]:
     """The surfaces around the joints at ``rest`` (J, 3), the bind pose's world positions."""
     frame = _frame(skeleton, rest)
-    S, spacing = frame.scale, 0.045 * frame.scale
+    rig = _Rig(skeleton, rest, frame, 0.045 * frame.scale)
     limbs = [skeleton.limb_chain(f.end_effector) for f in skeleton.feet]
     fore, hind = int(skeleton.parents[limbs[0][0]]), int(skeleton.parents[limbs[2][0]])
     spine = _path(skeleton, hind, fore)
     used = set(spine) | {j for c in limbs for j in c}
-    parts: list[_Part | None] = []
+    rv = 0.2 * frame.scale  # the body's radius
+    parts: list[_Part | None] = [_body(rig, spine, limbs, fore, hind, rv), *_limbs(rig, limbs)]
 
-    # Body: along the spine, reaching past both branch joints; below the spine more than above.
-    rv = 0.2 * S
-    body = _chain(rest, spine, skeleton)
-    # To the limbs' roots where they sit beyond the branch joints (a rig whose shoulders hang
-    # from the middle of the back, as the MANN dog's, still gets a chest), then a little beyond.
-    roots = np.array([rest[c[0]] for c in limbs])
-    ahead = max(0.0, float((roots[:2].mean(0) - rest[fore]) @ frame.forward))
-    behind = max(0.0, float((rest[hind] - roots[2:].mean(0)) @ frame.forward))
-    ends = [rest[hind] - (behind + 0.9 * rv) * frame.forward,
-            rest[fore] + (ahead + 0.85 * rv) * frame.forward]
-    owners = body.owners or [fore]
-    body = _Chain(np.vstack([ends[0], body.points, ends[1]]), [owners[0], *owners, fore])
-    s, centres, tangents, lengths = _ring_stations(body.points, spacing)
-    a = s / s[-1]
-    fill = np.maximum(1.0 - np.abs(2 * a - 1) ** 2.5, 0.0) ** 0.45 * 0.8 + 0.2
-    centres = centres - np.outer(0.67 * rv * fill, frame.up)
-    weights = _chain_weights(s, lengths, body.owners, skeleton.n_joints)
-    parts.append(_tube(centres, tangents, np.stack([0.85 * rv * fill, rv * fill], -1), frame.lateral,
-                       frame.up, weights, 20, (0.25 * rv, 0.25 * rv)))
-
-    # Limbs: thick at the top (shoulder, thigh), slender below, the hoof or paw a little wider.
-    for i, limb in enumerate(limbs):
-        top = 0.06 if i < 2 else 0.09
-        power = 1.5 if i < 2 else 2.0
-        n_last = _chain_length(rest, limb[-2:]) / max(_chain_length(rest, limb), 1e-9)
-
-        def limb_profile(x: Floats, top: float = top, power: float = power, n_last: float = n_last) -> Floats:
-            hoof = 1.0 + 0.45 * _smoothstep((x - (1 - n_last)) / max(n_last, 1e-3))
-            return (0.02 + top * (1 - x) ** power) * hoof
-        top_cap = 0.15 * S * (0.02 + top)  # flat: a round cap pokes out of the back at the withers
-        parts.append(_sweep(skeleton, frame, _chain(rest, list(limb), skeleton), S, limb_profile, 12,
-                            spacing, lead_in=int(skeleton.parents[limb[0]]), caps=(top_cap, 0.0),
-                            sole=True))
-
-    def reach(branch: int, sign: float) -> list[int] | None:
-        """The path from ``branch`` to the leaf furthest along ``sign * forward`` below its
-        children off the body and limbs."""
-        leaves = [leaf for c in skeleton.children(branch) if c not in used
-                  for leaf in _leaves_below(skeleton, c)]
-        if not leaves:
-            return None
-        best = max(leaves, key=lambda j: sign * float((rest[j] - rest[branch]) @ frame.forward))
-        return _path(skeleton, branch, best)
-
-    head_path = reach(fore, 1.0)
+    head_path = _reach(rig, used, fore, 1.0)
     if head_path is not None and len(head_path) >= 3:
         used |= set(head_path)
-        head_len = float(np.linalg.norm(rest[head_path[-1]] - rest[head_path[-2]]))
-        rh = 0.22 * head_len
-        # From the first neck joint (the body's front covers the bone up to it; a tube from the
-        # branch joint pokes its end out of the back), its base moving half with the body.
-        short = len(head_path) >= 4
-        neck = _chain(rest, head_path[1:-1] if short else head_path[:-1], skeleton)
-        parts.append(_sweep(skeleton, frame, neck, 1.0, lambda x: 0.55 * rv + (rh - 0.55 * rv) * x,
-                            14, spacing, lead_in=fore if short else None))
-        skull = _chain(rest, head_path[-2:], skeleton)
-        parts.append(_sweep(skeleton, frame, skull, rh,
-                            lambda x: 1.0 + 0.15 * np.sin(np.pi * np.minimum(x / 0.5, 1.0)) - 0.45 * x,
-                            12, spacing, caps=(0.6 * rh, 0.4 * rh)))
-        owner, head = head_path[-2], rest[head_path[-2]]
-        for sign in (1.0, -1.0):
-            base = head + frame.up * 0.75 * rh + frame.lateral * sign * 0.45 * rh
-            direction = _unit(frame.up - 0.3 * frame.forward + 0.3 * sign * frame.lateral, frame.up)
-            parts.append(_ear(skeleton, frame, base, direction, 0.3 * head_len, owner))
+        parts += _head(rig, head_path, fore, rv)
 
-    tail_path = reach(hind, -1.0)
+    tail_path = _reach(rig, used, hind, -1.0)
     if tail_path is not None and len(tail_path) >= 2:
         used |= set(tail_path)
-        parts.append(_sweep(skeleton, frame, _chain(rest, tail_path[1:], skeleton), rv,
-                            lambda x: 0.16 - 0.09 * x, 8, spacing, lead_in=hind))
+        parts.append(_sweep(rig, _chain(rest, tail_path[1:], skeleton), rv,
+                            lambda x: 0.16 - 0.09 * x, 8, lead_in=hind))
 
     # Any other chain of two bones or more (ears or a jaw in a skeleton that has them).
     for j in range(1, skeleton.n_joints):
@@ -364,9 +317,85 @@ def _parts(skeleton: Skeleton, rest: Floats) -> list[_Part]:
             used |= set(path)
             if len(path) >= 3:
                 length = _chain_length(rest, tuple(path))
-                parts.append(_sweep(skeleton, frame, _chain(rest, path, skeleton),
-                                    min(0.12 * length, 0.1 * rv), lambda x: 1.0 - 0.5 * x, 8, spacing))
+                parts.append(_sweep(rig, _chain(rest, path, skeleton), min(0.12 * length, 0.1 * rv),
+                                    lambda x: 1.0 - 0.5 * x, 8))
     return [p for p in parts if p is not None]
+
+
+def _body(rig: _Rig, spine: list[int], limbs: list[tuple[int, ...]], fore: int, hind: int,
+          rv: float) -> _Part:
+    """Along the spine, reaching past both branch joints; below the spine more than above."""
+    skeleton, rest, frame = rig.skeleton, rig.rest, rig.frame
+    body = _chain(rest, spine, skeleton)
+    # To the limbs' roots where they sit beyond the branch joints (a rig whose shoulders hang
+    # from the middle of the back, as the MANN dog's, still gets a chest), then a little beyond.
+    roots = np.array([rest[c[0]] for c in limbs])
+    ahead = max(0.0, float((roots[:2].mean(0) - rest[fore]) @ frame.forward))
+    behind = max(0.0, float((rest[hind] - roots[2:].mean(0)) @ frame.forward))
+    ends = [rest[hind] - (behind + 0.9 * rv) * frame.forward,
+            rest[fore] + (ahead + 0.85 * rv) * frame.forward]
+    owners = body.owners or [fore]
+    body = _Chain(np.vstack([ends[0], body.points, ends[1]]), [owners[0], *owners, fore])
+    s, centres, tangents, lengths = _ring_stations(body.points, rig.spacing)
+    a = s / s[-1]
+    fill = np.maximum(1.0 - np.abs(2 * a - 1) ** 2.5, 0.0) ** 0.45 * 0.8 + 0.2
+    centres = centres - np.outer(0.67 * rv * fill, frame.up)
+    weights = _chain_weights(s, lengths, body.owners, skeleton.n_joints)
+    return _tube(centres, tangents, np.stack([0.85 * rv * fill, rv * fill], -1), frame.lateral,
+                 frame.up, weights, 20, (0.25 * rv, 0.25 * rv))
+
+
+def _limbs(rig: _Rig, limbs: list[tuple[int, ...]]) -> list[_Part | None]:
+    """Thick at the top (shoulder, thigh), slender below, the hoof or paw a little wider."""
+    skeleton, rest, S = rig.skeleton, rig.rest, rig.frame.scale
+    parts = []
+    for i, limb in enumerate(limbs):
+        top = 0.06 if i < 2 else 0.09
+        power = 1.5 if i < 2 else 2.0
+        n_last = _chain_length(rest, limb[-2:]) / max(_chain_length(rest, limb), 1e-9)
+
+        def limb_profile(x: Floats, top: float = top, power: float = power, n_last: float = n_last) -> Floats:
+            hoof = 1.0 + 0.45 * _smoothstep((x - (1 - n_last)) / max(n_last, 1e-3))
+            return (0.02 + top * (1 - x) ** power) * hoof
+        top_cap = 0.15 * S * (0.02 + top)  # flat: a round cap pokes out of the back at the withers
+        parts.append(_sweep(rig, _chain(rest, list(limb), skeleton), S, limb_profile, 12,
+                            lead_in=int(skeleton.parents[limb[0]]), caps=(top_cap, 0.0), sole=True))
+    return parts
+
+
+def _reach(rig: _Rig, used: set[int], branch: int, sign: float) -> list[int] | None:
+    """The path from ``branch`` to the leaf furthest along ``sign * forward`` below its
+    children off the body and limbs (``used``)."""
+    skeleton, rest = rig.skeleton, rig.rest
+    leaves = [leaf for c in skeleton.children(branch) if c not in used
+              for leaf in _leaves_below(skeleton, c)]
+    if not leaves:
+        return None
+    best = max(leaves, key=lambda j: sign * float((rest[j] - rest[branch]) @ rig.frame.forward))
+    return _path(skeleton, branch, best)
+
+
+def _head(rig: _Rig, head_path: list[int], fore: int, rv: float) -> list[_Part | None]:
+    """Neck, skull and ears along ``head_path`` (from the fore branch joint to the head's tip)."""
+    skeleton, rest, frame = rig.skeleton, rig.rest, rig.frame
+    head_len = float(np.linalg.norm(rest[head_path[-1]] - rest[head_path[-2]]))
+    rh = 0.22 * head_len
+    # From the first neck joint (the body's front covers the bone up to it; a tube from the
+    # branch joint pokes its end out of the back), its base moving half with the body.
+    short = len(head_path) >= 4
+    neck = _chain(rest, head_path[1:-1] if short else head_path[:-1], skeleton)
+    parts = [_sweep(rig, neck, 1.0, lambda x: 0.55 * rv + (rh - 0.55 * rv) * x, 14,
+                    lead_in=fore if short else None)]
+    skull = _chain(rest, head_path[-2:], skeleton)
+    parts.append(_sweep(rig, skull, rh,
+                        lambda x: 1.0 + 0.15 * np.sin(np.pi * np.minimum(x / 0.5, 1.0)) - 0.45 * x,
+                        12, caps=(0.6 * rh, 0.4 * rh)))
+    owner, head = head_path[-2], rest[head_path[-2]]
+    for sign in (1.0, -1.0):
+        base = head + frame.up * 0.75 * rh + frame.lateral * sign * 0.45 * rh
+        direction = _unit(frame.up - 0.3 * frame.forward + 0.3 * sign * frame.lateral, frame.up)
+        parts.append(_ear(skeleton, frame, base, direction, 0.3 * head_len, owner))
+    return parts
 
 
 def _vertex_normals(positions: Floats, triangles: NDArray[np.int64]) -> Floats:
