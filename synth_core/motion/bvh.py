@@ -118,6 +118,34 @@ class _Tokens:
         return int(tok)
 
 
+def _parse_joint(tokens: _Tokens, name: str, parent: int, end_site: bool) -> _Joint:
+    """A joint's (or End Site's) opening brace, offset and channels."""
+    tokens.expect("{")
+    tokens.expect("OFFSET")
+    offset = tuple(tokens.number(f"{name} OFFSET") for _ in range(3))
+    joint = _Joint(name, parent, offset, end_site=end_site)  # type: ignore[arg-type]
+    if not end_site:
+        _parse_channels(tokens, joint)
+    return joint
+
+
+def _parse_channels(tokens: _Tokens, joint: _Joint) -> None:
+    name = joint.name
+    tokens.expect("CHANNELS")
+    line = tokens.line
+    count = tokens.integer(f"{name} CHANNELS count")
+    if count > 6:
+        raise BVHError(tokens.source, line, f"{name}: at most 6 channels, got {count}")
+    for _ in range(count):
+        line = tokens.line
+        channel = tokens.next(f"{name} channel name")
+        if channel not in _ROT and channel not in _POS:
+            raise BVHError(tokens.source, line, f"{name}: unknown channel {channel!r}")
+        if channel in joint.channels:
+            raise BVHError(tokens.source, line, f"{name}: channel {channel} repeated")
+        joint.channels.append(channel)
+
+
 def _parse_hierarchy(tokens: _Tokens) -> list[_Joint]:
     tokens.expect("HIERARCHY")
     tokens.expect("ROOT")
@@ -128,27 +156,8 @@ def _parse_hierarchy(tokens: _Tokens) -> list[_Joint]:
     pending: tuple[str, int, bool] | None = (name, -1, False)
     while True:
         if pending is not None:
-            name, parent, end_site = pending
+            joints.append(_parse_joint(tokens, *pending))
             pending = None
-            tokens.expect("{")
-            tokens.expect("OFFSET")
-            offset = tuple(tokens.number(f"{name} OFFSET") for _ in range(3))
-            joint = _Joint(name, parent, offset, end_site=end_site)  # type: ignore[arg-type]
-            if not end_site:
-                tokens.expect("CHANNELS")
-                line = tokens.line
-                count = tokens.integer(f"{name} CHANNELS count")
-                if count > 6:
-                    raise BVHError(tokens.source, line, f"{name}: at most 6 channels, got {count}")
-                for _ in range(count):
-                    line = tokens.line
-                    channel = tokens.next(f"{name} channel name")
-                    if channel not in _ROT and channel not in _POS:
-                        raise BVHError(tokens.source, line, f"{name}: unknown channel {channel!r}")
-                    if channel in joint.channels:
-                        raise BVHError(tokens.source, line, f"{name}: channel {channel} repeated")
-                    joint.channels.append(channel)
-            joints.append(joint)
             stack.append(len(joints) - 1)
             continue
         tok = tokens.peek()

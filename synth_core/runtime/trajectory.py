@@ -231,7 +231,10 @@ def resample_and_measure(smoothed: Floats, frames: int, segment: int, fps: float
     return out, np.concatenate(by_rows(rows, len(smoothed)))
 
 
-def prepare(positions: ArrayLike, fps: float, library_fps: float, top_speed: float, segment: int,
+# Arguments as synthesis.prepare_batch passes them (positionally); an options object is for when
+# that caller changes too.
+def prepare(positions: ArrayLike, fps: float, library_fps: float, top_speed: float,  # noqa: PLR0913, PLR0917
+            segment: int,
             scales: NDArray[np.floating], sigma: float = DEFAULT_SIGMA,
             skip_invalid: bool = False, ids: list[str] | None = None,
             min_rate: float = 1.0, resample: bool = False, stride_rate: float = 1.0,
@@ -244,22 +247,10 @@ def prepare(positions: ArrayLike, fps: float, library_fps: float, top_speed: flo
     before resampling when the kept characters would come out with more than
     ``max_character_frames`` frames in all."""
     arr = check(positions, fps, ids)
-    if not (np.isfinite(sigma) and 0 <= sigma <= 100):
-        raise TrajectoryError(f"sigma: must be within [0, 100] frames, got {sigma}")
-    if not (np.isfinite(min_rate) and 1.0 <= min_rate <= MAX_RESAMPLE):
-        raise TrajectoryError(f"min_resample_rate: must be within [1, {MAX_RESAMPLE:g}], got {min_rate}")
+    _check_rates(sigma, min_rate)
     scales = np.asarray(scales, dtype=np.float64)
     names = ids or [str(c) for c in range(len(arr))]
-    bad = problems(arr, fps)
-    for i in np.flatnonzero(~(np.isfinite(scales) & (scales > 0))):
-        bad.setdefault(int(i), f"scale: must be a positive number, got {scales[i]}")
-    if bad and not skip_invalid:
-        worst = min(bad)
-        raise TrajectoryError(bad[worst], names[worst])
-    kept = np.array([c for c in range(len(arr)) if c not in bad], dtype=np.int64)
-    if len(kept) == 0:
-        raise TrajectoryError(ALL_INVALID + ": " +
-                              "; ".join(f"{names[c]}: {why}" for c, why in sorted(bad.items())))
+    bad, kept = _valid(arr, fps, scales, names, skip_invalid)
     smoothed, speeds = smooth_and_measure(arr, kept, fps, library_fps, sigma, segment)
     pace = scales if tempo is None else scales * np.asarray(tempo, np.float64)
     own = speeds / pace[kept, None]  # (C, K) the library's speed each character asks for
@@ -278,14 +269,7 @@ def prepare(positions: ArrayLike, fps: float, library_fps: float, top_speed: flo
                                   "; ".join(f"{names[c]}: {w}" for c, w in sorted(bad.items())))
         kept, smoothed, speeds, own = kept[stay], smoothed[stay], speeds[stay], own[stay]
     rate = max(1.0, float(own.max()) / top_speed) if resample else 1.0
-    warnings: dict[int, str] = {}
-    if rate == 1.0:
-        limit = stride_rate * top_speed
-        warnings = {int(kept[i]): (f"moves at {s:.1f} m/s for its scale at frame {f}, faster than the "
-                                   f"library's fastest gait can step ({top_speed:.2f} m/s, its stride up "
-                                   f"to {stride_rate:g}x faster: {limit:.2f} m/s): its feet slide there; "
-                                   f"'resample' slows the herd's clock instead")
-                    for i, (f, s) in _too_fast(own, limit, segment).items()}
+    warnings = _too_fast_to_step(own, kept, top_speed, stride_rate, segment) if rate == 1.0 else {}
     rate = max(rate, min_rate)
     F = smoothed.shape[1]
     n = resampled_frames(F, rate)
@@ -298,6 +282,42 @@ def prepare(positions: ArrayLike, fps: float, library_fps: float, top_speed: flo
         smoothed, speeds = resample_and_measure(smoothed, n, segment, library_fps)
     return Prepared(smoothed, segment, speeds, float(rate), kept, bad, warnings,
                     None if tempo is None else np.asarray(tempo, np.float64)[kept])
+
+
+def _check_rates(sigma: float, min_rate: float) -> None:
+    if not (np.isfinite(sigma) and 0 <= sigma <= 100):
+        raise TrajectoryError(f"sigma: must be within [0, 100] frames, got {sigma}")
+    if not (np.isfinite(min_rate) and 1.0 <= min_rate <= MAX_RESAMPLE):
+        raise TrajectoryError(f"min_resample_rate: must be within [1, {MAX_RESAMPLE:g}], got {min_rate}")
+
+
+def _valid(arr: NDArray[np.floating], fps: float, scales: NDArray[np.floating], names: list[str],
+           skip_invalid: bool) -> tuple[dict[int, str], NDArray[np.int64]]:
+    """The characters with a problem (index -> why) and those kept; a problem raises unless
+    ``skip_invalid``, and so does having none left."""
+    bad = problems(arr, fps)
+    for i in np.flatnonzero(~(np.isfinite(scales) & (scales > 0))):
+        bad.setdefault(int(i), f"scale: must be a positive number, got {scales[i]}")
+    if bad and not skip_invalid:
+        worst = min(bad)
+        raise TrajectoryError(bad[worst], names[worst])
+    kept = np.array([c for c in range(len(arr)) if c not in bad], dtype=np.int64)
+    if len(kept) == 0:
+        raise TrajectoryError(ALL_INVALID + ": " +
+                              "; ".join(f"{names[c]}: {why}" for c, why in sorted(bad.items())))
+    return bad, kept
+
+
+def _too_fast_to_step(own: Floats, kept: NDArray[np.int64], top_speed: float, stride_rate: float,
+                      segment: int) -> dict[int, str]:
+    """Warnings for the characters faster than the library's fastest stride can step (the clock
+    kept): character -> why."""
+    limit = stride_rate * top_speed
+    return {int(kept[i]): (f"moves at {s:.1f} m/s for its scale at frame {f}, faster than the "
+                           f"library's fastest gait can step ({top_speed:.2f} m/s, its stride up "
+                           f"to {stride_rate:g}x faster: {limit:.2f} m/s): its feet slide there; "
+                           f"'resample' slows the herd's clock instead")
+            for i, (f, s) in _too_fast(own, limit, segment).items()}
 
 
 def _too_fast(speeds: Floats, limit: float, segment: int) -> dict[int, tuple[int, float]]:

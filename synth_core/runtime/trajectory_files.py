@@ -12,6 +12,7 @@ frames, characters covering different frames.
 from __future__ import annotations
 
 import csv
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -37,40 +38,59 @@ def read_csv(path: str | Path, fps: float = DEFAULT_FPS) -> Trajectories:
     path = Path(path)
     with path.open(newline="") as f:
         reader = csv.reader(f)
-        try:
-            header = next(reader)
-        except StopIteration:
-            raise TrajectoryFileError(f"{path}: empty file (expected a header {','.join(COLUMNS)})") from None
-        names = [h.strip().lower() for h in header]
-        missing = [c for c in COLUMNS if c not in names]
-        if missing:
-            raise TrajectoryFileError(f"{path}: line 1: header {header} lacks column(s) {missing} "
-                                      f"(need {','.join(COLUMNS)} in any order)")
-        col = {c: names.index(c) for c in COLUMNS}
+        col, width = _header(path, reader)
         rows: dict[str, dict[int, tuple[float, float, float]]] = {}
         for line, row in enumerate(reader, start=2):
             if not row or all(not v.strip() for v in row):
                 continue
-            if len(row) < len(names):
-                raise TrajectoryFileError(f"{path}: line {line}: {len(row)} values, "
-                                          f"the header has {len(names)}")
-            cid = row[col["id"]].strip()
-            try:
-                frame_f = float(row[col["frame"]])
-                xyz = tuple(float(row[col[c]]) for c in "xyz")
-            except ValueError:
-                raise TrajectoryFileError(f"{path}: line {line}: not a number in {row}") from None
-            if not frame_f.is_integer():
-                raise TrajectoryFileError(f"{path}: line {line}: frame must be an integer, got {frame_f}")
-            if not all(np.isfinite(xyz)):
-                raise TrajectoryFileError(f"{path}: line {line}: x, y, z must be finite, got {xyz}")
+            cid, frame, xyz = _row(path, line, row, col, width)
             frames = rows.setdefault(cid, {})
-            frame = int(frame_f)
             if frame in frames:
                 raise TrajectoryFileError(f"{path}: line {line}: character {cid!r} frame {frame} repeated")
-            frames[frame] = xyz  # type: ignore[assignment]
+            frames[frame] = xyz
     if not rows:
         raise TrajectoryFileError(f"{path}: no data rows")
+    span = _common_span(path, rows)
+    ids = list(rows)
+    positions = np.array([[rows[c][f] for f in range(span[0], span[1] + 1)] for c in ids], np.float32)
+    return Trajectories(positions, ids, fps)
+
+
+def _header(path: Path, reader: Iterator[list[str]]) -> tuple[dict[str, int], int]:
+    """The index of each of ``COLUMNS`` in the header line, and how many columns it names."""
+    try:
+        header = next(reader)
+    except StopIteration:
+        raise TrajectoryFileError(f"{path}: empty file (expected a header {','.join(COLUMNS)})") from None
+    names = [h.strip().lower() for h in header]
+    missing = [c for c in COLUMNS if c not in names]
+    if missing:
+        raise TrajectoryFileError(f"{path}: line 1: header {header} lacks column(s) {missing} "
+                                  f"(need {','.join(COLUMNS)} in any order)")
+    return {c: names.index(c) for c in COLUMNS}, len(names)
+
+
+def _row(path: Path, line: int, row: list[str], col: dict[str, int],
+         width: int) -> tuple[str, int, tuple[float, float, float]]:
+    """One data line's character id, frame and (x, y, z)."""
+    if len(row) < width:
+        raise TrajectoryFileError(f"{path}: line {line}: {len(row)} values, "
+                                  f"the header has {width}")
+    cid = row[col["id"]].strip()
+    try:
+        frame_f = float(row[col["frame"]])
+        xyz = tuple(float(row[col[c]]) for c in "xyz")
+    except ValueError:
+        raise TrajectoryFileError(f"{path}: line {line}: not a number in {row}") from None
+    if not frame_f.is_integer():
+        raise TrajectoryFileError(f"{path}: line {line}: frame must be an integer, got {frame_f}")
+    if not all(np.isfinite(xyz)):
+        raise TrajectoryFileError(f"{path}: line {line}: x, y, z must be finite, got {xyz}")
+    return cid, int(frame_f), xyz  # type: ignore[return-value]
+
+
+def _common_span(path: Path, rows: dict[str, dict[int, tuple[float, float, float]]]) -> tuple[int, int]:
+    """The frames ``[first, last]`` every character covers, each without a gap."""
     first_id = next(iter(rows))
     span = (min(rows[first_id]), max(rows[first_id]))
     for cid, frames in rows.items():
@@ -83,9 +103,7 @@ def read_csv(path: str | Path, fps: float = DEFAULT_FPS) -> Trajectories:
             raise TrajectoryFileError(f"{path}: character {cid!r} covers frames {lo}-{hi}, character "
                                       f"{first_id!r} {span[0]}-{span[1]}: every character needs "
                                       "the same frames")
-    ids = list(rows)
-    positions = np.array([[rows[c][f] for f in range(span[0], span[1] + 1)] for c in ids], np.float32)
-    return Trajectories(positions, ids, fps)
+    return span
 
 
 def read_npz(path: str | Path, fps: float | None = None) -> Trajectories:
