@@ -334,6 +334,15 @@ def ground_figures(bank: Bank, result: Result, fk: Feet, ground: HeightField | N
     }
 
 
+def _body_speed(root: NDArray[np.float64], fps: float) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
+    """The body's ground speed (C, F) m/s, smoothed, and where it stands still."""
+    speed = np.linalg.norm(np.gradient(root[..., [0, 2]], axis=1), axis=-1) * fps
+    speed = ndimage.uniform_filter1d(speed, size=max(3, int(BODY_SPEED_WINDOW_S * fps)), axis=1)
+    # Standing still: slow for a whole second around the frame (a stop, not a stride's low point).
+    still = ndimage.uniform_filter1d(speed, size=int(fps), axis=1) < SLOW_BODY
+    return speed, still
+
+
 def edge_figures(bank: Bank, result: Result, reference_path: NDArray[np.floating], frames_in: int,
                  ref: LibraryReference, ground: HeightField | None = None) -> dict[str, Any]:
     """Every edge figure of one synthesized scenario, from world positions after FK.
@@ -355,10 +364,7 @@ def edge_figures(bank: Bank, result: Result, reference_path: NDArray[np.floating
     alone = M.single_support_frames(down)
     stretch = (M.limb_reach(pos, sk) / (ref.reach * result.scales[:, None, None])).max()
     root = result.root_pos.astype(np.float64)
-    speed = np.linalg.norm(np.gradient(root[..., [0, 2]], axis=1), axis=-1) * fps
-    speed = ndimage.uniform_filter1d(speed, size=max(3, int(BODY_SPEED_WINDOW_S * fps)), axis=1)
-    # Standing still: slow for a whole second around the frame (a stop, not a stride's low point).
-    still = ndimage.uniform_filter1d(speed, size=int(fps), axis=1) < SLOW_BODY
+    speed, still = _body_speed(root, fps)
     nan = float("nan")
     yaw = M.yaw_rates_deg(result.rotations[:, :, 0], fps)
     footfall = footfall_preserved(bank, result, down, ref.clip_plants)
