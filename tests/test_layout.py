@@ -61,3 +61,13 @@ def test_the_service_modules_import_each_other_without_a_circle() -> None:
 
     for name in sorted(graph):
         visit(name, ())
+
+
+MAX_MODULE_LINES = 500  # issue 30: small modules named for what they hold
+
+
+def test_no_module_is_over_500_lines() -> None:
+    sizes = {str(f.relative_to(REPO)): len(f.read_text(encoding="utf-8").splitlines())
+             for package in ("synth_core", "service", "api_schemas", "quadsynth")
+             for f in sorted((REPO / package).rglob("*.py"))}
+    assert sizes and {f: n for f, n in sizes.items() if n > MAX_MODULE_LINES} == {}
