@@ -311,8 +311,10 @@ def build_from_manifest(path: Path) -> Library:
     for name in TRANSITIONS:
         if name in given:
             # Mocap feet roll and slide a little in every plant; the library's feet do not.
-            transitions[name] = _hold_plants(_clip(files, given[name], f"transitions.{name}.", name,
-                                                   manual.get(name)))
+            clip = _clip(files, given[name], f"transitions.{name}.", name, manual.get(name))
+            if name.startswith("static") or name.endswith("static"):
+                clip = stand_as(clip, idle, at_start=name.startswith("static"))
+            transitions[name] = _hold_plants(clip)
         else:
             source, target = name.split("2")
             transitions[name] = generate_transition(maps.get(source), maps.get(target), idle, name)
@@ -496,6 +498,37 @@ def _crossfade(first: Motion, second: Motion, name: str, strides: int = 2) -> Mo
     # and the foot would jump between them (11 cm in the real dog's canter2gallop).
     contacts = C.fill_gaps(contacts, SWITCH_GAP)
     return _hold_plants(Motion(first.skeleton, root, rotations, first.fps, contacts, name, None))
+
+
+def stand_as(clip: Motion, idle: Motion, at_start: bool) -> Motion:
+    """A start (``at_start``) or a stop whose standing frames stand as the idle does: raised or
+    lowered there by the difference of their feet's heights, easing back to the clip's own level
+    (:func:`on_the_ground`, set by its walking plants) over its first step out of (or last into)
+    the stance.
+
+    Each clip is put on the ground by its own plants: a start's are mostly walking ones, where the
+    real dog's paw end sites stand about 1 cm lower than standing, so its standing frames (the same
+    frames of the same take as the idle's last ones) stood 0.8-0.9 cm above the idle's and every
+    real-dog character started floating that high (issue 27: floating <= 1 cm)."""
+    contacts = clip.contacts if at_start else clip.contacts[::-1]
+    moving = np.flatnonzero(~contacts.all(axis=1))
+    if len(moving) == 0:
+        return clip
+    still = int(moving[0])  # frames standing at the static end
+    if still == 0:
+        return clip
+    lifted = int(np.flatnonzero(~contacts[still])[0])  # the first foot to step
+    down = np.flatnonzero(contacts[still:, lifted])
+    step = int(down[0]) if len(down) else len(contacts) - still  # its swing, frames
+    heights = clip.foot_positions()[:, :, UP_AXIS]
+    heights = heights if at_start else heights[::-1]
+    offset = float(np.median(np.median(idle.foot_positions()[:, :, UP_AXIS], axis=0) - heights[:still]))
+    u = np.clip((np.arange(len(contacts)) - still + 1) / max(step + 1, 1), 0.0, 1.0)
+    weight = 1.0 - u * u * (3 - 2 * u)
+    root = clip.root_pos.astype(np.float64)
+    root[:, UP_AXIS] += offset * (weight if at_start else weight[::-1])
+    return Motion(clip.skeleton, root.astype(np.float32), clip.rotations, clip.fps, clip.contacts,
+                  clip.name, clip.gait)
 
 
 def _hold_plants(motion: Motion) -> Motion:
