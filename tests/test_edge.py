@@ -176,3 +176,23 @@ def test_the_worst_scenario_is_ranked_over_terrain_misses_too() -> None:
         "hill": {"beyond_target": {ground_figure: 3 * (abs(ground_limit) or 1.0)}, "failed": [ground_figure]},
     }}
     assert evaluate.worst_scenario(suite) == "hill"
+
+
+def test_a_big_dogs_steady_canter_carries_it_no_longer_alone_than_its_tempo_gives() -> None:
+    """Issue 27: no foot alone past its gait's longest stance. A dog twice the library's size at
+    the same Froude number (the canter's middle speed x sqrt(2)) plays the library's own canter
+    at 1 / sqrt(2) of its tempo (synthesis' default), so each stance lasts sqrt(2) times the
+    library's frames; held to the library's 9 frames, its own steady canter read 1.1."""
+    from synth_core.build.library_store import builtin_library
+    from synth_core.runtime.bank import build_bank
+    from synth_core.runtime.synthesis import Options, synthesize
+
+    bank = build_bank(builtin_library("dog"))
+    low, high = (float(bank.speeds[3][0]), float(bank.speeds[3][-1]))  # the canter's clips
+    v = 0.5 * (low + high) * np.sqrt(2.0)
+    F = edge.frames_for(0.5 + v / edge.SPEED_UP + 6.0, FPS)
+    sc = edge.herd([edge.run(F, FPS, edge.start_at(v))], [2.0])
+    result = synthesize(bank, sc.positions, FPS, scales=sc.scales, options=Options(seed=0))
+    figures = evaluate.edge_figures(bank, result, sc.reference, F, evaluate.library_reference(bank))
+    assert figures["gait_frames"]["canter"] > 4 * 60  # it does canter, seconds of it
+    assert figures["single_support_ratio_max"] <= 1.0

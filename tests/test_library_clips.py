@@ -240,3 +240,29 @@ def test_export_writes_every_clip_and_round_trips(animal: str, tmp_path: Path,
         assert error_mm < 0.1
         document = json.loads((tmp_path / f"{name}.contacts.json").read_text())
         assert np.array_equal(C.contacts_from_json(document, motion.n_frames), motion.contacts)
+
+
+def _strict_plants(motion: Motion) -> np.ndarray:
+    """Feet within 1 cm of the ground for 3+ frames, after FK (the edge suite's plants)."""
+    return M.strict_plants(M.foot_heights(motion.positions()[:, motion.skeleton.foot_joints]))
+
+
+@pytest.mark.parametrize(("animal", "clip"), [(a, t) for a in ANIMALS for t in TRANSITIONS
+                                              if "static" not in t])
+def test_no_foot_carries_the_body_alone_past_its_gaits_longest_stance(clips: dict, animal: str,
+                                                                      clip: str) -> None:
+    """Issue 27's target for transitions: no foot alone longer than its gait's longest stance,
+    each half of the transition against the gait it is labelled with in synthesis (the one it
+    leaves, then the one it reaches), stances from the gaits' own clips looped, all after FK.
+    (The dog's trot2canter carried it on the trailing hind alone for 10 frames; its canter's
+    longest stance is 9.)"""
+    source, target = clip.split("2")
+    stance = {}
+    for gait in (source, target):
+        cycle = looped(clips[animal][gait], 3)
+        stance[gait] = M.run_lengths(_strict_plants(cycle).T).max()
+    motion = clips[animal][clip]
+    alone = M.single_support_frames(_strict_plants(motion))
+    half = motion.n_frames // 2
+    assert alone[:half].max() <= stance[source], (source, alone[:half].max(), stance[source])
+    assert alone[half:].max() <= stance[target], (target, alone[half:].max(), stance[target])

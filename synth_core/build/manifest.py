@@ -54,7 +54,14 @@ import numpy as np
 from synth_core import FOOT_NAMES, UP_AXIS
 from synth_core.build.artifact import Library
 from synth_core.build.generated_transitions import generate_transition, hold_plants
-from synth_core.build.mocap_clips import LOOP_CLOSE_MAX_DEG, close_loop, loop_error, on_the_ground, still_clip
+from synth_core.build.mocap_clips import (
+    LOOP_CLOSE_MAX_DEG,
+    close_loop,
+    loop_error,
+    on_the_ground,
+    stand_as,
+    still_clip,
+)
 from synth_core.build.motion_graph import HUBS, transition_name
 from synth_core.build.speed_map import SpeedRange, build_speed_map, default_ranges
 from synth_core.motion import bvh
@@ -255,8 +262,10 @@ def build_from_manifest(path: Path) -> Library:
     for name in TRANSITIONS:
         if name in given:
             # Mocap feet roll and slide a little in every plant; the library's feet do not.
-            transitions[name] = hold_plants(_clip(files, given[name], f"transitions.{name}.", name,
-                                                   manual.get(name)))
+            clip = _clip(files, given[name], f"transitions.{name}.", name, manual.get(name))
+            if name.startswith("static") or name.endswith("static"):
+                clip = stand_as(clip, idle, at_start=name.startswith("static"))
+            transitions[name] = hold_plants(clip)
         else:
             source, target = name.split("2")
             transitions[name] = generate_transition(maps.get(source), maps.get(target), idle, name)

@@ -66,3 +66,34 @@ def still_clip(like: Motion, seconds: float = 2.0) -> Motion:
     root = np.repeat(like.root_pos[f:f + 1], n, axis=0)
     return Motion(like.skeleton, root, np.repeat(like.rotations[f:f + 1], n, axis=0), like.fps,
                   np.ones((n, 4), bool), "idle", "static")
+
+
+def stand_as(clip: Motion, idle: Motion, at_start: bool) -> Motion:
+    """A start (``at_start``) or a stop whose standing frames stand as the idle does: raised or
+    lowered there by the difference of their feet's heights, easing back to the clip's own level
+    (:func:`on_the_ground`, set by its walking plants) over its first step out of (or last into)
+    the stance.
+
+    Each clip is put on the ground by its own plants: a start's are mostly walking ones, where the
+    real dog's paw end sites stand about 1 cm lower than standing, so its standing frames (the same
+    frames of the same take as the idle's last ones) stood 0.8-0.9 cm above the idle's and every
+    real-dog character started floating that high (issue 27: floating <= 1 cm)."""
+    contacts = clip.contacts if at_start else clip.contacts[::-1]
+    moving = np.flatnonzero(~contacts.all(axis=1))
+    if len(moving) == 0:
+        return clip
+    still = int(moving[0])  # frames standing at the static end
+    if still == 0:
+        return clip
+    lifted = int(np.flatnonzero(~contacts[still])[0])  # the first foot to step
+    down = np.flatnonzero(contacts[still:, lifted])
+    step = int(down[0]) if len(down) else len(contacts) - still  # its swing, frames
+    heights = clip.foot_positions()[:, :, UP_AXIS]
+    heights = heights if at_start else heights[::-1]
+    offset = float(np.median(np.median(idle.foot_positions()[:, :, UP_AXIS], axis=0) - heights[:still]))
+    u = np.clip((np.arange(len(contacts)) - still + 1) / max(step + 1, 1), 0.0, 1.0)
+    weight = 1.0 - u * u * (3 - 2 * u)
+    root = clip.root_pos.astype(np.float64)
+    root[:, UP_AXIS] += offset * (weight if at_start else weight[::-1])
+    return Motion(clip.skeleton, root.astype(np.float32), clip.rotations, clip.fps, clip.contacts,
+                  clip.name, clip.gait)

@@ -159,6 +159,11 @@ def _tile(x: Floats, shift: Floats, copies: int = 3) -> Floats:
 
 
 HEIGHT_EDGE = 0.3  # of a swing: its first and last such share carry the plants' height offsets
+# A foot off its plant is this far above it through the first half of its swing (the strict
+# plants of issue 27 are feet within 1 cm of the ground): the real dog's paw end sites stay within
+# 1 cm for 2-3 frames after lift-off while the paw rolls forward 2-4 cm a frame, a drag the
+# synthesis then shows on every stride (strict skate p95 12-35 mm in every real-dog scenario).
+LIFT_CLEAR = 0.012  # m
 
 
 def _smoothstep(x: Floats) -> Floats:
@@ -198,11 +203,12 @@ def swing_progress(feet: Floats, lo: NDArray[np.int64], hi: NDArray[np.int64],
 
 
 def _foot_track(feet: Floats, plants: NDArray[np.int64], shift3: Floats, D: Floats,
-                t: NDArray[np.int64]) -> Floats:
+                t: NDArray[np.int64], alone: NDArray[np.bool_]) -> Floats:
     """One foot's targets (N, 3F, 3) over the three loops: each plant (``plants`` (P, 2), its
     ``[start, stop)``) moved along the stride by the root's shift, the swings corrected between.
     ``feet (N, 3F, 3)``: the source foot's positions, ``shift3 (N, 3F, 3)`` the root's shift,
-    ``D`` the source's cycle displacement."""
+    ``D`` the source's cycle displacement; ``alone (3F,)``: where lifting this foot leaves one foot
+    down (no lift clearance there: see :func:`_lift_clear`)."""
     start, stop = plants[:, 0], plants[:, 1]
     mid = (start + stop - 1) // 2
     average = np.stack([feet[:, a:b].mean(axis=1) for a, b in plants], axis=1)  # (N, P, 3)
@@ -250,7 +256,20 @@ def _foot_track(feet: Floats, plants: NDArray[np.int64], shift3: Floats, D: Floa
     blend[..., UP_AXIS] = (w_lo[None] * lift_off[:, prev, UP_AXIS]
                            + w_hi[None] * touch_down[:, nxt, UP_AXIS])
     swing = feet + blend
+    swing[..., UP_AXIS] = _lift_clear(swing[..., UP_AXIS], plant[:, prev, UP_AXIS], t, lo, hi,
+                                      (t >= start[0]) & ~alone)
     return np.asarray(np.where(inside[None, :, None], plant[:, prev], swing))
+
+
+def _lift_clear(height: Floats, plant: Floats, t: NDArray[np.int64], lo: NDArray[np.int64],
+                hi: NDArray[np.int64], may: NDArray[np.bool_]) -> Floats:
+    """Swing heights ``(N, T)`` at least ``LIFT_CLEAR`` over the plant left (``plant (N, T)``)
+    through the first half of each swing (``lo``, ``hi``: its plants' last and first frames),
+    where ``may``. Not where the foot lifting leaves one foot alone carrying the body: the real
+    dog's pace hands over from one lateral pair to the next with the lifting paw still low, and
+    cleared, its walk had one paw down for 2-3 frames each half stride."""
+    early = (t > lo) & (t - lo <= 0.5 * (hi - lo)) & may
+    return np.asarray(np.where(early[None], np.maximum(height, plant + LIFT_CLEAR), height))
 
 
 def foot_targets(source_feet: NDArray[np.floating], source_root: NDArray[np.floating],
@@ -277,7 +296,8 @@ def foot_targets(source_feet: NDArray[np.floating], source_root: NDArray[np.floa
         plants = runs(contacts3[:, k])
         if len(plants) == 0:
             continue
-        targets[:, :, k] = _foot_track(feet3[:, :, k], plants, shift3, D, t)
+        alone = contacts3.sum(axis=1) - contacts3[:, k] == 1
+        targets[:, :, k] = _foot_track(feet3[:, :, k], plants, shift3, D, t, alone)
     first = F * (copies // 2)
     return np.asarray(targets[:, first:first + F])
 

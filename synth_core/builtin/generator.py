@@ -27,6 +27,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
+from synth_core import FOOT_NAMES
 from synth_core.builtin.foot_paths import FootPlan, plan_foot
 from synth_core.builtin.gaits import FOOT_LIFT, GaitSpec
 from synth_core.builtin.leg_motion import leg_rotations, rest_protraction, rot_x, solve_limb
@@ -43,7 +44,7 @@ from synth_core.builtin.tracks import (
 )
 from synth_core.motion import quat
 from synth_core.motion.clip import Motion
-from synth_core.motion.contacts import fill_gaps
+from synth_core.motion.contacts import fill_gaps, runs
 from synth_core.motion.skeleton import Skeleton, forward_kinematics
 
 MIN_SWING_S = 0.05  # shorter swings are not taken (the foot stays planted)
@@ -86,8 +87,56 @@ def _wave(clock: Floats, per_stride: Floats | float, at: Floats | float) -> Floa
     return np.cos(2 * np.pi * np.asarray(per_stride) * (clock - at))
 
 
-def synthesize(skeleton: Skeleton, track: Track, name: str, gait: str | None) -> Motion:
-    """Generate a motion from a parameter track."""
+def footfalls(track: Track, clock: Floats | None = None) -> NDArray[np.bool_]:
+    """Planted feet (T, 4) of a track: each foot while its phase's fraction is below the duty."""
+    if clock is None:
+        clock = np.round(np.concatenate([[0.0], np.cumsum(track.frequency[1:]) / FPS]), 9)
+    phases = np.round(clock[:, None] - track.phases, 9)  # strides since each foot's reference touchdown
+    planted = np.mod(phases, 1.0) < track.values["duty"][:, None] - 1e-9
+    # Near standstill (a start or stop) the duty factor nears 1 and swings shrink to a frame or
+    # two: a foot cannot step in 30 ms, so such steps are skipped and the plant held.
+    return fill_gaps(planted, int(MIN_SWING_S * FPS))
+
+
+def longest_alone(planted: NDArray[np.bool_]) -> int:
+    """The most frames one foot carries the body alone in ``planted (T, 4)``."""
+    alone = planted & (planted.sum(axis=1, keepdims=True) == 1)
+    return max((int(np.diff(r, axis=1).max(initial=0)) for r in map(runs, alone.T)), default=0)
+
+
+def land_sooner(planted: NDArray[np.bool_], limit: int) -> NDArray[np.bool_]:
+    """``planted (T, 4)`` where no foot carries the body alone past ``limit`` frames: the foot
+    (or pair) landing at the end of a longer lone stance lands ``limit`` frames into it.
+
+    Blending two gaits' footfall phases and duty factors separately, a transition passes through
+    patterns neither gait has: trot to canter, the trailing hind landed before the lead fore
+    lifted and carried the dog alone for 10 frames until the diagonal pair came down (the
+    canter's lone support: 7; issue 27: no foot alone past its gait's longest stance, 9). The
+    animal puts its next foot down sooner instead (its swing a few frames shorter). A lone
+    stance ended by the foot lifting (a flight follows) is left as it is."""
+    planted = planted.copy()
+    T = len(planted)
+    for _ in range(len(FOOT_NAMES) * 2):  # a landing moved changes the supports after it: redo
+        alone = planted & (planted.sum(axis=1, keepdims=True) == 1)
+        moved = False
+        for k, stances in enumerate(map(runs, alone.T)):  # four feet, a few stances each
+            for start, stop in stances:
+                if stop - start <= limit or stop >= T:
+                    continue
+                landing = planted[stop] & ~planted[stop - 1]
+                landing[k] = False
+                if landing.any():
+                    planted[start + limit:stop, landing] = True
+                    moved = True
+        if not moved:
+            break
+    return planted
+
+
+def synthesize(skeleton: Skeleton, track: Track, name: str, gait: str | None,
+               max_alone: int | None = None) -> Motion:
+    """Generate a motion from a parameter track; ``max_alone``: no foot carries the body alone
+    longer than this many frames (:func:`land_sooner`)."""
     T = track.length
     v = track.values
     root_z = np.concatenate([[0.0], np.cumsum(v["speed"][1:]) / FPS])
@@ -99,11 +148,9 @@ def synthesize(skeleton: Skeleton, track: Track, name: str, gait: str | None) ->
     trunk_pos = forward_kinematics(skeleton, root_pos, rot)[0].astype(np.float64)
 
     # Legs.
-    phases = np.round(clock[:, None] - track.phases, 9)  # strides since each foot's reference touchdown
-    planted = np.mod(phases, 1.0) < v["duty"][:, None] - 1e-9
-    # Near standstill (a start or stop) the duty factor nears 1 and swings shrink to a frame or
-    # two: a foot cannot step in 30 ms, so such steps are skipped and the plant held.
-    planted = fill_gaps(planted, int(MIN_SWING_S * FPS))
+    planted = footfalls(track, clock)
+    if max_alone is not None:
+        planted = land_sooner(planted, max_alone)
     contacts = np.zeros((T, 4), bool)
     for k, limb in enumerate(limbs_of(skeleton)):
         plan, solution = _plant_and_solve(skeleton, limb, planted[:, k], v, root_z, trunk_pos, global_pitch,
@@ -253,7 +300,10 @@ def transition_clip(skeleton: Skeleton, a: GaitSpec, b: GaitSpec, name: str,
         stop = int(later[np.abs(off).argmin()])
         ramp_frames = slice(pad + a.frames, pad + a.frames + ramp)
         track.frequency[ramp_frames] -= off[stop - nominal] * FPS / ramp
-    motion = synthesize(skeleton, track, name, None)
+    # No foot alone longer than in either gait (a lone support as short as a swing is footfall
+    # timing, not a foot carrying the body).
+    alone = max(longest_alone(footfalls(constant_track(g, 3 * g.frames))) for g in (a, b))
+    motion = synthesize(skeleton, track, name, None, max(alone, int(MIN_SWING_S * FPS)))
     return _at_origin(motion.slice(pad + a.frames - lead, stop), name, None)
 
 

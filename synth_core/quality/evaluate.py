@@ -343,6 +343,15 @@ def _body_speed(root: NDArray[np.float64], fps: float) -> tuple[NDArray[np.float
     return speed, still
 
 
+def stance_frames(ref: LibraryReference, result: Result) -> Floats:
+    """``(C, T)``: each frame's gait's longest stance (frames) for its character. The suite plays
+    every size at its Froude tempo (synthesis' default: stride frequency ~ 1 / sqrt(h)), so a
+    character h times the library's size stands sqrt(h) times as many frames on each step: held
+    to the library's frames, a scale-2 dog's own steady canter read 1.1 and a small one's lone
+    stances were let run 1.4 times the length its tempo gives."""
+    return np.asarray(ref.stance[result.gait] * np.sqrt(result.scales)[:, None])
+
+
 def edge_figures(bank: Bank, result: Result, reference_path: NDArray[np.floating], frames_in: int,
                  ref: LibraryReference, ground: HeightField | None = None) -> dict[str, Any]:
     """Every edge figure of one synthesized scenario, from world positions after FK.
@@ -383,7 +392,7 @@ def edge_figures(bank: Bank, result: Result, reference_path: NDArray[np.floating
         "limb_flips": int(flips.sum()),
         "limb_flips_at": {sk.names[hinges[i, 1]]: int(flips[i]) for i in np.flatnonzero(flips)},
         "walk_support_share": _round(float(np.mean(feet_down[walk] >= 2)) if walk.any() else float("nan")),
-        "single_support_ratio_max": _round(float((alone / ref.stance[result.gait]).max()), 3),
+        "single_support_ratio_max": _round(float((alone / stance_frames(ref, result)).max()), 3),
         "stretch_pct_max": _round(max(0.0, float(stretch) - 1.0) * 100, 2),
         "floating_cm_max": _round(max(0.0, M.floating_m(heights, speed, SLOW_BODY)) * 100, 2),
         "still_four_down_share": _round(float(np.mean(feet_down[still] == 4)) if still.any() else nan),
