@@ -9,7 +9,6 @@ import pytest
 from synth_core.quality import herd_sim as crowd
 from synth_core.runtime.bank import Bank
 from synth_core.runtime.footlock import MAX_SINK
-from synth_core.runtime.live import LiveSynth
 from synth_core.runtime.live_shards import LiveShards
 from synth_core.runtime.streaming import Window
 from synth_core.runtime.streaming import joined as shards_joined

@@ -218,7 +218,8 @@ class LiveSynth:
         are left unset (nobody is sent them)."""
         arr = np.asarray(pose, bool)
         if arr.shape != self.pose.shape:
-            raise TrajectoryError(f"pose: expected {len(self.pose)} flags (one per character), got shape {arr.shape}")
+            raise TrajectoryError(f"pose: expected {len(self.pose)} flags (one per character), "
+                                  f"got shape {arr.shape}")
         self.pose = arr.copy()
 
     def take(self, frames: int | None = None) -> Window | None:
