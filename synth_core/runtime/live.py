@@ -446,6 +446,9 @@ class LiveSynth:
         lo, hi = -(-start // k) - o0, -(-stop // k) - o0
         if self.foot_lock:
             begin, end = (kernels.lock_context if self.compiled else lock_context)(buf.contacts, lo, hi)
+            # An unposed character reads its window's frames alone (so does the copy of the plan
+            # the kernel reads, when no posed character's lock reaches further).
+            begin[~self.pose], end[~self.pose] = lo, hi
         else:
             C = len(self.scales)
             begin, end = np.full(C, lo), np.full(C, hi)
