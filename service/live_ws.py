@@ -73,7 +73,7 @@ def new_details(p: Packing, body: dict[str, Any]) -> Packing:
 def posed(p: Packing) -> NDArray[np.bool_]:
     """The characters whose rotations are sent (all but those at root_gait): the others are not
     posed at all (:meth:`synth_core.runtime.live.LiveSynth.set_posed`)."""
-    return np.array([d != "root_gait" for d in p.details], bool)
+    return np.asarray(p.levels != DETAILS.index("root_gait"))
 
 
 def new_ground(body: dict[str, Any]) -> HeightField | None:
