@@ -11,7 +11,7 @@ For each configuration:
 
 1. ``capacity``: the herd fed as fast as the service takes it (unpaced): characters x simulated
    seconds / wall seconds -- the characters it would keep at 30 fps if the cost is linear;
-2. ``held``: then a herd of the target (or, if the capacity is short of it, 90% of the
+2. ``held``: then a herd of 90% of the capacity (or the target, if between that and the
    capacity) fed in real time; held if no frame's pose came later than the session's
    documented latency plus two ticks (a second: a frame settles only when the tick bringing
    its look-ahead's last point arrives, then takes the making and sending of a tick): a service
@@ -82,7 +82,8 @@ def configuration(url: str, encoding: str, mix: str, target: int, paths: np.ndar
     capacity = probe["characters_30fps"]
     log(f"live-scale {encoding}/{mix}: {target:,} unpaced -> capacity {capacity:,.0f} at 30 fps")
     tries = []
-    size = min(target, int(0.9 * capacity) // 100 * 100)
+    # 90% of the capacity (the largest herd it may hold) -- or the target, if that is between.
+    size = target if 0.9 * capacity < target <= capacity else int(0.9 * capacity) // 100 * 100
     for _ in range(2):
         if size < 100:
             break
