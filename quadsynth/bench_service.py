@@ -25,6 +25,9 @@ directory) and stops it after. Figures (500 horses, crowd-sim, seed 0, msgpack, 
   bytes on the wire: per joint-frame and per character-frame (whole chunk messages: root, gait
   and contacts included), per second per character at 30 fps, and per second for 100,000 horses
   at 30 fps at that cost (``link_MB_s_100k_at_30fps``: the figure to hold against a 1 Gbit/s link's 125).
+- ``live_scale`` (:mod:`quadsynth.bench_live_scale`; alone: ``--live-scale``, a few minutes): per
+  encoding and level-of-detail mix, the largest herd held at 30 fps (sessions of 5,000 side by
+  side, fed in real time) and its bytes per second on the wire, against the issue's targets.
 """
 
 from __future__ import annotations
@@ -133,16 +136,21 @@ def tick(paths: np.ndarray, i: int) -> np.ndarray:
 
 def live(url: str, characters: int = LIVE_CHARACTERS, seconds: float = LIVE_SECONDS,
          paced: bool = False, options: dict[str, Any] | None = None,
-         wire: dict[str, float] | None = None) -> tuple[float, float]:
+         wire: dict[str, float] | None = None, paths: np.ndarray | None = None,
+         ready: Callable[[], object] | None = None) -> tuple[float, float]:
     """A live session of ``characters`` fed ``seconds`` of 30 fps points, LIVE_TICK at a time --
     as fast as the service takes them, or ``paced`` as a simulation makes them -- acking every
     chunk, reading it as a game client would, into one buffer, not decoding it
     (:mod:`quadsynth.bench_ws`: the client must not take the cores it measures). Returns
     (characters it keeps at 30 fps, the longest from sending a frame's point to getting its pose).
     ``options``: the live message's (encoding, lod, characters' details); ``wire``: filled with
-    the chunks' bytes and frames."""
+    the chunks' bytes and frames (and ``latency_s``, the session's); ``paths``: the points
+    ``(characters, F, 3)`` (default: a crowd simulation's); ``ready``: called once the session
+    has started, before its clock does (several sessions started together: see
+    :mod:`quadsynth.bench_live_scale`)."""
     F = int(seconds * 30) + 1
-    paths = crowd.simulate(characters, F, seed=0, fps=30.0).astype(np.float32)
+    if paths is None:
+        paths = crowd.simulate(characters, F, seed=0, fps=30.0).astype(np.float32)
     ticks = [msgpack.packb({"type": "points", "points": blob(tick(paths, i))},
                            use_bin_type=True)
              for i in range(0, F, LIVE_TICK)]
@@ -156,6 +164,7 @@ def live(url: str, characters: int = LIVE_CHARACTERS, seconds: float = LIVE_SECO
         if header["type"] != "start":
             raise SystemExit(f"bench-service: the live session failed: {header}")
         settled = F - header["latency_frames"]  # frames sure to come before finish
+        _started(header, wire, ready)
         t0 = time.perf_counter()
         while True:
             due = t0 + len(sent_at) * LIVE_TICK / 30 if paced else 0.0
@@ -186,6 +195,15 @@ def live(url: str, characters: int = LIVE_CHARACTERS, seconds: float = LIVE_SECO
                 raise SystemExit(f"bench-service: the live session failed: {message}")
         wall = time.perf_counter() - t0
     return characters * (F / 30) / wall, worst
+
+
+def _started(header: dict[str, Any], wire: dict[str, float] | None,
+             ready: Callable[[], object] | None) -> None:
+    """A live session's start: its latency noted in ``wire``, ``ready`` called."""
+    if wire is not None:
+        wire["latency_s"] = header["latency_s"]
+    if ready is not None:
+        ready()
 
 
 ENCODING_CHARACTERS, ENCODING_SECONDS = 1000, 4.0
@@ -230,12 +248,16 @@ def encodings(url: str) -> dict[str, Any]:
     return out
 
 
-def run(url: str | None = None, repeats: int = REPEATS, only_encodings: bool = False) -> dict[str, Any]:
+def run(url: str | None = None, repeats: int = REPEATS, only_encodings: bool = False,
+        only_live_scale: bool = False) -> dict[str, Any]:
+    from quadsynth.bench_live_scale import live_scale
+
     if url is None:
         with local_service() as local:
-            return run(local, repeats, only_encodings)
-    if only_encodings:
-        return {"encodings": encodings(url)}
+            return run(local, repeats, only_encodings, only_live_scale)
+    if only_encodings or only_live_scale:
+        return ({"encodings": encodings(url)} if only_encodings else {}) | (
+            {"live_scale": live_scale(url, log=_log)} if only_live_scale else {})
     paths = crowd.simulate(CHARACTERS, FRAMES, seed=0).astype(np.float32)
     body = {"seed": 1, "encoding": "s48",
             "characters": [{"id": f"h{c}", "points": blob(p)} for c, p in enumerate(paths)]}
@@ -255,4 +277,8 @@ def run(url: str | None = None, repeats: int = REPEATS, only_encodings: bool = F
             "live_paced_characters": paced, "live_latency_s_max": round(live_latency, 3),
             "bytes_per_joint_frame": len(rotations["data"]) / (frames * joints),
             "rest_seconds": round(seconds, 3), "response_bytes": len(content),
-            "encodings": encodings(url)}
+            "encodings": encodings(url), "live_scale": live_scale(url, log=_log)}
+
+
+def _log(line: str) -> None:
+    print(line, file=sys.stderr, flush=True)  # progress; the JSON alone goes to stdout

@@ -79,7 +79,7 @@ def _bench(args: argparse.Namespace, extra: list[str]) -> int:
 def _bench_service(args: argparse.Namespace, extra: list[str]) -> int:
     from quadsynth.bench_service import run
 
-    figures = run(args.url, args.repeats, args.encodings)
+    figures = run(args.url, args.repeats, args.encodings, args.live_scale)
     print(json.dumps(figures) if args.json else json.dumps(figures, indent=2))
     return 0
 
@@ -116,4 +116,7 @@ def add_figure_commands(sub: Any) -> None:
     bs.add_argument("--json", action="store_true", help="one JSON object on one line")
     bs.add_argument("--encodings", action="store_true",
                     help="only the bytes per joint-frame and per second of each encoding and LOD mix")
+    bs.add_argument("--live-scale", action="store_true",
+                    help="only the largest live herd held at 30 fps per encoding and LOD mix, and its "
+                         "bytes per second on the wire (with --encodings: both)")
     bs.set_defaults(func=_bench_service, passthrough=False)

@@ -28,6 +28,7 @@ from api_schemas.packing import contact_bits, pack_rotations
 from api_schemas.wire import BYTES_PER_JOINT_FRAME, Encoding, packed_dtype
 from service import encode, jobs
 from synth_core.compiled.scratch import Scratch
+from synth_core.motion.lod import DETAILS
 from synth_core.runtime.bank import Bank
 from synth_core.runtime.parallel_render import render_in_order
 from synth_core.runtime.synthesis import Rendered, prepare_batch
@@ -275,6 +276,28 @@ def _prepare(job: jobs.Job, bank: Bank, prepared: Callable[[int, int], None] | N
     return _Batch(prep, h, keys, options, jobs.output_frames(job, T, prep.kept))
 
 
+def _packed_rotations(chunk: Rendered, frames: list[int], p: encode.Packing
+                      ) -> list[tuple[np.ndarray, dict[str, Any]]]:
+    """Each character's packed rotations (its frames sent) and their map, packed a group at a
+    time -- the characters of one frame count and one detail: usually the whole chunk -- not
+    one encoder call per character."""
+    sl = chunk.characters
+    cs = np.arange(sl.start, sl.stop)
+    group = np.asarray(frames)[cs] * len(DETAILS) + p.levels[cs]  # (frames, detail)
+    out: list[tuple[np.ndarray, dict[str, Any]]] = [(np.empty(0), {})] * len(cs)
+    for g in np.unique(group).tolist():
+        members = np.flatnonzero(group == g)
+        n, level = divmod(g, len(DETAILS))
+        joints = None if DETAILS[level] == "full" else p.joints(DETAILS[level])
+        a, b = int(members[0]), int(members[-1]) + 1
+        # A run of rows is a view; scattered ones (mixed frame counts or details) a copy.
+        rows = slice(a, b) if b - a == len(members) else members
+        q = chunk.rotations[rows, 0:n:p.frame_step]
+        for i, one in zip(members.tolist(), encode.rotations_each(q, p, cs[members], joints), strict=True):
+            out[i] = one
+    return out
+
+
 def produce_detailed(job: jobs.Job, bank: Bank, meta: dict[str, Any], emit: Callable[[Any], None],
                      as_json: bool, batch: _Batch, p: encode.Packing) -> int:
     """:func:`produce` of an answer whose size is known only once it is packed (delta) or that
@@ -289,17 +312,9 @@ def produce_detailed(job: jobs.Job, bank: Bank, meta: dict[str, Any], emit: Call
         sl = chunk.characters
         bits = contact_bits(chunk.plan.contacts)
         out = []
-        for i in range(sl.stop - sl.start):
+        for i, (packed, rot) in enumerate(_packed_rotations(chunk, frames, p)):
             c = sl.start + i
             sent = slice(0, frames[c], k)
-            detail = p.details[c]
-            joints = None if detail == "full" else p.joints(detail)
-            packed, rot = encode.rotations(chunk.rotations[i:i + 1, sent], p, np.array([c]), joints)
-            if p.encoding == "delta":
-                rot["decoded_shape"] = rot["decoded_shape"][1:]
-            else:
-                packed = packed[0]
-                rot["shape"] = rot["shape"][1:]
             n = len(range(*sent.indices(T)))
             # Copies: the chunk lives in this thread's scratch pages, which its next chunk reuses.
             arrays = [np.array(a, order="C") for a in (chunk.root[i, sent], packed,

@@ -70,6 +70,12 @@ def new_details(p: Packing, body: dict[str, Any]) -> Packing:
     return replace(p, details=tuple(p.default if d is None else d for d in details))
 
 
+def posed(p: Packing) -> NDArray[np.bool_]:
+    """The characters whose rotations are sent (all but those at root_gait): the others are not
+    posed at all (:meth:`synth_core.runtime.live.LiveSynth.set_posed`)."""
+    return np.asarray(p.levels != DETAILS.index("root_gait"))
+
+
 def new_ground(body: dict[str, Any]) -> HeightField | None:
     """A ``ground`` message's height field (null: the points' y from now on); 422 naming the
     field (``ground.heights``, ...) as for the session's opening ``ground``."""
@@ -185,6 +191,7 @@ class LiveRun:
                 return
             if message.get("type") == "lod":  # the characters' details from the next chunk on
                 self.p = new_details(self.p, message)
+                synth.set_posed(posed(self.p))
                 continue
             if message.get("type") == "ground":  # the terrain of the frames rendered from now on
                 synth.set_ground(new_ground(message))
@@ -228,6 +235,7 @@ async def stream_live(s: Session, body: dict[str, Any]) -> None:
     bank = s.state.registry.banks[req.animal]
     p = encode.packing(req.encoding, req.lod.frame_step, req.lod.detail,
                        [c.detail for c in req.characters], bank.skeleton, synth.scales)
+    synth.set_posed(posed(p))
     await s.send(_start_message(s, number, req, synth, p))
     s.started()
     run = LiveRun(s, number, req, synth, p)

@@ -108,12 +108,35 @@ def _assemble(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, yaw:
         for j in range(J):
             for k in range(4):
                 frame[j, k] = pose[k, j]
-        # The heading's half-angle sine and cosine give the whole angle's too (two calls, not four).
-        sh, ch = math.sin(0.5 * yaw[t]), math.cos(0.5 * yaw[t])
+        sh, ch = _put_root(ht, sg, yaw[t], path[t], h, out_root[t])
         put(frame[0], qmul((0.0, sh, 0.0, ch), q4(frame[0])))
-        out_root[t, 0] = path[t, 0] + 2.0 * sh * ch * sg * h
-        out_root[t, 1] = path[t, 1] + ht * h
-        out_root[t, 2] = path[t, 2] + (ch * ch - sh * sh) * sg * h
+
+
+@_jit()
+def _put_root(ht: float, sg: float, yaw: float, path: Any, h: float, out: Any) -> tuple[float, float]:
+    """A frame's root on the path (its height and surge blended already); the heading's
+    half-angle sine and cosine, which give the whole angle's too (two calls, not four)."""
+    sh, ch = math.sin(0.5 * yaw), math.cos(0.5 * yaw)
+    out[0] = path[0] + 2.0 * sh * ch * sg * h
+    out[1] = path[1] + ht * h
+    out[2] = path[2] + (ch * ch - sh * sh) * sg * h
+    return sh, ch
+
+
+@_jit()
+def _root_only(height: Any, surge: Any, rows: Any, weights: Any, yaw: Any, path: Any, h: float,
+               out_root: Any) -> None:
+    """Pass 1's root alone (:func:`_assemble` without the pose): a character at root_gait detail,
+    whose rotations nobody is sent -- the plan's root, before the foot lock's sink."""
+    for t in range(out_root.shape[0]):
+        r0, r1, p0, p1 = rows[t, 0], rows[t, 1], rows[t, 2], rows[t, 3]
+        w, pw, keep = weights[t, 0], weights[t, 1], weights[t, 2]
+        ht = height[r0] * (1 - w) + height[r1] * w
+        sg = surge[r0] * (1 - w) + surge[r1] * w
+        if keep > 0:
+            ht = ht * (1 - keep) + (height[p0] * (1 - pw) + height[p1] * pw) * keep
+            sg = sg * (1 - keep) + (surge[p0] * (1 - pw) + surge[p1] * pw) * keep
+        _put_root(ht, sg, yaw[t], path[t], h, out_root[t])
 
 
 @_jit()
@@ -233,13 +256,15 @@ def _render_windows(poses: Any, height: Any, surge: Any, rows: Any, weights: Any
                     scales: Any, contacts: Any, parents: Any, offsets: Any, fk_joints: Any, rigs: Any,
                     bends: Any, sink_limit: float, foot_lock: bool, workers: int, begin: Any, end: Any,
                     start: int, out_rot: Any, out_root: Any, tilt: Any, heights: Any, ground_x0: float,
-                    ground_z0: float, spacing: float, known_feet: Any, known: Any,
+                    ground_z0: float, spacing: float, pose: Any, known_feet: Any, known: Any,
                     known_legs: Any, legs_at: Any, c0: int, c1: int) -> None:
     """Frames ``[start, start + out.shape[1])`` of characters ``[c0, c1)``, each rendered over
     its own context ``[begin[c], end[c])`` of the plan (see :func:`render_window`);
     ``known_feet (T, C, 4, 3)`` (or none: ``(0, C, 4, 3)``), ``known``, ``known_legs``,
     ``legs_at``: a :class:`Posed`'s, moved on (``known`` to ``end``, ``legs_at`` to the
-    window's end). Calls for disjoint character ranges may run side by side."""
+    window's end). Calls for disjoint character ranges may run side by side. ``pose (C,)``:
+    the characters posed; the others get their root alone (:func:`_root_only`), their rotations
+    left as they were in ``out_rot`` and nothing of theirs kept."""
     n, J = out_rot.shape[1], out_rot.shape[2]
     longest = 0
     for c in range(c0, c1):
@@ -258,6 +283,12 @@ def _render_windows(poses: Any, height: Any, surge: Any, rows: Any, weights: Any
         eased = np.empty(longest)
         no_recent = np.empty((PAD, 4, LEG_WIDTH))
         for c in range(c0 + worker, c1, workers):
+            if not pose[c]:
+                _root_only(height, surge, rows[c, start:start + n], weights[c, start:start + n],
+                           yaw[c, start:start + n], path[c, start:start + n], scales[c], out_root[c])
+                if keep:
+                    legs_at[c] = NOWHERE
+                continue
             b, e = begin[c], end[c]
             k = e - b
             kn = min(max(known[c] - b, 0), k) if keep else 0  # frames with their feet known
@@ -275,8 +306,9 @@ def _render_windows(poses: Any, height: Any, surge: Any, rows: Any, weights: Any
             out_root[c] = root[start - b:start - b + n]
             if keep and foot_lock:
                 legs_at[c] = start + n if made else NOWHERE
-                if known[c] >= b:  # frames [0, e) known now (else a gap before b)
-                    known[c] = max(known[c], e)
+                # Frames [0, e) known now -- or, after a gap (the character not posed for a
+                # while: at root_gait), [b, e), posed whole here: no later context begins before b.
+                known[c] = max(known[c], e) if known[c] >= b else e
 
 
 @_jit()
@@ -402,7 +434,8 @@ def render_window(bank: Bank, plan: Plan, start: int, stop: int, begin: NDArray[
                   end: NDArray[np.int64], foot_lock: bool = True, known: Posed | None = None,
                   out: NDArray[np.float32] | None = None,
                   share: Callable[[list[Callable[[], None]]], None] | None = None,
-                  ground: Grounding | None = None) -> tuple[NDArray[np.float32], NDArray[np.float32]]:
+                  ground: Grounding | None = None, pose: NDArray[np.bool_] | None = None
+                  ) -> tuple[NDArray[np.float32], NDArray[np.float32]]:
     """Root ``(C, stop - start, 3)`` and rotations of frames ``[start, stop)`` only, each
     character rendered over its context ``[begin, end)`` of ``plan`` (from
     :func:`synth_core.runtime.streaming.lock_context`): the same numbers as :func:`render` of the whole
@@ -421,10 +454,17 @@ def render_window(bank: Bank, plan: Plan, start: int, stop: int, begin: NDArray[
     some): renders side by side on the pool's threads -- a live session's shards, a stream's
     first-window parts -- finish together though one has more to pose than the other.
 
-    ``ground``: the plan stands on a terrain (:func:`synth_core.runtime.terrain.ground_plan`)."""
+    ``ground``: the plan stands on a terrain (:func:`synth_core.runtime.terrain.ground_plan`).
+
+    ``pose (C,)``: the characters whose rotations are wanted (None: all). The others (a live
+    session's far characters, at root_gait detail) get the plan's root alone -- no pose, no foot
+    lock, so no sink: the root the full render would give but for its height where a leg could
+    not reach its plant -- and their rows of the rotations are not written."""
     if not AVAILABLE:
         raise RuntimeError("synth_core.compiled.kernels needs numba; use the numpy backend")
     C = plan.yaw.shape[0]
+    pose = np.ones(C, np.bool_) if pose is None else np.ascontiguousarray(pose, np.bool_)
+    assert pose.shape == (C,)
     J = bank.skeleton.n_joints
     # Only the frames some context reads are made contiguous.
     cb, ce = int(np.min(begin)), int(np.max(end))
@@ -448,7 +488,7 @@ def render_window(bank: Bank, plan: Plan, start: int, stop: int, begin: NDArray[
     args = (*table, *_plan_arrays(plan.window(cb, ce)), *skeleton, foot_lock,
             1 if share else numba.get_num_threads(), np.asarray(begin, np.int64) - cb,
             np.asarray(end, np.int64) - cb, start - cb, out_rot, out_root,
-            *_terrain_arrays(None if ground is None else ground.window(cb, ce)),
+            *_terrain_arrays(None if ground is None else ground.window(cb, ce)), pose,
             posed.feet[cb:ce] if known is not None else posed.feet, posed.frames, posed.legs, posed.legs_at)
     try:
         if share is None:

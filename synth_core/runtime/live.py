@@ -195,6 +195,9 @@ class LiveSynth:
         # What the sink reads of the legs on the last PAD frames sent (see kernels.Posed).
         self.recent_legs = np.empty((C, PAD, 4, LEG_WIDTH))
         self.legs_at = np.full(C, NOWHERE)
+        # The characters whose rotations are wanted (see set_posed); character-frames sent posed so far.
+        self.pose = np.ones(C, bool)
+        self.posed_frames = 0
 
     @property
     def window_frames(self) -> int:
@@ -232,6 +235,18 @@ class LiveSynth:
     def set_ground(self, ground: HeightField | None) -> None:
         """The terrain the frames rendered from now on stand on (None: the points' y)."""
         self.ground = ground
+
+    def set_posed(self, pose: ArrayLike) -> None:
+        """``(C,)`` bool: the characters whose rotations the frames rendered from now on need
+        (a client's level of detail: False for one at root_gait). The others are not posed --
+        no pose, no foot lock: a fraction of the render -- and get the plan's root (without the
+        foot lock's sink), their gait and contacts as before; their rows of a window's rotations
+        are left unset (nobody is sent them)."""
+        arr = np.asarray(pose, bool)
+        if arr.shape != self.pose.shape:
+            raise TrajectoryError(f"pose: expected {len(self.pose)} flags (one per character), "
+                                  f"got shape {arr.shape}")
+        self.pose = arr.copy()
 
     def take(self, frames: int | None = None) -> Window | None:
         """The next frames settled and not yet given, at most ``frames`` of them (None: all);
@@ -457,6 +472,9 @@ class LiveSynth:
         lo, hi = -(-start // k) - o0, -(-stop // k) - o0
         if self.foot_lock:
             begin, end = (kernels.lock_context if self.compiled else lock_context)(buf.contacts, lo, hi)
+            # An unposed character reads its window's frames alone (so does the copy of the plan
+            # the kernel reads, when no posed character's lock reaches further).
+            begin[~self.pose], end[~self.pose] = lo, hi
         else:
             C = len(self.scales)
             begin, end = np.full(C, lo), np.full(C, hi)
@@ -472,13 +490,18 @@ class LiveSynth:
             out = None if self.scratch is None else self.scratch.array(
                 "live.rotations", (len(self.scales), hi - lo, self.bank.skeleton.n_joints, 4), np.float32)
             root, rot = kernels.render_window(self.bank, buf, lo, hi, begin, end, self.foot_lock, posed, out,
-                                              self.share, ground)
+                                              self.share, ground, self.pose)
             self.known_feet, self.legs_at = posed.frames + o0, posed.legs_at + o0
         else:
             cb, ce = int(begin.min()), int(end.max())
             root, rot = render(self.bank, buf.window(cb, ce), self.foot_lock,
                                None if ground is None else ground.window(cb, ce))
             root, rot = root[:, lo - cb:hi - cb], rot[:, lo - cb:hi - cb]
+            if not self.pose.all():  # the reference: the unposed characters' root as the kernel gives it
+                free, _ = render(self.bank, buf.window(lo, hi), False,
+                                 None if ground is None else ground.window(lo, hi))
+                root[~self.pose] = free[~self.pose]
+        self.posed_frames += int(self.pose.sum()) * (hi - lo)
         # Copies: the buffer's columns are written over by later blocks.
         window = Window(self.emitted, root, rot, buf.gait[:, lo:hi].copy(), buf.contacts[:, lo:hi].copy())
         self.emitted += hi - lo

@@ -113,6 +113,20 @@ class LiveShards:
         """:meth:`LiveSynth.take` for every shard."""
         return self._windows(self._run(lambda i, p: p.take(frames)))
 
+    def set_posed(self, pose: ArrayLike) -> None:
+        """:meth:`LiveSynth.set_posed` for every shard: ``(C,)`` flags of the whole session."""
+        arr = np.asarray(pose, bool)
+        if arr.shape != (self.n_characters,):
+            raise TrajectoryError(f"pose: expected {self.n_characters} flags (one per character), "
+                                  f"got shape {arr.shape}")
+        for part, a, b in zip(self.parts, self.cuts[:-1], self.cuts[1:], strict=True):
+            part.set_posed(arr[a:b])
+
+    @property
+    def posed_frames(self) -> int:
+        """Character-frames posed so far (see :meth:`LiveSynth.set_posed`)."""
+        return sum(p.posed_frames for p in self.parts)
+
     def set_ground(self, ground: HeightField | None) -> None:
         """:meth:`LiveSynth.set_ground` for every shard (between steps: none is rendering)."""
         for part in self.parts:
