@@ -182,3 +182,35 @@ def test_compiled_sampling_is_the_numpy_sampling() -> None:
     x, z = rng.uniform(-3.0, 30.0, (2, 7, 11))  # some outside the grid
     want = sample(heights, -1.0, 0.5, 0.5, x, z)
     assert np.array_equal(ground_kernels.ground_samples(heights, -1.0, 0.5, 0.5, x, z), want)
+
+
+@pytest.mark.parametrize("backend", ["numba", "numpy"])
+def test_a_live_session_chooses_its_gaits_on_the_speed_along_the_ground_as_the_batch(
+        bank: Bank, backend: str) -> None:
+    if backend == "numba" and not kernels.AVAILABLE:
+        pytest.skip("numba is not installed")
+    # Straight up a 30% slope at speeds around the gaits' boundaries: over the map they read 4.4%
+    # slower than along the ground, which moves some gait choices.
+    T = 900
+    speed = np.interp(np.arange(T), [0, 300, 600, T], [1.0, 2.4, 4.2, 1.6])
+    paths = np.zeros((4, T, 3))
+    for c in range(4):
+        paths[c, :, 2] = np.cumsum(speed * (0.9 + 0.07 * c)) / 60.0
+        paths[c, :, 0] = 2.0 * c
+    xs = np.arange(-5.0, 60.0)
+    field = HeightField.make(np.tile(0.3 * xs[:, None], (1, 20)), origin=(-5.0, -5.0), spacing=1.0)
+    opts = dict(seed=5, foot_lock=False, backend=backend)
+    batch = synthesize(bank, paths, 60.0, options=Options(ground=field, **opts))  # type: ignore[arg-type]
+    flat = synthesize(bank, paths, 60.0, options=Options(**opts))  # type: ignore[arg-type]
+    live = LiveSynth(bank, len(paths), 60.0, seed=5, foot_lock=False, backend=backend, ground=field)
+    windows = [w for i in range(0, T, 7) if (w := live.append(paths[:, i:i + 7])) is not None]
+    if (last := live.finish()) is not None:
+        windows.append(last)
+    gait = np.concatenate([w.gait for w in windows], axis=1)
+    contacts = np.concatenate([w.contacts for w in windows], axis=1)
+    root = np.concatenate([w.root_pos for w in windows], axis=1)
+    t = slice(0, T - 3 * bank.mean_cycle)  # as tests/test_live.py: the batch's last segment differs
+    assert not np.array_equal(batch.gait[:, t], flat.gait[:, t])  # the slope moved some choices ...
+    np.testing.assert_array_equal(gait[:, t], batch.gait[:, t])  # ... and live moved them alike
+    np.testing.assert_array_equal(contacts[:, t], batch.contacts[:, t])
+    np.testing.assert_allclose(root[:, t], batch.root_pos[:, t], atol=1e-5)

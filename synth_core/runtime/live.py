@@ -61,7 +61,7 @@ from synth_core.runtime.plan import (
 )
 from synth_core.runtime.streaming import Window, lock_context
 from synth_core.runtime.synthesis import character_scales, character_tempo, render
-from synth_core.runtime.terrain import HeightField, on_ground
+from synth_core.runtime.terrain import HeightField, laid, on_ground
 from synth_core.runtime.trajectory import DEFAULT_SIGMA, GROUND, TELEPORT_M, TrajectoryError
 
 KEEP_PLANS = 1  # of the slowest cycle: planned frames kept as the foot lock's context
@@ -341,7 +341,9 @@ class LiveSynth:
         if whole > self.n_seg:
             a, b = self.n_seg * m, whole * m + 1
             pts = self._path(a, b)
-            step = np.linalg.norm(np.diff(pts[..., GROUND], axis=1), axis=-1)
+            # With a terrain, the speed along the ground, as the batch's (terrain.along_ground).
+            on = pts[..., GROUND] if self.ground is None else laid(pts, self.ground)
+            step = np.linalg.norm(np.diff(on, axis=1), axis=-1)
             counts = np.full(whole - self.n_seg, m)  # as segment_speeds divides, for the same bits
             speeds = step.reshape(len(step), -1, m).sum(axis=2) / counts * self.bank.fps
             self.seg = np.concatenate([self.seg, speeds / self.pace[:, None]], axis=1)
