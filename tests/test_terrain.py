@@ -214,3 +214,45 @@ def test_a_live_session_chooses_its_gaits_on_the_speed_along_the_ground_as_the_b
     np.testing.assert_array_equal(gait[:, t], batch.gait[:, t])  # ... and live moved them alike
     np.testing.assert_array_equal(contacts[:, t], batch.contacts[:, t])
     np.testing.assert_allclose(root[:, t], batch.root_pos[:, t], atol=1e-5)
+
+
+def _live_feet(bank: Bank, live: LiveSynth, paths: np.ndarray, change: tuple[int, HeightField]) -> np.ndarray:
+    """The session's feet after FK ``(C, T, 4, 3)``, points 6 at a time, the ground set anew
+    before the points from frame ``change[0]`` on."""
+    windows = []
+    for i in range(0, paths.shape[1], 6):
+        if i == change[0]:
+            live.set_ground(change[1])
+        if (w := live.append(paths[:, i:i + 6])) is not None:
+            windows.append(w)
+    if (last := live.finish()) is not None:
+        windows.append(last)
+    root = np.concatenate([w.root_pos for w in windows], axis=1)
+    rot = np.concatenate([w.rotations for w in windows], axis=1)
+    offsets = bank.skeleton.offsets[None, None] * live.scales[:, None, None, None].astype(np.float32)
+    return np.asarray(forward_kinematics(bank.skeleton, root, rot, offsets)[0])[..., bank.skeleton.foot_joints, :]
+
+
+@pytest.mark.parametrize("backend", ["numba", "numpy"])
+def test_a_new_ground_mid_session_is_faded_in_not_jumped_to(bank: Bank, backend: str,
+                                                            monkeypatch: pytest.MonkeyPatch) -> None:
+    if backend == "numba" and not kernels.AVAILABLE:
+        pytest.skip("numba is not installed")
+    from synth_core.runtime import live as live_module
+    T = 600
+    paths = np.zeros((3, T, 3))
+    for c, speed in enumerate((0.0, 1.5, 3.0)):  # standing, walking, trotting
+        paths[c, :, 2] = np.arange(T) * speed / 60.0
+        paths[c, :, 0] = 3.0 * c
+    low = HeightField.make(np.zeros((4, 4)), origin=(-10.0, -10.0), spacing=20.0)
+    high = HeightField.make(np.full((4, 4), 0.2), origin=(-10.0, -10.0), spacing=20.0)  # 20 cm up
+    feet = _live_feet(bank, LiveSynth(bank, 3, 60.0, seed=3, backend=backend, ground=low), paths, (360, high))
+    # Frames from 150 on: the change falls there (the frames rendered after the points of frame
+    # 360 came; the trot's first strides jump on flat ground too).
+    jumps = M.one_frame_jumps_mm(feet[:, 150:])
+    assert jumps.max() < 60.0  # no one-frame jump of a foot
+    assert feet[:, :120, :, 1].min() < 0.01 and feet[:, -60:, :, 1].min() > 0.19  # ... from one to the other
+    # Without the fade (over no time), the feet jump the whole 20 cm in one frame: what is tested.
+    monkeypatch.setattr(live_module, "GROUND_BLEND_S", 1e-9)
+    sudden = _live_feet(bank, LiveSynth(bank, 3, 60.0, seed=3, backend=backend, ground=low), paths, (360, high))
+    assert M.one_frame_jumps_mm(sudden[:, 150:]).max() > 150.0
