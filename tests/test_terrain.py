@@ -230,7 +230,8 @@ def _live_feet(bank: Bank, live: LiveSynth, paths: np.ndarray, change: tuple[int
     root = np.concatenate([w.root_pos for w in windows], axis=1)
     rot = np.concatenate([w.rotations for w in windows], axis=1)
     offsets = bank.skeleton.offsets[None, None] * live.scales[:, None, None, None].astype(np.float32)
-    return np.asarray(forward_kinematics(bank.skeleton, root, rot, offsets)[0])[..., bank.skeleton.foot_joints, :]
+    world = np.asarray(forward_kinematics(bank.skeleton, root, rot, offsets)[0])
+    return world[..., bank.skeleton.foot_joints, :]
 
 
 @pytest.mark.parametrize("backend", ["numba", "numpy"])
@@ -254,5 +255,6 @@ def test_a_new_ground_mid_session_is_faded_in_not_jumped_to(bank: Bank, backend:
     assert feet[:, :120, :, 1].min() < 0.01 and feet[:, -60:, :, 1].min() > 0.19  # ... from one to the other
     # Without the fade (over no time), the feet jump the whole 20 cm in one frame: what is tested.
     monkeypatch.setattr(live_module, "GROUND_BLEND_S", 1e-9)
-    sudden = _live_feet(bank, LiveSynth(bank, 3, 60.0, seed=3, backend=backend, ground=low), paths, (360, high))
+    sudden_live = LiveSynth(bank, 3, 60.0, seed=3, backend=backend, ground=low)
+    sudden = _live_feet(bank, sudden_live, paths, (360, high))
     assert M.one_frame_jumps_mm(sudden[:, 150:]).max() > 150.0
