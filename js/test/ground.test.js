@@ -61,11 +61,18 @@ test('live: the session opens on its ground, and a new one sent mid-session is f
   const session = await qs.live({ animal: 'horse', fps: 60, seed: 3, encoding: 'f32', ground: level(0.1),
     characters: [{ id: 'a' }, { id: 'b' }] }, { onChunk: (chunk) => { chunks.push(chunk); } });
   const scales = session.header.characters.map((ch) => ch.scale);
-  const n = 30;
-  for (let at = 0; at < F; at += n) {
-    if (at === F / 2) session.setGround(level(0.3)); // 20 cm up
+  const n = 30, L = 720, path = herd(C, L);
+  for (let at = 0; at < L; at += n) {
+    if (at === L / 2) {
+      // Once frames have come on the first ground (they are rendered as the acks allow): 20 cm up.
+      for (let waited = 0; chunks.reduce((k, ch) => k + ch.frames, 0) < 60; waited += 20) {
+        assert.ok(waited < 30000, 'no frames within 30 s');
+        await new Promise((resolve) => { setTimeout(resolve, 20); });
+      }
+      session.setGround(level(0.3));
+    }
     const part = new Float32Array(C * n * 3);
-    for (let c = 0; c < C; c++) part.set(points.subarray((c * F + at) * 3, (c * F + at + n) * 3), c * n * 3);
+    for (let c = 0; c < C; c++) part.set(path.subarray((c * L + at) * 3, (c * L + at + n) * 3), c * n * 3);
     session.push(part, n);
   }
   await session.finish();
