@@ -258,3 +258,28 @@ def test_a_new_ground_mid_session_is_faded_in_not_jumped_to(bank: Bank, backend:
     sudden_live = LiveSynth(bank, 3, 60.0, seed=3, backend=backend, ground=low)
     sudden = _live_feet(bank, sudden_live, paths, (360, high))
     assert M.one_frame_jumps_mm(sudden[:, 150:]).max() > 150.0
+
+
+@pytest.mark.parametrize("at", [0.05, 0.3, 0.5, 0.9])
+def test_a_swing_rises_over_a_step_or_a_bump_no_higher_than_it_in_both_backends(at: float) -> None:
+    """A 20 cm step, or a 20 cm bump 10 cm across, ``at`` of the way into a 1 m swing: the foot's
+    ground (its clip height 0 here) stays on or over the terrain and is never higher than the
+    terrain's top (the symmetric bump it replaced rose some 1.7 times a step near the swing's
+    ends); numpy and compiled alike."""
+    z = np.concatenate([np.zeros(10), np.linspace(0.0, 1.0, 12)[1:-1], np.ones(10)])
+    targets = np.zeros((1, 30, 4, 3))
+    targets[0, :, :, 2] = z[:, None]
+    contacts = np.zeros((1, 30, 4), bool)
+    contacts[0, :10] = contacts[0, 20:] = True
+    xs = np.arange(-1.0, 2.0, 0.01)
+    for terrain in (np.where(xs > at, 0.2, 0.0), np.where(np.abs(xs - at) < 0.05, 0.2, 0.0)):
+        field = HeightField.make(np.tile(terrain[:, None], (1, 3)), origin=(-0.01, -1.0), spacing=0.01)
+        y = ground_targets(targets, contacts, field, np.ones(1))[0, :, 0, 1]
+        under = field.sample(targets[0, :, 0, 0], targets[0, :, 0, 2])
+        assert np.all(y >= under - 1e-9) and y.max() <= 0.2 + 1e-9
+        if kernels.AVAILABLE:
+            from synth_core.compiled.foot_kernels import ground_targets as compiled
+            mine = targets[0].copy()  # the kernel writes in place
+            compiled(mine, np.ascontiguousarray(contacts[0]), field.heights, field.origin[0], field.origin[1],
+                     field.spacing, 1.0, np.empty(30))
+            np.testing.assert_allclose(mine[:, 0, 1], y, atol=1e-12)
