@@ -182,3 +182,104 @@ def test_compiled_sampling_is_the_numpy_sampling() -> None:
     x, z = rng.uniform(-3.0, 30.0, (2, 7, 11))  # some outside the grid
     want = sample(heights, -1.0, 0.5, 0.5, x, z)
     assert np.array_equal(ground_kernels.ground_samples(heights, -1.0, 0.5, 0.5, x, z), want)
+
+
+@pytest.mark.parametrize("backend", ["numba", "numpy"])
+def test_a_live_session_chooses_its_gaits_on_the_speed_along_the_ground_as_the_batch(
+        bank: Bank, backend: str) -> None:
+    if backend == "numba" and not kernels.AVAILABLE:
+        pytest.skip("numba is not installed")
+    # Straight up a 30% slope at speeds around the gaits' boundaries: over the map they read 4.4%
+    # slower than along the ground, which moves some gait choices.
+    T = 900
+    speed = np.interp(np.arange(T), [0, 300, 600, T], [1.0, 2.4, 4.2, 1.6])
+    paths = np.zeros((4, T, 3))
+    for c in range(4):
+        paths[c, :, 2] = np.cumsum(speed * (0.9 + 0.07 * c)) / 60.0
+        paths[c, :, 0] = 2.0 * c
+    xs = np.arange(-5.0, 60.0)
+    field = HeightField.make(np.tile(0.3 * xs[:, None], (1, 20)), origin=(-5.0, -5.0), spacing=1.0)
+    opts = dict(seed=5, foot_lock=False, backend=backend)
+    batch = synthesize(bank, paths, 60.0, options=Options(ground=field, **opts))  # type: ignore[arg-type]
+    flat = synthesize(bank, paths, 60.0, options=Options(**opts))  # type: ignore[arg-type]
+    live = LiveSynth(bank, len(paths), 60.0, seed=5, foot_lock=False, backend=backend, ground=field)
+    windows = [w for i in range(0, T, 7) if (w := live.append(paths[:, i:i + 7])) is not None]
+    if (last := live.finish()) is not None:
+        windows.append(last)
+    gait = np.concatenate([w.gait for w in windows], axis=1)
+    contacts = np.concatenate([w.contacts for w in windows], axis=1)
+    root = np.concatenate([w.root_pos for w in windows], axis=1)
+    t = slice(0, T - 3 * bank.mean_cycle)  # as tests/test_live.py: the batch's last segment differs
+    assert not np.array_equal(batch.gait[:, t], flat.gait[:, t])  # the slope moved some choices ...
+    np.testing.assert_array_equal(gait[:, t], batch.gait[:, t])  # ... and live moved them alike
+    np.testing.assert_array_equal(contacts[:, t], batch.contacts[:, t])
+    np.testing.assert_allclose(root[:, t], batch.root_pos[:, t], atol=1e-5)
+
+
+def _live_feet(bank: Bank, live: LiveSynth, paths: np.ndarray, change: tuple[int, HeightField]) -> np.ndarray:
+    """The session's feet after FK ``(C, T, 4, 3)``, points 6 at a time, the ground set anew
+    before the points from frame ``change[0]`` on."""
+    windows = []
+    for i in range(0, paths.shape[1], 6):
+        if i == change[0]:
+            live.set_ground(change[1])
+        if (w := live.append(paths[:, i:i + 6])) is not None:
+            windows.append(w)
+    if (last := live.finish()) is not None:
+        windows.append(last)
+    root = np.concatenate([w.root_pos for w in windows], axis=1)
+    rot = np.concatenate([w.rotations for w in windows], axis=1)
+    offsets = bank.skeleton.offsets[None, None] * live.scales[:, None, None, None].astype(np.float32)
+    world = np.asarray(forward_kinematics(bank.skeleton, root, rot, offsets)[0])
+    return world[..., bank.skeleton.foot_joints, :]
+
+
+@pytest.mark.parametrize("backend", ["numba", "numpy"])
+def test_a_new_ground_mid_session_is_faded_in_not_jumped_to(bank: Bank, backend: str,
+                                                            monkeypatch: pytest.MonkeyPatch) -> None:
+    if backend == "numba" and not kernels.AVAILABLE:
+        pytest.skip("numba is not installed")
+    from synth_core.runtime import live as live_module
+    T = 600
+    paths = np.zeros((3, T, 3))
+    for c, speed in enumerate((0.0, 1.5, 3.0)):  # standing, walking, trotting
+        paths[c, :, 2] = np.arange(T) * speed / 60.0
+        paths[c, :, 0] = 3.0 * c
+    low = HeightField.make(np.zeros((4, 4)), origin=(-10.0, -10.0), spacing=20.0)
+    high = HeightField.make(np.full((4, 4), 0.2), origin=(-10.0, -10.0), spacing=20.0)  # 20 cm up
+    feet = _live_feet(bank, LiveSynth(bank, 3, 60.0, seed=3, backend=backend, ground=low), paths, (360, high))
+    # Frames from 150 on: the change falls there (the frames rendered after the points of frame
+    # 360 came; the trot's first strides jump on flat ground too).
+    jumps = M.one_frame_jumps_mm(feet[:, 150:])
+    assert jumps.max() < 60.0  # no one-frame jump of a foot
+    assert feet[:, :120, :, 1].min() < 0.01 and feet[:, -60:, :, 1].min() > 0.19  # ... from one to the other
+    # Without the fade (over no time), the feet jump the whole 20 cm in one frame: what is tested.
+    monkeypatch.setattr(live_module, "GROUND_BLEND_S", 1e-9)
+    sudden_live = LiveSynth(bank, 3, 60.0, seed=3, backend=backend, ground=low)
+    sudden = _live_feet(bank, sudden_live, paths, (360, high))
+    assert M.one_frame_jumps_mm(sudden[:, 150:]).max() > 150.0
+
+
+@pytest.mark.parametrize("at", [0.05, 0.3, 0.5, 0.9])
+def test_a_swing_rises_over_a_step_or_a_bump_no_higher_than_it_in_both_backends(at: float) -> None:
+    """A 20 cm step, or a 20 cm bump 10 cm across, ``at`` of the way into a 1 m swing: the foot's
+    ground (its clip height 0 here) stays on or over the terrain and is never higher than the
+    terrain's top (the symmetric bump it replaced rose some 1.7 times a step near the swing's
+    ends); numpy and compiled alike."""
+    z = np.concatenate([np.zeros(10), np.linspace(0.0, 1.0, 12)[1:-1], np.ones(10)])
+    targets = np.zeros((1, 30, 4, 3))
+    targets[0, :, :, 2] = z[:, None]
+    contacts = np.zeros((1, 30, 4), bool)
+    contacts[0, :10] = contacts[0, 20:] = True
+    xs = np.arange(-1.0, 2.0, 0.01)
+    for terrain in (np.where(xs > at, 0.2, 0.0), np.where(np.abs(xs - at) < 0.05, 0.2, 0.0)):
+        field = HeightField.make(np.tile(terrain[:, None], (1, 3)), origin=(-0.01, -1.0), spacing=0.01)
+        y = ground_targets(targets, contacts, field, np.ones(1))[0, :, 0, 1]
+        under = field.sample(targets[0, :, 0, 0], targets[0, :, 0, 2])
+        assert np.all(y >= under - 1e-9) and y.max() <= 0.2 + 1e-9
+        if kernels.AVAILABLE:
+            from synth_core.compiled.foot_kernels import ground_targets as compiled
+            mine = targets[0].copy()  # the kernel writes in place
+            compiled(mine, np.ascontiguousarray(contacts[0]), field.heights, field.origin[0], field.origin[1],
+                     field.spacing, 1.0, np.empty(30))
+            np.testing.assert_allclose(mine[:, 0, 1], y, atol=1e-12)

@@ -13,6 +13,7 @@ from websockets.sync.client import connect
 
 from api_schemas.client import Client
 from api_schemas.wire import blob, unblob
+from synth_core.runtime.live import GROUND_BLEND_S
 from synth_core.runtime.terrain import MAX_CELLS, HeightField
 from tests.helpers.requests import LIMITS, batch, post, refused
 from tests.helpers.servers import running
@@ -135,8 +136,15 @@ def test_a_live_sessions_ground_is_replaced_by_a_ground_message(server: str) -> 
     assert all(r.shape[1] > 100 for r in roots), [r.shape for r in roots]
     flat = roots[0][..., 1]
     # Frames rendered after the message: the frames of points sent before it too (the latency),
-    # but every one of them on the slope, which is over a metre high under them (flat would miss it).
-    on = roots[1]
+    # every one of them on the slope once it has faded in (GROUND_BLEND_S), which is over a metre
+    # high under them (flat would miss it) -- and on its way there before, never past it.
+    fade = int(np.ceil(GROUND_BLEND_S * 60))
+    fading = roots[1][:, :fade]
+    lift = fading[..., 1] - field.sample(fading[..., 0], fading[..., 2])
+    assert lift.max() < flat.max() + 0.15  # never over the slope ...
+    first = fading[:, 0, 1]
+    assert flat.min() - 0.05 < first.min() and first.max() < flat.max() + 0.05  # ... from the flat
+    on = roots[1][:, fade:]
     above = on[..., 1] - field.sample(on[..., 0], on[..., 2])
     assert flat.min() - 0.15 < above.min() and above.max() < flat.max() + 0.15, (above.min(), above.max())
     assert field.sample(on[..., 0], on[..., 2]).min() > 1.0

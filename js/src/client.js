@@ -38,6 +38,33 @@ function toPoints(points, field) {
   throw new ServiceError(422, field, 'expected a Float32Array (F x 3) or an array of [x, y, z]');
 }
 
+/**
+ * A height field for a request's or a live session's `ground` (docs/terrain.md): the ground's y
+ * at x = origin[0] + j * spacing, z = origin[1] + i * spacing for heights[i][j] (metres, Y up).
+ * `heights`: rows (z) of heights (x), or a Float32Array / Float64Array of nz x nx with
+ * `shape` [nz, nx]. The service checks the rest (finite, at least 2 x 2, the size limit).
+ */
+export function ground(heights, { origin = [0, 0], spacing = 1, shape } = {}) {
+  let data = heights, dims = shape;
+  if (Array.isArray(heights)) {
+    const nx = Array.isArray(heights[0]) ? heights[0].length : -1;
+    if (!heights.every((row) => Array.isArray(row) && row.length === nx)) {
+      throw new ServiceError(422, 'ground.heights', 'expected rows (z) of heights (x), every row as long');
+    }
+    data = Float32Array.from(heights.flat()); dims = [heights.length, nx];
+  }
+  if (!(data instanceof Float32Array || data instanceof Float64Array)) {
+    throw new ServiceError(422, 'ground.heights', 'expected a Float32Array or Float64Array (with its shape) or rows of numbers');
+  }
+  if (!Array.isArray(dims) || dims.length !== 2 || dims[0] * dims[1] !== data.length) {
+    throw new ServiceError(422, 'ground.heights.shape', `expected [nz, nx] holding the ${data.length} heights, got ${JSON.stringify(dims)}`);
+  }
+  if (!Array.isArray(origin) || origin.length !== 2) {
+    throw new ServiceError(422, 'ground.origin', `expected [x, z], got ${JSON.stringify(origin)}`);
+  }
+  return { heights: blob(data, dims), origin: [Number(origin[0]), Number(origin[1])], spacing: Number(spacing) };
+}
+
 /** A request's characters with their points as blobs (the body REST and `synthesize` share). */
 function requestBody(request) {
   const characters = request.characters.map((ch, c) => ({
@@ -343,6 +370,14 @@ export class LiveSession {
       this.historyStart += n;
       this.historyPoints -= n;
     }
+  }
+
+  /** The ground of the frames rendered from now on (a `ground` message: `ground(...)`, or null:
+   * the points' y), faded in by the service over 0.4 s. A reconnection opens the new session on
+   * the latest ground (the points given again stand on it too). */
+  setGround(heightField) {
+    this.options = { ...this.options, ground: heightField };
+    this.sock.send({ type: 'ground', ground: heightField });
   }
 
   /** No more points: resolves once every remaining chunk was handled and the session ended. */

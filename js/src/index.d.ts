@@ -88,10 +88,18 @@ export interface CharacterRequest {
   id?: string; points: Float32Array | Float64Array | [number, number, number][]; scale?: number; seed?: number;
   detail?: Detail;
 }
+/** A height field (docs/terrain.md): the ground's y at x = origin[0] + j * spacing,
+ * z = origin[1] + i * spacing for heights (nz x nx) [i][j]. */
+export interface Ground { heights: Blob; origin: [number, number]; spacing: number }
+/** A Ground from rows (z) of heights (x), or a Float32Array / Float64Array of nz x nx with `shape`. */
+export function ground(heights: number[][] | Float32Array | Float64Array,
+  options?: { origin?: [number, number]; spacing?: number; shape?: [number, number] }): Ground;
 export interface SynthesizeRequest {
   characters: CharacterRequest[]; animal?: string; fps?: number; seed?: number; sigma?: number;
   encoding?: Encoding; skip_invalid?: boolean; scale_min?: number; scale_max?: number; foot_lock?: boolean;
   first_index?: number; min_resample_rate?: number; lod?: Lod;
+  /** The terrain the herd walks on (the points' y then not read); one for the whole batch. */
+  ground?: Ground | null;
 }
 export interface CharacterMotion {
   id: string; scale: number; frames: number;
@@ -104,6 +112,7 @@ export interface Motion {
 export interface LiveOptions {
   characters: { id: string; scale?: number; seed?: number; detail?: Detail }[]; fps: number; animal?: string;
   seed?: number; sigma?: number; encoding?: Encoding; lod?: Lod; scale_min?: number; scale_max?: number; foot_lock?: boolean; heading?: number;
+  ground?: Ground | null;
 }
 export interface LiveStart {
   type: 'start'; mode: 'live'; fps: number; library_fps: number; latency_frames: number; latency_s: number;
@@ -141,6 +150,9 @@ export class LiveSession {
   done: Promise<void>;
   /** Every character's next `n` points, characters x n x 3 floats, metres. */
   push(points: Float32Array, n?: number): void;
+  /** The ground of the frames rendered from now on (null: the points' y), faded in over 0.4 s;
+   * a reconnection opens its new session on it. */
+  setGround(ground: Ground | null): void;
   finish(): Promise<void>;
   close(): void;
 }

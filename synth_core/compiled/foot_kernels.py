@@ -15,7 +15,6 @@ import numpy as np
 from synth_core.compiled.ground_kernels import ground_at
 from synth_core.compiled.jit import render_jit
 from synth_core.runtime.footlock import EASE_FRAMES
-from synth_core.runtime.terrain import BUMP_LEAST
 
 _jit = render_jit
 
@@ -128,6 +127,7 @@ def ground_targets(targets: Any, contacts: Any, heights: Any, x0: float, z0: flo
                     h: float, under: Any) -> None:
     """terrain.ground_targets for one character, in place (``under (T,)``: scratch)."""
     T = targets.shape[0]
+    lift = np.empty(T)  # a swing's envelope of the terrain's excess over its straight line
     for f in range(4):
         for t in range(T):
             under[t] = ground_at(heights, x0, z0, spacing, targets[t, f, 0] * h, targets[t, f, 2] * h) / h
@@ -145,14 +145,18 @@ def ground_targets(targets: Any, contacts: Any, heights: Any, x0: float, z0: flo
                 for u in range(s, t):
                     targets[u, f, 1] = max(targets[u, f, 1], 0.0) + under[u]
                 continue
-            lift = 0.0
-            for u in range(s, t):
+            best = -np.inf
+            for u in range(s, t):  # the tent over the terrain's excess behind each frame ...
                 x = _swing_share(targets, f, last, u, nxt)
-                e = under[last] + (under[nxt] - under[last]) * x
-                lift = max(lift, (under[u] - e) / max(4.0 * x * (1.0 - x), BUMP_LEAST))
-            for u in range(s, t):
+                w = 0.5 * (x + (u - last) / (nxt - last))
+                best = max(best, (under[u] - (under[last] + (under[nxt] - under[last]) * x)) / (1.0 - w))
+                lift[u] = (1.0 - w) * best
+            best = -np.inf
+            for u in range(t - 1, s - 1, -1):  # ... and ahead of it
                 x = _swing_share(targets, f, last, u, nxt)
-                e = under[last] + (under[nxt] - under[last]) * x
-                targets[u, f, 1] = max(targets[u, f, 1], 0.0) + max(e + lift * 4.0 * x * (1.0 - x), under[u])
-
-
+                w = 0.5 * (x + (u - last) / (nxt - last))
+                best = max(best, (under[u] - (under[last] + (under[nxt] - under[last]) * x)) / w)
+                lift[u] = max(max(lift[u], w * best), 0.0)
+            for u in range(s, t):
+                e = under[last] + (under[nxt] - under[last]) * _swing_share(targets, f, last, u, nxt)
+                targets[u, f, 1] = max(targets[u, f, 1], 0.0) + max(e + lift[u], under[u])

@@ -43,6 +43,7 @@ from synth_core.compiled import backend as backends
 from synth_core.compiled import kernels, render_pool
 from synth_core.compiled.foot_kernels import LEG_WIDTH, NOWHERE
 from synth_core.compiled.scratch import Scratch
+from synth_core.motion import quat
 from synth_core.runtime import gaussian
 from synth_core.runtime.bank import Bank
 from synth_core.runtime.columns import Columns, PlannedColumns
@@ -54,6 +55,7 @@ from synth_core.runtime.plan import (
     Decisions,
     Floats,
     Headings,
+    Plan,
     Planner,
     decision_step,
     lookahead,
@@ -61,11 +63,14 @@ from synth_core.runtime.plan import (
 )
 from synth_core.runtime.streaming import Window, lock_context
 from synth_core.runtime.synthesis import character_scales, character_tempo, render
-from synth_core.runtime.terrain import HeightField, on_ground
+from synth_core.runtime.terrain import HeightField, laid, on_ground
 from synth_core.runtime.trajectory import DEFAULT_SIGMA, GROUND, TELEPORT_M, TrajectoryError
 
 KEEP_PLANS = 1  # of the slowest cycle: planned frames kept as the foot lock's context
 LOCK_LAG = 20  # frames planned but not yet sent, so that most plants a frame is in have ended
+# A new ground (set_ground) is faded in over this much of the frames rendered after it: a herd
+# whose ground rises 20 cm under it is lifted over 0.4 s, not in one frame.
+GROUND_BLEND_S = 0.4
 
 
 def _checked_fps(bank: Bank, n_characters: int, fps: float | None, sigma: float) -> float:
@@ -112,6 +117,9 @@ class LiveSynth:
         self.bank, self.fps, self.sigma, self.margin = bank, fps, float(sigma), margin
         self.foot_lock, self.heading = foot_lock, float(heading)
         self.ground = ground  # the terrain (synth_core.runtime.terrain), rendered on in _emit
+        # The ground faded out since set_ground, from library frame blend_from on (see _emit).
+        self.old_ground: HeightField | None = None
+        self.blend_from: int | None = None
         self.scratch = Scratch() if reuse_windows else None
         self.share = render_pool.shared if share_render else None
         self.lock_lag = lock_lag if foot_lock else 0
@@ -233,8 +241,13 @@ class LiveSynth:
         return self.take(frames)
 
     def set_ground(self, ground: HeightField | None) -> None:
-        """The terrain the frames rendered from now on stand on (None: the points' y)."""
-        self.ground = ground
+        """The terrain the frames rendered from now on stand on (None: the points' y), faded in
+        over ``GROUND_BLEND_S`` from the next frame rendered: those frames are the motion on the
+        ground before crossfaded to the motion on this one (root and joint rotations). A ground
+        set while one is fading in replaces it: the fade goes on from the one before."""
+        if self.blend_from is None:
+            self.old_ground = self.ground
+        self.ground, self.blend_from = ground, self.rendered
 
     def set_posed(self, pose: ArrayLike) -> None:
         """``(C,)`` bool: the characters whose rotations the frames rendered from now on need
@@ -382,7 +395,9 @@ class LiveSynth:
         if whole > self.n_seg:
             a, b = self.n_seg * m, whole * m + 1
             pts = self._path(a, b)
-            step = np.linalg.norm(np.diff(pts[..., GROUND], axis=1), axis=-1)
+            # With a terrain, the speed along the ground, as the batch's (terrain.along_ground).
+            on = pts[..., GROUND] if self.ground is None else laid(pts, self.ground)
+            step = np.linalg.norm(np.diff(on, axis=1), axis=-1)
             counts = np.full(whole - self.n_seg, m)  # as segment_speeds divides, for the same bits
             speeds = step.reshape(len(step), -1, m).sum(axis=2) / counts * self.bank.fps
             self.seg = np.concatenate([self.seg, speeds / self.pace[:, None]], axis=1)
@@ -463,6 +478,51 @@ class LiveSynth:
         return self.heading_state.advance(ground, t0 - lo, t1 - t0, self.bank.fps, facing,
                                           ahead=lambda who: self._path(lo, self.n_path)[who][..., GROUND])
 
+    def _fade(self, start: int, stop: int) -> Floats | None:
+        """``(n,)`` how far the new ground has faded in on each frame sent of [start, stop), or
+        None where it has on all of them (then the old one is dropped)."""
+        if self.blend_from is None:
+            return None
+        k = self.out_step
+        t = np.arange(-(-start // k), -(-stop // k)) * k  # library frames sent
+        x = np.clip((t - self.blend_from + 1) / (GROUND_BLEND_S * self.bank.fps), 0.0, 1.0)
+        if x.size == 0 or x.min() >= 1.0:
+            self.old_ground, self.blend_from = None, None
+            return None
+        return np.asarray(x * x * (3.0 - 2.0 * x))
+
+    def _render(self, buf: Plan, lo: int, hi: int, begin: NDArray[np.int64], end: NDArray[np.int64],
+                field: HeightField | None, keep: bool) -> tuple[NDArray[np.float32], NDArray[np.float32]]:
+        """Root and rotations of buffered frames [lo, hi) on ``field``; ``keep``: the feet posed are
+        kept for the next windows (else they are not read either: a crossfade's other motion)."""
+        ground = None
+        if field is not None:
+            buf, ground = on_ground(self.bank, buf, field, int(begin.min()), int(end.max()))
+        if self.compiled and keep:
+            # The feet of frames posed by earlier windows, by frame sent (from 0), kept for later ones.
+            o0, n = self.buffer.start, buf.yaw.shape[1]
+            self.feet.reserve(max(o0 + n - self.feet.stop, 0))
+            posed = kernels.Posed(self.feet.columns(o0, o0 + n)[0][0], self.known_feet - o0, self.recent_legs,
+                                  self.legs_at - o0)
+            out = None if self.scratch is None else self.scratch.array(
+                "live.rotations", (len(self.scales), hi - lo, self.bank.skeleton.n_joints, 4), np.float32)
+            root, rot = kernels.render_window(self.bank, buf, lo, hi, begin, end, self.foot_lock, posed, out,
+                                              self.share, ground, self.pose)
+            self.known_feet, self.legs_at = posed.frames + o0, posed.legs_at + o0
+            return root, rot
+        if self.compiled:
+            return kernels.render_window(self.bank, buf, lo, hi, begin, end, self.foot_lock, None, None,
+                                         self.share, ground, self.pose)
+        cb, ce = int(begin.min()), int(end.max())
+        root, rot = render(self.bank, buf.window(cb, ce), self.foot_lock,
+                           None if ground is None else ground.window(cb, ce))
+        root, rot = root[:, lo - cb:hi - cb], rot[:, lo - cb:hi - cb]
+        if not self.pose.all():  # the reference: the unposed characters' root as the kernel gives it
+            free, _ = render(self.bank, buf.window(lo, hi), False,
+                             None if ground is None else ground.window(lo, hi))
+            root[~self.pose] = free[~self.pose]
+        return root, rot
+
     def _emit(self, start: int, stop: int) -> Window:
         """Render planned frames [start, stop) (every ``out_step``-th frame of the library's)."""
         # Only the frames sent are rendered -- the foot lock too works on them alone (a plant's
@@ -478,29 +538,14 @@ class LiveSynth:
         else:
             C = len(self.scales)
             begin, end = np.full(C, lo), np.full(C, hi)
-        ground = None
-        if self.ground is not None:
-            buf, ground = on_ground(self.bank, buf, self.ground, int(begin.min()), int(end.max()))
-        if self.compiled:
-            # The feet of frames posed by earlier windows, by frame sent (from 0), kept for later ones.
-            n = buf.yaw.shape[1]
-            self.feet.reserve(max(o0 + n - self.feet.stop, 0))
-            posed = kernels.Posed(self.feet.columns(o0, o0 + n)[0][0], self.known_feet - o0, self.recent_legs,
-                                  self.legs_at - o0)
-            out = None if self.scratch is None else self.scratch.array(
-                "live.rotations", (len(self.scales), hi - lo, self.bank.skeleton.n_joints, 4), np.float32)
-            root, rot = kernels.render_window(self.bank, buf, lo, hi, begin, end, self.foot_lock, posed, out,
-                                              self.share, ground, self.pose)
-            self.known_feet, self.legs_at = posed.frames + o0, posed.legs_at + o0
-        else:
-            cb, ce = int(begin.min()), int(end.max())
-            root, rot = render(self.bank, buf.window(cb, ce), self.foot_lock,
-                               None if ground is None else ground.window(cb, ce))
-            root, rot = root[:, lo - cb:hi - cb], rot[:, lo - cb:hi - cb]
-            if not self.pose.all():  # the reference: the unposed characters' root as the kernel gives it
-                free, _ = render(self.bank, buf.window(lo, hi), False,
-                                 None if ground is None else ground.window(lo, hi))
-                root[~self.pose] = free[~self.pose]
+        fade = self._fade(start, stop)
+        if fade is not None:  # the motion on the ground before, crossfaded to the motion on this one
+            old_root, old_rot = self._render(buf, lo, hi, begin, end, self.old_ground, keep=False)
+        root, rot = self._render(buf, lo, hi, begin, end, self.ground, keep=True)
+        if fade is not None:
+            a = fade[None, :, None]
+            root = (old_root * (1.0 - a) + root * a).astype(np.float32)
+            rot = quat.nlerp(old_rot, rot, np.broadcast_to(a, rot.shape[:3])).astype(np.float32)
         self.posed_frames += int(self.pose.sum()) * (hi - lo)
         # Copies: the buffer's columns are written over by later blocks.
         window = Window(self.emitted, root, rot, buf.gait[:, lo:hi].copy(), buf.contacts[:, lo:hi].copy())

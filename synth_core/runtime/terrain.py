@@ -16,8 +16,9 @@ With a height field, a character's trajectory's y is not read: the ground gives 
    has them, not as the body leans) and relative to the ground under the body, plants them as
    on flat ground (:func:`synth_core.runtime.footlock.plant_targets`), then puts each target on
    the terrain under it (:func:`ground_targets`): a planted foot stands on it, a swinging foot
-   keeps its clip's height above the higher of the terrain under it and the ground eased from
-   lift-off to touchdown (it clears bumps and climbs steps before it lands on them);
+   keeps its clip's height above the ground eased from lift-off to touchdown, raised to the
+   tent over the terrain above that, and never below the terrain under it (it starts up a step
+   or over a bump from lift-off, not as it gets there);
 3. sinks the root where a leg cannot reach and solves the legs' IK as on flat ground.
 
 The gait is chosen on the speed along the ground (:func:`along_ground`).
@@ -52,10 +53,6 @@ MAX_HEIGHT = 10_000.0  # |height|, m
 # The ground under a foot of the footprint is the mean of this pattern around it, in leg
 # lengths: a hoof stands on a patch, not a point, and a body does not rock with every pebble.
 FOOT_PAD = 0.15
-# A swing's bump is fitted over frames where it is at least this share of its height (4 x (1 - x)
-# >= 0.5: all but the swing's first and last 15%): near lift-off and touchdown a terrain point
-# would ask for a bump of any height (there the foot keeps over the terrain under it instead).
-BUMP_LEAST = 0.5
 
 
 class TerrainError(ValueError):
@@ -215,13 +212,19 @@ def on_ground(bank: Bank, p: Plan, field: HeightField, start: int, stop: int) ->
     return replace(p, path=path), Grounding(field, tilt)
 
 
+def laid(positions: Floats, field: HeightField) -> Floats:
+    """``positions (..., 3)`` with their y the ground's under them (a new array)."""
+    out = np.array(positions, np.float64)
+    out[..., UP_AXIS] = field.sample(out[..., 0], out[..., 2])
+    return out
+
+
 def along_ground(prep: Prepared, field: HeightField, fps: float) -> Prepared:
     """``prep`` on the ground: its paths' y the terrain's under them, the segment speeds those
     along the ground (a 30% slope's 2 m/s over the map are 2.09 m/s of stride)."""
     # Here, not at the top: trajectory imports the compiled kernels, which import footlock and this.
     from synth_core.runtime.trajectory import segment_speeds
-    positions = prep.positions.copy()
-    positions[..., UP_AXIS] = field.sample(positions[..., 0], positions[..., 2])
+    positions = laid(prep.positions, field)
     speeds = segment_speeds(positions, prep.segment, fps, along_ground=True)
     return replace(prep, positions=positions, segment_speeds=speeds)
 
@@ -255,16 +258,30 @@ def swing_share(targets: Floats, last: NDArray[np.int64], nxt: NDArray[np.int64]
     return np.asarray(np.where(span > 1e-9, gone / np.where(span > 1e-9, span, 1.0), timed))
 
 
+def _swing_max(values: Floats, run: NDArray[np.int64], reverse: bool) -> Floats:
+    """Running max of ``values (C, T, 4)`` over time (``reverse``: from the end) within each run
+    of frames of the same ``run`` key: ceil(log2 T) shifted maxima, not a loop over frames."""
+    out = values.copy()
+    T, s = values.shape[1], 1
+    while s < T:
+        a, b = (slice(None, -s), slice(s, None)) if reverse else (slice(s, None), slice(None, -s))
+        same = run[:, a] == run[:, b]
+        out[:, a] = np.where(same, np.maximum(out[:, a], out[:, b]), out[:, a])
+        s *= 2
+    return out
+
+
 def ground_targets(targets: Floats, contacts: NDArray[np.bool_], field: HeightField, h: Floats) -> Floats:
     """Foot targets ``(C, T, 4, 3)`` (the library's unit: world / h) whose y is the height above
     the body's ground, put on ``field``. Planted: on the terrain under the target. Swinging
     between two plants: over the ground straight from the last plant's height to the next
-    one's (by :func:`swing_share`: on a plane, the plane's own heights), raised by a bump
-    (``4 x (1 - x)`` of the swing's share x: none at lift-off and touchdown) just high enough to
-    clear the terrain under the swing's middle frames (``BUMP_LEAST``), and never below the
-    terrain under it -- a foot steps up onto a step or over a hump instead of jumping onto it
-    in the frame it crosses the edge. A swing with no plant before or after it (a window's
-    ends): the terrain under it."""
+    one's (by :func:`swing_share`: on a plane, the plane's own heights), raised where the
+    terrain under the swing is above that line: to the tent over that excess (straight up from
+    lift-off to each point's excess and straight down from it to touchdown, along the swing's
+    progress: the mean of its share of the way and of the time), and never below the terrain
+    under it. A foot so rises onto a step or over a bump from lift-off on, reaches the top as it
+    gets there and no higher; it does not jump onto it in the frame it crosses the edge. A swing
+    with no plant before or after it (a window's ends): the terrain under it."""
     C, T, F = contacts.shape
     hs = np.asarray(h, np.float64)[:, None, None]
     under = field.sample(targets[..., 0] * hs, targets[..., 2] * hs) / hs  # (C, T, 4)
@@ -277,13 +294,17 @@ def ground_targets(targets: Floats, contacts: NDArray[np.bool_], field: HeightFi
     g_next = under[c, np.minimum(nxt, T - 1), f]
     x = swing_share(targets, last, nxt)
     eased = g_last + (g_next - g_last) * x
-    bump = 4.0 * x * (1.0 - x)
-    need = (under - eased) / np.maximum(bump, BUMP_LEAST)
-    run = ((c * F + f) * T + last)[swing]  # one key per swing: its character, foot and last plant
-    lift = np.zeros(C * F * T)
-    np.maximum.at(lift, run, need[swing])
-    ground = under.copy()
-    ground[swing] = np.maximum(eased[swing] + lift[run] * bump[swing], under[swing])
+    # The tent over the excess: lift(u) >= excess(u') w(u) / w(u') for u' ahead of u, and
+    # excess(u') (1 - w(u)) / (1 - w(u')) for u' behind it (w: the swing's progress, 0 at lift-off,
+    # 1 at touchdown; running maxima of excess / w each way).
+    w = 0.5 * (x + (t - last) / np.maximum(nxt - last, 1))
+    w = np.where(swing, w, 0.5)
+    excess = np.where(swing, under - eased, -np.inf)
+    run = np.where(swing, last, -1)
+    ahead = w * _swing_max(excess / w, run, reverse=True)
+    behind = (1.0 - w) * _swing_max(excess / (1.0 - w), run, reverse=False)
+    lift = np.maximum(np.maximum(ahead, behind), 0.0)
+    ground = np.where(swing, np.maximum(eased + lift, under), under)
     out = targets.copy()
     out[..., UP_AXIS] = np.maximum(targets[..., UP_AXIS], 0.0) + ground
     return out
