@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from synth_core.compiled import ground_kernels, kernels
+from synth_core.compiled import foot_kernels, kernels
 from synth_core.motion.skeleton import forward_kinematics
 from synth_core.quality import metrics as M
 from synth_core.quality.evaluate import TERRAIN_TARGETS, edge_suite, passes, world_positions
@@ -13,8 +13,9 @@ from synth_core.runtime.bank import Bank
 from synth_core.runtime.live import LiveSynth
 from synth_core.runtime.streaming import BatchStream
 from synth_core.runtime.synthesis import Options, synthesize
-from synth_core.runtime.terrain import HeightField, TerrainError, along_ground, ground_targets, sample
+from synth_core.runtime.terrain import HeightField, TerrainError, along_ground
 from synth_core.runtime.trajectory import Prepared
+from tests.helpers.motion import herd_on_hills
 
 
 def test_bilinear_sampling_is_exact_on_planes_and_holds_the_edges() -> None:
@@ -54,43 +55,10 @@ def test_the_gait_reads_the_speed_along_the_ground() -> None:
     assert np.allclose(on.segment_speeds, np.hypot(1.0, 0.3) * 20.0 / 600 * 30.0)
 
 
-def _hills(x: np.ndarray, z: np.ndarray) -> np.ndarray:
-    return np.asarray(0.5 * np.sin(x / 3.0) * np.cos(z / 4.0) + 0.1 * z)
-
-
-def _herd_on_hills() -> tuple[np.ndarray, HeightField]:
-    xs = np.arange(-15.0, 40.0, 0.1)
-    x, z = np.meshgrid(xs, xs)
-    field = HeightField.make(_hills(x, z), origin=(-15.0, -15.0), spacing=0.1)
-    T = 360
-    s = np.linspace(0.0, 1.0, T)
-    paths = np.zeros((3, T, 3))
-    for c, (speed, bend) in enumerate(((1.5, 0.3), (3.0, -0.4), (5.0, 0.2))):
-        yaw = 0.5 + bend * s
-        step = np.stack([np.sin(yaw), np.zeros(T), np.cos(yaw)], -1) * speed / 60.0
-        paths[c] = np.cumsum(step, axis=0) + [c * 3.0, 0.0, 0.0]
-    return paths, field
-
-
-def test_numba_kernels_match_the_numpy_reference_on_a_terrain(bank: Bank) -> None:
-    if not kernels.AVAILABLE:
-        pytest.skip("numba is not installed: only the numpy reference runs")
-    paths, field = _herd_on_hills()
-    opts = dict(scale_range=(0.8, 1.2), seed=4, ground=field)
-    ref = synthesize(bank, paths, 60.0, options=Options(backend="numpy", **opts))  # type: ignore[arg-type]
-    fast = synthesize(bank, paths, 60.0, options=Options(backend="numba", **opts))  # type: ignore[arg-type]
-    angle = 2 * np.degrees(np.arccos(np.clip(np.abs(np.sum(ref.rotations * fast.rotations, axis=-1)), 0, 1)))
-    assert angle.max() < 0.1
-    assert np.abs(ref.root_pos - fast.root_pos).max() < 1e-5
-    # ... and the terrain did something: the bodies stand on it, not on the paths' y (0).
-    flat = synthesize(bank, paths, 60.0, options=Options(backend="numba", scale_range=(0.8, 1.2), seed=4))
-    assert np.abs(fast.root_pos[..., 1] - flat.root_pos[..., 1]).max() > 0.3
-
-
 def test_a_flat_terrain_renders_as_the_flat_paths_do(bank: Bank) -> None:
     """... but for the body lowering further where a leg would stretch (the flat render sinks
     the root 5% of a leg at most, a terrain 20%): there the terrain's legs reach less far."""
-    paths, _ = _herd_on_hills()
+    paths, _ = herd_on_hills()
     paths[..., 1] = 0.7
     field = HeightField.make(np.full((8, 8), 0.7), origin=(-20.0, -20.0), spacing=20.0)
     for backend in ("numpy", "numba") if kernels.AVAILABLE else ("numpy",):
@@ -123,7 +91,7 @@ def test_terrain_scenarios_meet_the_issue_targets(bank: Bank, name: str) -> None
 def test_stream_windows_on_a_terrain_equal_the_whole_batch(bank: Bank, backend: str) -> None:
     if backend == "numba" and not kernels.AVAILABLE:
         pytest.skip("numba is not installed")
-    paths, field = _herd_on_hills()
+    paths, field = herd_on_hills()
     opts = Options(scale_range=(0.8, 1.2), seed=2, backend=backend, ground=field)
     whole = synthesize(bank, paths, 60.0, options=opts)
     for chunk in (7, 100):
@@ -142,7 +110,10 @@ def test_a_swing_steps_up_a_step_instead_of_jumping_onto_it() -> None:
     xs = np.arange(-1.0, 2.0, 0.01)
     step = np.where(xs > 0.3, 0.2, 0.0)  # a 20 cm step 0.3 m into the swing
     field = HeightField.make(np.tile(step[:, None], (1, 3)), origin=(-0.01, -1.0), spacing=0.01)
-    y = ground_targets(targets, contacts, field, np.ones(1))[0, :, 0, 1]
+    on = targets[0].copy()
+    f = field
+    foot_kernels.ground_targets(on, contacts[0], f.heights, *f.origin, f.spacing, 1.0, np.empty(30))
+    y = on[:, 0, 1]
     under = field.sample(targets[0, :, 0, 0], targets[0, :, 0, 2])
     assert np.allclose(y[contacts[0, :, 0]], under[contacts[0, :, 0]])  # planted: on it
     assert np.all(y >= under - 1e-9)  # never in it
@@ -153,7 +124,7 @@ def test_a_swing_steps_up_a_step_instead_of_jumping_onto_it() -> None:
 def test_a_live_session_stands_on_its_ground_as_the_batch_does(bank: Bank, backend: str) -> None:
     if backend == "numba" and not kernels.AVAILABLE:
         pytest.skip("numba is not installed")
-    paths, field = _herd_on_hills()
+    paths, field = herd_on_hills()
     live = LiveSynth(bank, len(paths), 60.0, seed=5, backend=backend, ground=field)
     windows = [w for i in range(0, paths.shape[1], 6) if (w := live.append(paths[:, i:i + 6])) is not None]
     if (last := live.finish()) is not None:
@@ -172,13 +143,3 @@ def test_a_live_session_stands_on_its_ground_as_the_batch_does(bank: Bank, backe
     b_feet = b_feet[..., bank.skeleton.foot_joints, :]
     b_above = b_feet[..., 1] - field.sample(b_feet[..., 0], b_feet[..., 2])
     assert np.percentile(above[contacts], 95) <= np.percentile(b_above[batch.contacts], 95) + 0.005
-
-
-def test_compiled_sampling_is_the_numpy_sampling() -> None:
-    if not kernels.AVAILABLE:
-        pytest.skip("numba is not installed")
-    rng = np.random.default_rng(1)
-    heights = rng.normal(size=(30, 50))
-    x, z = rng.uniform(-3.0, 30.0, (2, 7, 11))  # some outside the grid
-    want = sample(heights, -1.0, 0.5, 0.5, x, z)
-    assert np.array_equal(ground_kernels.ground_samples(heights, -1.0, 0.5, 0.5, x, z), want)

@@ -1,12 +1,13 @@
 """Which code runs: the one place a backend name becomes the compiled kernels or the reference.
 
-``"numba"``: the compiled kernels; ``"numpy"``: the references (the planner's own source run by the
-interpreter, :data:`synth_core.compiled.plan_kernels.REFERENCE`; the render's numpy
-:func:`synth_core.runtime.synthesis.render`); ``"auto"``: numba where it is installed.
+``"numba"``: the compiled kernels; ``"numpy"``: the references -- the kernels' own source run by the
+interpreter, the planner's (:data:`synth_core.compiled.plan_kernels.REFERENCE`) and the render's
+(:data:`synth_core.compiled.kernels.REFERENCE`); ``"auto"``: numba where it is installed.
 """
 
 from __future__ import annotations
 
+from synth_core.compiled import kernels
 from synth_core.compiled.jit import AVAILABLE
 from synth_core.compiled.plan_kernels import COMPILED, REFERENCE, Kernels
 
@@ -23,3 +24,9 @@ def compiled(name: str) -> bool:
 def planner(name: str) -> Kernels:
     """The planner's kernels of backend ``name``."""
     return COMPILED if compiled(name) else REFERENCE
+
+
+def renderer(name: str) -> kernels.RenderKernels:
+    """The render's kernels of backend ``name`` (the wrappers in :mod:`~synth_core.compiled.kernels`
+    take ``compiled=``:func:`compiled` ``(name)``)."""
+    return kernels.COMPILED if compiled(name) else kernels.REFERENCE

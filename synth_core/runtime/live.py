@@ -59,8 +59,8 @@ from synth_core.runtime.plan import (
     lookahead,
     tables,
 )
-from synth_core.runtime.streaming import Window, lock_context
-from synth_core.runtime.synthesis import character_scales, character_tempo, render
+from synth_core.runtime.streaming import Window
+from synth_core.runtime.synthesis import character_scales, character_tempo
 from synth_core.runtime.terrain import HeightField, on_ground
 from synth_core.runtime.trajectory import DEFAULT_SIGMA, GROUND, TELEPORT_M, TrajectoryError
 
@@ -430,29 +430,23 @@ class LiveSynth:
         buf = self.buffer.plan()
         lo, hi = -(-start // k) - o0, -(-stop // k) - o0
         if self.foot_lock:
-            begin, end = (kernels.lock_context if self.compiled else lock_context)(buf.contacts, lo, hi)
+            begin, end = kernels.lock_context(buf.contacts, lo, hi, self.compiled)
         else:
             C = len(self.scales)
             begin, end = np.full(C, lo), np.full(C, hi)
         ground = None
         if self.ground is not None:
             buf, ground = on_ground(self.bank, buf, self.ground, int(begin.min()), int(end.max()))
-        if self.compiled:
-            # The feet of frames posed by earlier windows, by frame sent (from 0), kept for later ones.
-            n = buf.yaw.shape[1]
-            self.feet.reserve(max(o0 + n - self.feet.stop, 0))
-            posed = kernels.Posed(self.feet.columns(o0, o0 + n)[0][0], self.known_feet - o0, self.recent_legs,
-                                  self.legs_at - o0)
-            out = None if self.scratch is None else self.scratch.array(
-                "live.rotations", (len(self.scales), hi - lo, self.bank.skeleton.n_joints, 4), np.float32)
-            root, rot = kernels.render_window(self.bank, buf, lo, hi, begin, end, self.foot_lock, posed, out,
-                                              self.share, ground)
-            self.known_feet, self.legs_at = posed.frames + o0, posed.legs_at + o0
-        else:
-            cb, ce = int(begin.min()), int(end.max())
-            root, rot = render(self.bank, buf.window(cb, ce), self.foot_lock,
-                               None if ground is None else ground.window(cb, ce))
-            root, rot = root[:, lo - cb:hi - cb], rot[:, lo - cb:hi - cb]
+        # The feet of frames posed by earlier windows, by frame sent (from 0), kept for later ones.
+        n = buf.yaw.shape[1]
+        self.feet.reserve(max(o0 + n - self.feet.stop, 0))
+        posed = kernels.Posed(self.feet.columns(o0, o0 + n)[0][0], self.known_feet - o0, self.recent_legs,
+                              self.legs_at - o0)
+        out = None if self.scratch is None else self.scratch.array(
+            "live.rotations", (len(self.scales), hi - lo, self.bank.skeleton.n_joints, 4), np.float32)
+        root, rot = kernels.render_window(self.bank, buf, lo, hi, begin, end, self.foot_lock, posed, out,
+                                          self.share, ground, self.compiled)
+        self.known_feet, self.legs_at = posed.frames + o0, posed.legs_at + o0
         # Copies: the buffer's columns are written over by later blocks.
         window = Window(self.emitted, root, rot, buf.gait[:, lo:hi].copy(), buf.contacts[:, lo:hi].copy())
         self.emitted += hi - lo
