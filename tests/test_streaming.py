@@ -26,15 +26,15 @@ def test_context_covers_whole_plants() -> None:
     assert begin[0] == 0 and stop[0] == 20
 
 
-@pytest.mark.parametrize("backend", ["numba", "numpy"])
+# The reference backend runs the same render source, interpreted: tests/test_backends.py holds its
+# windows to the compiled ones on a smaller herd. Here only the compiled run: interpreted, this
+# test took 154 s (foot lock) and 40 s (none) where the numpy render it replaced took 39 s and 5 s.
 @pytest.mark.parametrize("foot_lock", [True, False])
-def test_windows_equal_the_whole_batch(bank: Bank, backend: str, foot_lock: bool) -> None:
+def test_windows_equal_the_whole_batch(bank: Bank, foot_lock: bool) -> None:
     paths = crowd.simulate(12, 500, seed=3, top=16.0)  # too fast: resampled, every gait
-    opts = Options(scale_range=(0.8, 1.2), backend=backend, foot_lock=foot_lock, seed=5, resample=True)
+    opts = Options(scale_range=(0.8, 1.2), foot_lock=foot_lock, seed=5, resample=True)
     whole = synthesize(bank, paths, options=opts)
     for chunk in (1, 7, 30, 10_000):
-        if backend == "numpy" and chunk == 1:
-            continue  # the reference is slow frame by frame; 7 covers the same code
         stream = BatchStream(bank, paths, options=opts, chunk_frames=chunk)
         assert stream.resample_rate == whole.resample_rate > 1.0
         windows = list(stream.windows())

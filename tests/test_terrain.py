@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from synth_core.compiled import foot_kernels, kernels
+from synth_core.compiled import foot_kernels
 from synth_core.motion.skeleton import forward_kinematics
 from synth_core.quality import metrics as M
 from synth_core.quality.evaluate import TERRAIN_TARGETS, edge_suite, passes, world_positions
@@ -61,18 +61,17 @@ def test_a_flat_terrain_renders_as_the_flat_paths_do(bank: Bank) -> None:
     paths, _ = herd_on_hills()
     paths[..., 1] = 0.7
     field = HeightField.make(np.full((8, 8), 0.7), origin=(-20.0, -20.0), spacing=20.0)
-    for backend in ("numpy", "numba") if kernels.AVAILABLE else ("numpy",):
-        plain = synthesize(bank, paths, 60.0, options=Options(backend=backend, seed=1))
-        on = synthesize(bank, paths, 60.0, options=Options(backend=backend, seed=1, ground=field))
-        assert np.array_equal(plain.gait, on.gait) and np.array_equal(plain.contacts, on.contacts)
-        lowered = np.abs(plain.root_pos - on.root_pos).max(axis=-1) > 1e-4
-        assert lowered.mean() < 0.05 and np.all(on.root_pos[lowered, 1] < plain.root_pos[lowered, 1])
-        reach = [M.limb_reach(world_positions(bank, r), bank.skeleton).max(axis=-1) for r in (plain, on)]
-        assert np.all(reach[1][lowered] < reach[0][lowered])
-        same = ~lowered
-        assert np.abs(plain.root_pos[same] - on.root_pos[same]).max() < 1e-4
-        dots = np.abs(np.sum(plain.rotations[same] * on.rotations[same], -1))
-        assert 2 * np.degrees(np.arccos(np.clip(dots, 0, 1))).max() < 0.1  # float32: 1 ulp is 0.04
+    plain = synthesize(bank, paths, 60.0, options=Options(seed=1))
+    on = synthesize(bank, paths, 60.0, options=Options(seed=1, ground=field))
+    assert np.array_equal(plain.gait, on.gait) and np.array_equal(plain.contacts, on.contacts)
+    lowered = np.abs(plain.root_pos - on.root_pos).max(axis=-1) > 1e-4
+    assert lowered.mean() < 0.05 and np.all(on.root_pos[lowered, 1] < plain.root_pos[lowered, 1])
+    reach = [M.limb_reach(world_positions(bank, r), bank.skeleton).max(axis=-1) for r in (plain, on)]
+    assert np.all(reach[1][lowered] < reach[0][lowered])
+    same = ~lowered
+    assert np.abs(plain.root_pos[same] - on.root_pos[same]).max() < 1e-4
+    dots = np.abs(np.sum(plain.rotations[same] * on.rotations[same], -1))
+    assert 2 * np.degrees(np.arccos(np.clip(dots, 0, 1))).max() < 0.1  # float32: 1 ulp is 0.04
 
 
 @pytest.mark.parametrize("name", ["slope_up_30", "slope_down_30", "slope_across_30", "step_20cm",
@@ -87,12 +86,10 @@ def test_terrain_scenarios_meet_the_issue_targets(bank: Bank, name: str) -> None
     assert figures["glide_ratio"] <= 0.10 and figures["strict_skate_mm_p95"] <= 3.0
 
 
-@pytest.mark.parametrize("backend", ["numba", "numpy"])
-def test_stream_windows_on_a_terrain_equal_the_whole_batch(bank: Bank, backend: str) -> None:
-    if backend == "numba" and not kernels.AVAILABLE:
-        pytest.skip("numba is not installed")
+def test_stream_windows_on_a_terrain_equal_the_whole_batch(bank: Bank) -> None:
+    """(The reference backend: tests/test_backends.py, as for tests/test_streaming.py.)"""
     paths, field = herd_on_hills()
-    opts = Options(scale_range=(0.8, 1.2), seed=2, backend=backend, ground=field)
+    opts = Options(scale_range=(0.8, 1.2), seed=2, ground=field)
     whole = synthesize(bank, paths, 60.0, options=opts)
     for chunk in (7, 100):
         windows = list(BatchStream(bank, paths, 60.0, options=opts, chunk_frames=chunk).windows())
@@ -120,12 +117,9 @@ def test_a_swing_steps_up_a_step_instead_of_jumping_onto_it() -> None:
     assert np.abs(np.diff(y)).max() < 0.2 / 2  # up over frames, not in the one crossing the edge
 
 
-@pytest.mark.parametrize("backend", ["numba", "numpy"])
-def test_a_live_session_stands_on_its_ground_as_the_batch_does(bank: Bank, backend: str) -> None:
-    if backend == "numba" and not kernels.AVAILABLE:
-        pytest.skip("numba is not installed")
+def test_a_live_session_stands_on_its_ground_as_the_batch_does(bank: Bank) -> None:
     paths, field = herd_on_hills()
-    live = LiveSynth(bank, len(paths), 60.0, seed=5, backend=backend, ground=field)
+    live = LiveSynth(bank, len(paths), 60.0, seed=5, ground=field)
     windows = [w for i in range(0, paths.shape[1], 6) if (w := live.append(paths[:, i:i + 6])) is not None]
     if (last := live.finish()) is not None:
         windows.append(last)
@@ -138,7 +132,7 @@ def test_a_live_session_stands_on_its_ground_as_the_batch_does(bank: Bank, backe
     above = feet[..., 1] - field.sample(feet[..., 0], feet[..., 2])
     assert above.min() > -0.005  # no foot in the hills
     # Planted feet on them (within a centimetre of their lowest, as in the batch: the paw's sole).
-    batch = synthesize(bank, paths, 60.0, options=Options(seed=5, backend=backend, ground=field))
+    batch = synthesize(bank, paths, 60.0, options=Options(seed=5, ground=field))
     b_feet = np.asarray(forward_kinematics(bank.skeleton, batch.root_pos, batch.rotations, offsets)[0])
     b_feet = b_feet[..., bank.skeleton.foot_joints, :]
     b_above = b_feet[..., 1] - field.sample(b_feet[..., 0], b_feet[..., 2])

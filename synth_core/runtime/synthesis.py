@@ -149,7 +149,7 @@ def prepare_batch(bank: Bank, positions: ArrayLike, fps: float | None, scales: A
 
 
 def compiled_backend(options: Options) -> bool:
-    """Whether ``options`` render with the numba kernels (else the numpy reference)."""
+    """Whether ``options`` render with the numba kernels (else the reference: their source interpreted)."""
     return backend.compiled(options.backend)
 
 
