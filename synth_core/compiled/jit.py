@@ -51,7 +51,7 @@ def interpreted(namespace: dict[str, Any], *callees: dict[str, Any]) -> dict[str
     for scope in scopes:  # every call from one to another reaches the source
         scope.update({name: plain[id(obj)] for name, obj in scope.items() if id(obj) in plain})
     return {name: plain[id(obj)] for name, obj in namespace.items()
-            if id(obj) in plain and getattr(obj, "__module__", None) == namespace["__name__"]}
+            if id(obj) in plain and plain[id(obj)].__module__ == namespace["__name__"]}
 
 
 def threads() -> int:

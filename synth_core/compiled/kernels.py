@@ -280,24 +280,6 @@ def _render_windows(poses: Any, height: Any, surge: Any, rows: Any, weights: Any
                     known[c] = max(known[c], e)
 
 
-class RenderKernels(NamedTuple):
-    """The render's entry points; :data:`COMPILED` and :data:`REFERENCE` have the same signatures."""
-
-    name: str
-    render_all: Callable[..., None]
-    render_windows: Callable[..., None]
-    lock_contexts: Callable[..., None]
-
-
-# The reference: this source (and its helpers' in the other kernel modules) run by the
-# interpreter, as the planner's (synth_core.compiled.plan_kernels.REFERENCE).
-_HELPERS = (vars(foot_kernels), vars(limb_kernels), vars(vec_kernels), vars(ground_kernels))
-_PLAIN = {**interpreted(vars(foot_kernels), *_HELPERS[1:]), **interpreted(globals(), *_HELPERS)}
-REFERENCE = RenderKernels("numpy", *(_PLAIN.get(name, globals()[name])
-                                     for name in ("_render_all", "_render_windows", "lock_contexts")))
-COMPILED = RenderKernels("numba", _render_all, _render_windows, lock_contexts) if AVAILABLE else REFERENCE
-
-
 def lock_context(contacts: NDArray[np.bool_], start: int, stop: int, compiled: bool = True
                  ) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
     """Per character ``(begin, end)``: the frames the foot lock of ``[start, stop)`` reads -- from
@@ -484,3 +466,22 @@ def render(bank: Bank, plan: Plan, foot_lock: bool = True,
         return out_root.astype(np.float32), out_rot
     out[0][...] = out_root
     return out
+
+
+class RenderKernels(NamedTuple):
+    """The render's entry points; :data:`COMPILED` and :data:`REFERENCE` have the same signatures."""
+
+    name: str
+    render_all: Callable[..., None]
+    render_windows: Callable[..., None]
+    lock_contexts: Callable[..., None]
+
+
+# The reference: this source (and its helpers' in the other kernel modules) run by the
+# interpreter, as the planner's (synth_core.compiled.plan_kernels.REFERENCE). Here at the end, so
+# every kernel of the module is in the scope it runs in.
+_HELPERS = (vars(foot_kernels), vars(limb_kernels), vars(vec_kernels), vars(ground_kernels))
+_PLAIN = {**interpreted(vars(foot_kernels), *_HELPERS[1:]), **interpreted(globals(), *_HELPERS)}
+REFERENCE = RenderKernels("numpy", *(_PLAIN.get(name, globals()[name])
+                                     for name in ("_render_all", "_render_windows", "lock_contexts")))
+COMPILED = RenderKernels("numba", _render_all, _render_windows, lock_contexts) if AVAILABLE else REFERENCE
