@@ -32,57 +32,74 @@ def plant_targets(feet: Any, contacts: Any, out: Any) -> None:
     avg = np.empty((T, 3))  # per plant, indexed by its first frame
     for f in range(4):
         out[:, f, :] = feet[:, f, :]
-        # Plants: average position.
-        t = 0
-        while t < T:
-            if not contacts[t, f]:
-                t += 1
-                continue
-            s = t
-            acc0 = acc1 = acc2 = 0.0
-            while t < T and contacts[t, f]:
-                acc0 += feet[t, f, 0]
-                acc1 += feet[t, f, 1]
-                acc2 += feet[t, f, 2]
-                t += 1
-            n = t - s
-            avg[s, 0], avg[s, 1], avg[s, 2] = acc0 / n, acc1 / n, acc2 / n
-            for u in range(s, t):
-                out[u, f, 0], out[u, f, 1], out[u, f, 2] = avg[s, 0], avg[s, 1], avg[s, 2]
-        # Swings: eased from the last plant's lift-off correction to the next one's touchdown one.
-        t = 0
-        last_start = -1
-        last_end = -1
-        while t < T:
-            if contacts[t, f]:
-                if t == 0 or not contacts[t - 1, f]:
-                    last_start = t
-                if t == T - 1 or not contacts[t + 1, f]:
-                    last_end = t
-                t += 1
-                continue
-            s = t
-            while t < T and not contacts[t, f]:
-                t += 1
-            has_before = last_start >= 0
-            has_after = t < T
-            if not (has_before or has_after):
-                continue
-            for u in range(s, t):
-                if has_before and has_after:
-                    span = max(t - last_end, 1)
-                    x = min(max((u - last_end) / span, 0.0), 1.0)
-                    x = x * x * (3 - 2 * x)
-                elif has_after:
-                    x = 1.0
-                else:
-                    x = 0.0
-                for k in range(3):
-                    if k == 1:
-                        continue
-                    lift = avg[last_start, k] - feet[last_end, f, k] if has_before else 0.0
-                    touch = avg[t, k] - feet[t, f, k] if has_after else 0.0
-                    out[u, f, k] = feet[u, f, k] + (1 - x) * lift + x * touch
+        _plants(feet, contacts, f, avg, out)
+        _swings(feet, contacts, f, avg, out)
+
+
+@_jit()
+def _plants(feet: Any, contacts: Any, f: int, avg: Any, out: Any) -> None:
+    """Foot f's plants at their average positions (also into ``avg``, at each plant's first frame)."""
+    T = feet.shape[0]
+    t = 0
+    while t < T:
+        if not contacts[t, f]:
+            t += 1
+            continue
+        s = t
+        acc0 = acc1 = acc2 = 0.0
+        while t < T and contacts[t, f]:
+            acc0 += feet[t, f, 0]
+            acc1 += feet[t, f, 1]
+            acc2 += feet[t, f, 2]
+            t += 1
+        n = t - s
+        avg[s, 0], avg[s, 1], avg[s, 2] = acc0 / n, acc1 / n, acc2 / n
+        for u in range(s, t):
+            out[u, f, 0], out[u, f, 1], out[u, f, 2] = avg[s, 0], avg[s, 1], avg[s, 2]
+
+
+@_jit()
+def _swings(feet: Any, contacts: Any, f: int, avg: Any, out: Any) -> None:
+    """Foot f's swings: eased from the last plant's lift-off correction to the next one's
+    touchdown one (``avg``: the plants' averages, by :func:`_plants`)."""
+    T = feet.shape[0]
+    t = 0
+    last_start = -1
+    last_end = -1
+    while t < T:
+        if contacts[t, f]:
+            if t == 0 or not contacts[t - 1, f]:
+                last_start = t
+            if t == T - 1 or not contacts[t + 1, f]:
+                last_end = t
+            t += 1
+            continue
+        s = t
+        while t < T and not contacts[t, f]:
+            t += 1
+        has_before = last_start >= 0
+        has_after = t < T
+        if not (has_before or has_after):
+            continue
+        for u in range(s, t):
+            x = _eased(u, last_end, t, has_before, has_after)
+            for k in range(3):
+                if k == 1:
+                    continue
+                lift = avg[last_start, k] - feet[last_end, f, k] if has_before else 0.0
+                touch = avg[t, k] - feet[t, f, k] if has_after else 0.0
+                out[u, f, k] = feet[u, f, k] + (1 - x) * lift + x * touch
+
+
+@_jit()
+def _eased(u: int, last_end: int, nxt: int, has_before: bool, has_after: bool) -> float:
+    """The touchdown correction's share on frame u of a swing from plant end ``last_end`` to the
+    plant starting at ``nxt`` (smoothstep; all of it, or none, where a plant is missing)."""
+    if has_before and has_after:
+        span = max(nxt - last_end, 1)
+        x = min(max((u - last_end) / span, 0.0), 1.0)
+        return float(x * x * (3 - 2 * x))
+    return 1.0 if has_after else 0.0
 
 
 @_jit()
