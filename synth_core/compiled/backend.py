@@ -2,12 +2,13 @@
 
 ``"numba"``: the compiled kernels; ``"numpy"``: the references -- the kernels' own source run by the
 interpreter, the planner's (:data:`synth_core.compiled.plan_kernels.REFERENCE`) and the render's
-(:data:`synth_core.compiled.kernels.REFERENCE`); ``"auto"``: numba where it is installed.
+(:data:`synth_core.compiled.kernels.REFERENCE`, whose wrappers take ``compiled=``:func:`compiled`
+``(name)``: importing them here would close an import circle through the runtime); ``"auto"``:
+numba where it is installed.
 """
 
 from __future__ import annotations
 
-from synth_core.compiled import kernels
 from synth_core.compiled.jit import AVAILABLE
 from synth_core.compiled.plan_kernels import COMPILED, REFERENCE, Kernels
 
@@ -24,9 +25,3 @@ def compiled(name: str) -> bool:
 def planner(name: str) -> Kernels:
     """The planner's kernels of backend ``name``."""
     return COMPILED if compiled(name) else REFERENCE
-
-
-def renderer(name: str) -> kernels.RenderKernels:
-    """The render's kernels of backend ``name`` (the wrappers in :mod:`~synth_core.compiled.kernels`
-    take ``compiled=``:func:`compiled` ``(name)``)."""
-    return kernels.COMPILED if compiled(name) else kernels.REFERENCE
