@@ -103,9 +103,9 @@ print(json.dumps({"modules": names, "refused_and_loaded": refused_and_loaded(), 
 
 
 def test_the_core_runs_without_numba_on_its_numpy_reference(tmp_path: Path) -> None:
-    """numba is installed with the core (the compiled kernels, ~30x faster), but the core does not
-    need it: refused, every module imports and a herd is synthesized by the numpy reference, the
-    motion the kernels make."""
+    """numba is installed with the core (the compiled kernels, thousands of times faster), but the
+    core does not need it: refused, every module imports and a herd is synthesized by the reference
+    (the kernels' own source, interpreted), the motion the kernels make."""
     code = """
 import importlib, pkgutil
 import numpy as np

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from synth_core.compiled import ground_kernels, kernels
+from synth_core.compiled import foot_kernels, kernels
 from synth_core.motion.skeleton import forward_kinematics
 from synth_core.quality import metrics as M
 from synth_core.quality.evaluate import TERRAIN_TARGETS, edge_suite, passes, world_positions
@@ -13,8 +13,9 @@ from synth_core.runtime.bank import Bank
 from synth_core.runtime.live import LiveSynth
 from synth_core.runtime.streaming import BatchStream
 from synth_core.runtime.synthesis import Options, synthesize
-from synth_core.runtime.terrain import HeightField, TerrainError, along_ground, ground_targets, sample
+from synth_core.runtime.terrain import HeightField, TerrainError, along_ground
 from synth_core.runtime.trajectory import Prepared
+from tests.helpers.motion import herd_on_hills
 
 
 def test_bilinear_sampling_is_exact_on_planes_and_holds_the_edges() -> None:
@@ -54,57 +55,23 @@ def test_the_gait_reads_the_speed_along_the_ground() -> None:
     assert np.allclose(on.segment_speeds, np.hypot(1.0, 0.3) * 20.0 / 600 * 30.0)
 
 
-def _hills(x: np.ndarray, z: np.ndarray) -> np.ndarray:
-    return np.asarray(0.5 * np.sin(x / 3.0) * np.cos(z / 4.0) + 0.1 * z)
-
-
-def _herd_on_hills() -> tuple[np.ndarray, HeightField]:
-    xs = np.arange(-15.0, 40.0, 0.1)
-    x, z = np.meshgrid(xs, xs)
-    field = HeightField.make(_hills(x, z), origin=(-15.0, -15.0), spacing=0.1)
-    T = 360
-    s = np.linspace(0.0, 1.0, T)
-    paths = np.zeros((3, T, 3))
-    for c, (speed, bend) in enumerate(((1.5, 0.3), (3.0, -0.4), (5.0, 0.2))):
-        yaw = 0.5 + bend * s
-        step = np.stack([np.sin(yaw), np.zeros(T), np.cos(yaw)], -1) * speed / 60.0
-        paths[c] = np.cumsum(step, axis=0) + [c * 3.0, 0.0, 0.0]
-    return paths, field
-
-
-def test_numba_kernels_match_the_numpy_reference_on_a_terrain(bank: Bank) -> None:
-    if not kernels.AVAILABLE:
-        pytest.skip("numba is not installed: only the numpy reference runs")
-    paths, field = _herd_on_hills()
-    opts = dict(scale_range=(0.8, 1.2), seed=4, ground=field)
-    ref = synthesize(bank, paths, 60.0, options=Options(backend="numpy", **opts))  # type: ignore[arg-type]
-    fast = synthesize(bank, paths, 60.0, options=Options(backend="numba", **opts))  # type: ignore[arg-type]
-    angle = 2 * np.degrees(np.arccos(np.clip(np.abs(np.sum(ref.rotations * fast.rotations, axis=-1)), 0, 1)))
-    assert angle.max() < 0.1
-    assert np.abs(ref.root_pos - fast.root_pos).max() < 1e-5
-    # ... and the terrain did something: the bodies stand on it, not on the paths' y (0).
-    flat = synthesize(bank, paths, 60.0, options=Options(backend="numba", scale_range=(0.8, 1.2), seed=4))
-    assert np.abs(fast.root_pos[..., 1] - flat.root_pos[..., 1]).max() > 0.3
-
-
 def test_a_flat_terrain_renders_as_the_flat_paths_do(bank: Bank) -> None:
     """... but for the body lowering further where a leg would stretch (the flat render sinks
     the root 5% of a leg at most, a terrain 20%): there the terrain's legs reach less far."""
-    paths, _ = _herd_on_hills()
+    paths, _ = herd_on_hills()
     paths[..., 1] = 0.7
     field = HeightField.make(np.full((8, 8), 0.7), origin=(-20.0, -20.0), spacing=20.0)
-    for backend in ("numpy", "numba") if kernels.AVAILABLE else ("numpy",):
-        plain = synthesize(bank, paths, 60.0, options=Options(backend=backend, seed=1))
-        on = synthesize(bank, paths, 60.0, options=Options(backend=backend, seed=1, ground=field))
-        assert np.array_equal(plain.gait, on.gait) and np.array_equal(plain.contacts, on.contacts)
-        lowered = np.abs(plain.root_pos - on.root_pos).max(axis=-1) > 1e-4
-        assert lowered.mean() < 0.05 and np.all(on.root_pos[lowered, 1] < plain.root_pos[lowered, 1])
-        reach = [M.limb_reach(world_positions(bank, r), bank.skeleton).max(axis=-1) for r in (plain, on)]
-        assert np.all(reach[1][lowered] < reach[0][lowered])
-        same = ~lowered
-        assert np.abs(plain.root_pos[same] - on.root_pos[same]).max() < 1e-4
-        dots = np.abs(np.sum(plain.rotations[same] * on.rotations[same], -1))
-        assert 2 * np.degrees(np.arccos(np.clip(dots, 0, 1))).max() < 0.1  # float32: 1 ulp is 0.04
+    plain = synthesize(bank, paths, 60.0, options=Options(seed=1))
+    on = synthesize(bank, paths, 60.0, options=Options(seed=1, ground=field))
+    assert np.array_equal(plain.gait, on.gait) and np.array_equal(plain.contacts, on.contacts)
+    lowered = np.abs(plain.root_pos - on.root_pos).max(axis=-1) > 1e-4
+    assert lowered.mean() < 0.05 and np.all(on.root_pos[lowered, 1] < plain.root_pos[lowered, 1])
+    reach = [M.limb_reach(world_positions(bank, r), bank.skeleton).max(axis=-1) for r in (plain, on)]
+    assert np.all(reach[1][lowered] < reach[0][lowered])
+    same = ~lowered
+    assert np.abs(plain.root_pos[same] - on.root_pos[same]).max() < 1e-4
+    dots = np.abs(np.sum(plain.rotations[same] * on.rotations[same], -1))
+    assert 2 * np.degrees(np.arccos(np.clip(dots, 0, 1))).max() < 0.1  # float32: 1 ulp is 0.04
 
 
 @pytest.mark.parametrize("name", ["slope_up_30", "slope_down_30", "slope_across_30", "step_20cm",
@@ -119,12 +86,10 @@ def test_terrain_scenarios_meet_the_issue_targets(bank: Bank, name: str) -> None
     assert figures["glide_ratio"] <= 0.10 and figures["strict_skate_mm_p95"] <= 3.0
 
 
-@pytest.mark.parametrize("backend", ["numba", "numpy"])
-def test_stream_windows_on_a_terrain_equal_the_whole_batch(bank: Bank, backend: str) -> None:
-    if backend == "numba" and not kernels.AVAILABLE:
-        pytest.skip("numba is not installed")
-    paths, field = _herd_on_hills()
-    opts = Options(scale_range=(0.8, 1.2), seed=2, backend=backend, ground=field)
+def test_stream_windows_on_a_terrain_equal_the_whole_batch(bank: Bank) -> None:
+    """(The reference backend: tests/test_backends.py, as for tests/test_streaming.py.)"""
+    paths, field = herd_on_hills()
+    opts = Options(scale_range=(0.8, 1.2), seed=2, ground=field)
     whole = synthesize(bank, paths, 60.0, options=opts)
     for chunk in (7, 100):
         windows = list(BatchStream(bank, paths, 60.0, options=opts, chunk_frames=chunk).windows())
@@ -142,19 +107,19 @@ def test_a_swing_steps_up_a_step_instead_of_jumping_onto_it() -> None:
     xs = np.arange(-1.0, 2.0, 0.01)
     step = np.where(xs > 0.3, 0.2, 0.0)  # a 20 cm step 0.3 m into the swing
     field = HeightField.make(np.tile(step[:, None], (1, 3)), origin=(-0.01, -1.0), spacing=0.01)
-    y = ground_targets(targets, contacts, field, np.ones(1))[0, :, 0, 1]
+    on = targets[0].copy()
+    f = field
+    foot_kernels.ground_targets(on, contacts[0], f.heights, *f.origin, f.spacing, 1.0, np.empty(30))
+    y = on[:, 0, 1]
     under = field.sample(targets[0, :, 0, 0], targets[0, :, 0, 2])
     assert np.allclose(y[contacts[0, :, 0]], under[contacts[0, :, 0]])  # planted: on it
     assert np.all(y >= under - 1e-9)  # never in it
     assert np.abs(np.diff(y)).max() < 0.2 / 2  # up over frames, not in the one crossing the edge
 
 
-@pytest.mark.parametrize("backend", ["numba", "numpy"])
-def test_a_live_session_stands_on_its_ground_as_the_batch_does(bank: Bank, backend: str) -> None:
-    if backend == "numba" and not kernels.AVAILABLE:
-        pytest.skip("numba is not installed")
-    paths, field = _herd_on_hills()
-    live = LiveSynth(bank, len(paths), 60.0, seed=5, backend=backend, ground=field)
+def test_a_live_session_stands_on_its_ground_as_the_batch_does(bank: Bank) -> None:
+    paths, field = herd_on_hills()
+    live = LiveSynth(bank, len(paths), 60.0, seed=5, ground=field)
     windows = [w for i in range(0, paths.shape[1], 6) if (w := live.append(paths[:, i:i + 6])) is not None]
     if (last := live.finish()) is not None:
         windows.append(last)
@@ -167,21 +132,11 @@ def test_a_live_session_stands_on_its_ground_as_the_batch_does(bank: Bank, backe
     above = feet[..., 1] - field.sample(feet[..., 0], feet[..., 2])
     assert above.min() > -0.005  # no foot in the hills
     # Planted feet on them (within a centimetre of their lowest, as in the batch: the paw's sole).
-    batch = synthesize(bank, paths, 60.0, options=Options(seed=5, backend=backend, ground=field))
+    batch = synthesize(bank, paths, 60.0, options=Options(seed=5, ground=field))
     b_feet = np.asarray(forward_kinematics(bank.skeleton, batch.root_pos, batch.rotations, offsets)[0])
     b_feet = b_feet[..., bank.skeleton.foot_joints, :]
     b_above = b_feet[..., 1] - field.sample(b_feet[..., 0], b_feet[..., 2])
     assert np.percentile(above[contacts], 95) <= np.percentile(b_above[batch.contacts], 95) + 0.005
-
-
-def test_compiled_sampling_is_the_numpy_sampling() -> None:
-    if not kernels.AVAILABLE:
-        pytest.skip("numba is not installed")
-    rng = np.random.default_rng(1)
-    heights = rng.normal(size=(30, 50))
-    x, z = rng.uniform(-3.0, 30.0, (2, 7, 11))  # some outside the grid
-    want = sample(heights, -1.0, 0.5, 0.5, x, z)
-    assert np.array_equal(ground_kernels.ground_samples(heights, -1.0, 0.5, 0.5, x, z), want)
 
 
 @pytest.mark.parametrize("backend", ["numba", "numpy"])
@@ -265,7 +220,7 @@ def test_a_swing_rises_over_a_step_or_a_bump_no_higher_than_it_in_both_backends(
     """A 20 cm step, or a 20 cm bump 10 cm across, ``at`` of the way into a 1 m swing: the foot's
     ground (its clip height 0 here) stays on or over the terrain and is never higher than the
     terrain's top (the symmetric bump it replaced rose some 1.7 times a step near the swing's
-    ends); numpy and compiled alike."""
+    ends); the kernel compiled and interpreted alike."""
     z = np.concatenate([np.zeros(10), np.linspace(0.0, 1.0, 12)[1:-1], np.ones(10)])
     targets = np.zeros((1, 30, 4, 3))
     targets[0, :, :, 2] = z[:, None]
@@ -274,12 +229,16 @@ def test_a_swing_rises_over_a_step_or_a_bump_no_higher_than_it_in_both_backends(
     xs = np.arange(-1.0, 2.0, 0.01)
     for terrain in (np.where(xs > at, 0.2, 0.0), np.where(np.abs(xs - at) < 0.05, 0.2, 0.0)):
         field = HeightField.make(np.tile(terrain[:, None], (1, 3)), origin=(-0.01, -1.0), spacing=0.01)
-        y = ground_targets(targets, contacts, field, np.ones(1))[0, :, 0, 1]
+        ys = []
+        for run in (foot_kernels.ground_targets, getattr(foot_kernels.ground_targets, "py_func", None)):
+            if run is None:  # numba not installed: the source is the function itself
+                continue
+            mine = targets[0].copy()  # the kernel writes in place
+            run(mine, np.ascontiguousarray(contacts[0]), field.heights, field.origin[0], field.origin[1],
+                field.spacing, 1.0, np.empty(30))
+            ys.append(mine[:, 0, 1])
+        y = ys[0]
         under = field.sample(targets[0, :, 0, 0], targets[0, :, 0, 2])
         assert np.all(y >= under - 1e-9) and y.max() <= 0.2 + 1e-9
-        if kernels.AVAILABLE:
-            from synth_core.compiled.foot_kernels import ground_targets as compiled
-            mine = targets[0].copy()  # the kernel writes in place
-            compiled(mine, np.ascontiguousarray(contacts[0]), field.heights, field.origin[0], field.origin[1],
-                     field.spacing, 1.0, np.empty(30))
-            np.testing.assert_allclose(mine[:, 0, 1], y, atol=1e-12)
+        for other in ys[1:]:  # compiled and interpreted alike
+            np.testing.assert_allclose(other, y, atol=1e-12)

@@ -1,8 +1,10 @@
 """Which code runs: the one place a backend name becomes the compiled kernels or the reference.
 
-``"numba"``: the compiled kernels; ``"numpy"``: the references (the planner's own source run by the
-interpreter, :data:`synth_core.compiled.plan_kernels.REFERENCE`; the render's numpy
-:func:`synth_core.runtime.synthesis.render`); ``"auto"``: numba where it is installed.
+``"numba"``: the compiled kernels; ``"numpy"``: the references -- the kernels' own source run by the
+interpreter, the planner's (:data:`synth_core.compiled.plan_kernels.REFERENCE`) and the render's
+(:data:`synth_core.compiled.kernels.REFERENCE`, whose wrappers take ``compiled=``:func:`compiled`
+``(name)``: importing them here would close an import circle through the runtime); ``"auto"``:
+numba where it is installed.
 """
 
 from __future__ import annotations

@@ -1,8 +1,10 @@
-"""Compiled foot targets of the render: plant targets, the root's sink, targets on a terrain.
+"""The render's foot targets: plant targets, the root's sink, targets on a terrain; the foot
+lock's context.
 
-Passes 2 and 3 of ``synth_core.compiled.kernels._character`` for one character:
-:func:`plant_targets` (``footlock.plant_targets``), :func:`ease_sink` (``footlock.ease_sink``) and
-:func:`ground_targets` (``terrain.ground_targets``).
+Passes 2 and 3 of ``synth_core.compiled.kernels._character`` for one character (the foot lock:
+:mod:`synth_core.runtime.footlock`): :func:`plant_targets`, :func:`ease_sink` and
+:func:`ground_targets` (on a terrain: :mod:`synth_core.runtime.terrain`); :func:`lock_contexts`,
+the frames a window's foot lock reads.
 """
 
 from __future__ import annotations
@@ -21,67 +23,89 @@ _jit = render_jit
 
 @_jit()
 def plant_targets(feet: Any, contacts: Any, out: Any) -> None:
-    """footlock.plant_targets for one character: feet (T, 4, 3), contacts (T, 4)."""
+    """Foot targets ``out (T, 4, 3)`` of one character from its feet ``(T, 4, 3)`` and ``contacts
+    (T, 4)``: each plant at the foot's average over it; a swinging foot on its own path plus a
+    correction eased (smoothstep) from the one its last plant needed at lift-off to the one its
+    next plant needs at touchdown, over the ground only (x and z: swing heights are the clip's)."""
     T = feet.shape[0]
     avg = np.empty((T, 3))  # per plant, indexed by its first frame
     for f in range(4):
         out[:, f, :] = feet[:, f, :]
-        # Plants: average position.
-        t = 0
-        while t < T:
-            if not contacts[t, f]:
-                t += 1
-                continue
-            s = t
-            acc0 = acc1 = acc2 = 0.0
-            while t < T and contacts[t, f]:
-                acc0 += feet[t, f, 0]
-                acc1 += feet[t, f, 1]
-                acc2 += feet[t, f, 2]
-                t += 1
-            n = t - s
-            avg[s, 0], avg[s, 1], avg[s, 2] = acc0 / n, acc1 / n, acc2 / n
-            for u in range(s, t):
-                out[u, f, 0], out[u, f, 1], out[u, f, 2] = avg[s, 0], avg[s, 1], avg[s, 2]
-        # Swings: eased from the last plant's lift-off correction to the next one's touchdown one.
-        t = 0
-        last_start = -1
-        last_end = -1
-        while t < T:
-            if contacts[t, f]:
-                if t == 0 or not contacts[t - 1, f]:
-                    last_start = t
-                if t == T - 1 or not contacts[t + 1, f]:
-                    last_end = t
-                t += 1
-                continue
-            s = t
-            while t < T and not contacts[t, f]:
-                t += 1
-            has_before = last_start >= 0
-            has_after = t < T
-            if not (has_before or has_after):
-                continue
-            for u in range(s, t):
-                if has_before and has_after:
-                    span = max(t - last_end, 1)
-                    x = min(max((u - last_end) / span, 0.0), 1.0)
-                    x = x * x * (3 - 2 * x)
-                elif has_after:
-                    x = 1.0
-                else:
-                    x = 0.0
-                for k in range(3):
-                    if k == 1:
-                        continue
-                    lift = avg[last_start, k] - feet[last_end, f, k] if has_before else 0.0
-                    touch = avg[t, k] - feet[t, f, k] if has_after else 0.0
-                    out[u, f, k] = feet[u, f, k] + (1 - x) * lift + x * touch
+        _plants(feet, contacts, f, avg, out)
+        _swings(feet, contacts, f, avg, out)
+
+
+@_jit()
+def _plants(feet: Any, contacts: Any, f: int, avg: Any, out: Any) -> None:
+    """Foot f's plants at their average positions (also into ``avg``, at each plant's first frame)."""
+    T = feet.shape[0]
+    t = 0
+    while t < T:
+        if not contacts[t, f]:
+            t += 1
+            continue
+        s = t
+        acc0 = acc1 = acc2 = 0.0
+        while t < T and contacts[t, f]:
+            acc0 += feet[t, f, 0]
+            acc1 += feet[t, f, 1]
+            acc2 += feet[t, f, 2]
+            t += 1
+        n = t - s
+        avg[s, 0], avg[s, 1], avg[s, 2] = acc0 / n, acc1 / n, acc2 / n
+        for u in range(s, t):
+            out[u, f, 0], out[u, f, 1], out[u, f, 2] = avg[s, 0], avg[s, 1], avg[s, 2]
+
+
+@_jit()
+def _swings(feet: Any, contacts: Any, f: int, avg: Any, out: Any) -> None:
+    """Foot f's swings: eased from the last plant's lift-off correction to the next one's
+    touchdown one (``avg``: the plants' averages, by :func:`_plants`)."""
+    T = feet.shape[0]
+    t = 0
+    last_start = -1
+    last_end = -1
+    while t < T:
+        if contacts[t, f]:
+            if t == 0 or not contacts[t - 1, f]:
+                last_start = t
+            if t == T - 1 or not contacts[t + 1, f]:
+                last_end = t
+            t += 1
+            continue
+        s = t
+        while t < T and not contacts[t, f]:
+            t += 1
+        has_before = last_start >= 0
+        has_after = t < T
+        if not (has_before or has_after):
+            continue
+        for u in range(s, t):
+            x = _eased(u, last_end, t, has_before, has_after)
+            for k in range(3):
+                if k == 1:
+                    continue
+                lift = avg[last_start, k] - feet[last_end, f, k] if has_before else 0.0
+                touch = avg[t, k] - feet[t, f, k] if has_after else 0.0
+                out[u, f, k] = feet[u, f, k] + (1 - x) * lift + x * touch
+
+
+@_jit()
+def _eased(u: int, last_end: int, nxt: int, has_before: bool, has_after: bool) -> float:
+    """The touchdown correction's share on frame u of a swing from plant end ``last_end`` to the
+    plant starting at ``nxt`` (smoothstep; all of it, or none, where a plant is missing)."""
+    if has_before and has_after:
+        span = max(nxt - last_end, 1)
+        x = min(max((u - last_end) / span, 0.0), 1.0)
+        return float(x * x * (3 - 2 * x))
+    return 1.0 if has_after else 0.0
 
 
 @_jit()
 def ease_sink(sink: Any, limit: float, out: Any) -> None:
-    """footlock.ease_sink for one character: running max (EASE_FRAMES, nearest), Gaussian."""
+    """A per-frame sink ``(T,)`` spread in time and bounded by ``limit``, into ``out``: a running
+    max over EASE_FRAMES, then a Gaussian (sigma EASE_FRAMES / 6, truncated at 4 sigma), the
+    ends held (scipy.ndimage's ``mode="nearest"``)."""
     T = sink.shape[0]
     half = EASE_FRAMES // 2
     spread = np.empty(T)
@@ -114,7 +138,9 @@ NOWHERE = -(1 << 62)  # Posed.legs_at of a character whose last window kept no l
 
 @_jit()
 def _swing_share(targets: Any, f: int, last: int, u: int, nxt: int) -> float:
-    """terrain.swing_share of frame u of a swing from plant frame ``last`` to ``nxt``."""
+    """How far frame u's target is along its swing from the plant at frame ``last`` to the one at
+    ``nxt`` -- over the ground (its distance from the first over its distances from both), or in
+    time where the foot does not travel."""
     gone = math.hypot(targets[u, f, 0] - targets[last, f, 0], targets[u, f, 2] - targets[last, f, 2])
     left = math.hypot(targets[nxt, f, 0] - targets[u, f, 0], targets[nxt, f, 2] - targets[u, f, 2])
     if gone + left > 1e-9:
@@ -125,7 +151,17 @@ def _swing_share(targets: Any, f: int, last: int, u: int, nxt: int) -> float:
 @_jit()
 def ground_targets(targets: Any, contacts: Any, heights: Any, x0: float, z0: float, spacing: float,
                     h: float, under: Any) -> None:
-    """terrain.ground_targets for one character, in place (``under (T,)``: scratch)."""
+    """One character's foot targets ``(T, 4, 3)`` (the library's unit: world / h) whose y is the
+    height above the body's ground, put on the terrain ``heights`` (origin x0, z0; ``spacing``),
+    in place (``under (T,)``: scratch). Planted: on the terrain under the target. Swinging
+    between two plants: over the ground straight from the last plant's height to the next one's
+    (by :func:`_swing_share`: on a plane, the plane's own heights), raised where the terrain under
+    the swing is above that line: to the tent over that excess (straight up from lift-off to each
+    point's excess and straight down from it to touchdown, along the swing's progress: the mean
+    of its share of the way and of the time), and never below the terrain under it. A foot so
+    rises onto a step or over a bump from lift-off on, reaches the top as it gets there and no
+    higher; it does not jump onto it in the frame it crosses the edge. A swing with no plant
+    before or after it (a window's ends): the terrain under it."""
     T = targets.shape[0]
     lift = np.empty(T)  # a swing's envelope of the terrain's excess over its straight line
     for f in range(4):
@@ -160,3 +196,37 @@ def ground_targets(targets: Any, contacts: Any, heights: Any, x0: float, z0: flo
             for u in range(s, t):
                 e = under[last] + (under[nxt] - under[last]) * _swing_share(targets, f, last, u, nxt)
                 targets[u, f, 1] = max(targets[u, f, 1], 0.0) + max(e + lift[u], under[u])
+
+
+@_jit()
+def _run_start(flags: Any, t: int) -> int:
+    """The first frame of the run of equal flags that frame t is in."""
+    while t > 0 and flags[t - 1] == flags[t]:
+        t -= 1
+    return t
+
+
+@_jit()
+def _run_end(flags: Any, t: int) -> int:
+    """The frame after the last of the run of equal flags that frame t is in."""
+    T = len(flags)
+    while t + 1 < T and flags[t + 1] == flags[t]:
+        t += 1
+    return t + 1
+
+
+@_jit()
+def lock_contexts(contacts: Any, start: int, stop: int, pad: int, begin: Any, end: Any) -> None:
+    """Per character ``begin[c], end[c]``: the frames the foot lock of ``[start, stop)`` reads
+    (``kernels.lock_context``): a scan from the window's ends over the runs each foot is in."""
+    C, T, F = contacts.shape
+    lo, hi = max(start - pad, 0), min(stop + pad, T)
+    for c in range(C):
+        b, e = T, 0
+        for f in range(F):
+            flags = contacts[c, :, f]
+            run = _run_start(flags, lo)  # the plant lo is in, or the plant before its swing
+            b = min(b, run if flags[lo] else (_run_start(flags, run - 1) if run > 0 else 0))
+            after = _run_end(flags, hi - 1)  # the plant hi - 1 is in, or the plant after its swing
+            e = max(e, after if flags[hi - 1] else (_run_end(flags, after) if after < T else T))
+        begin[c], end[c] = b, e

@@ -33,17 +33,25 @@ def jit(parallel: bool = False, inline: Literal["never", "always"] = "never") ->
     return wrap
 
 
-def interpreted(namespace: dict[str, Any]) -> dict[str, Callable[..., Any]]:
+def interpreted(namespace: dict[str, Any], *callees: dict[str, Any]) -> dict[str, Callable[..., Any]]:
     """The :func:`jit` functions of a module (its ``globals()``) as the interpreter runs them: each
-    one's Python source, calling the others' Python source too (and ``prange`` as ``range``)."""
-    scope = dict(namespace, prange=range)
-    plain: dict[str, Callable[..., Any]] = {}
-    for name, obj in namespace.items():
-        f = getattr(obj, "py_func", None)  # a numba dispatcher's own function
-        if isinstance(f, types.FunctionType) and f.__module__ == namespace["__name__"]:
-            plain[name] = types.FunctionType(f.__code__, scope, f.__name__, f.__defaults__, f.__closure__)
-    scope.update(plain)
-    return plain
+    one's Python source, calling the others' Python source too (and ``prange`` as ``range``).
+    ``callees``: the namespaces of other modules whose jit functions these call, run as source too
+    (each in its own module's globals)."""
+    plain: dict[int, Callable[..., Any]] = {}  # id(dispatcher) -> its source as a function
+    scopes = []
+    for space in (namespace, *callees):
+        scope = dict(space, prange=range)
+        scopes.append(scope)
+        for obj in space.values():
+            f = getattr(obj, "py_func", None)  # a numba dispatcher's own function
+            if isinstance(f, types.FunctionType) and f.__module__ == space["__name__"]:
+                plain[id(obj)] = types.FunctionType(f.__code__, scope, f.__name__, f.__defaults__,
+                                                    f.__closure__)
+    for scope in scopes:  # every call from one to another reaches the source
+        scope.update({name: plain[id(obj)] for name, obj in scope.items() if id(obj) in plain})
+    return {name: plain[id(obj)] for name, obj in namespace.items()
+            if id(obj) in plain and plain[id(obj)].__module__ == namespace["__name__"]}
 
 
 def threads() -> int:

@@ -1,18 +1,21 @@
-"""Compiled (numba) kernels for the synthesis hot path: pose assembly, warp and foot lock.
+"""The render, written once: pose assembly, warp and foot lock (Sung 2011 section 6, steps 2-4,
+and the foot lock beyond the paper: :mod:`synth_core.runtime.footlock`).
 
-The numpy reference is :func:`synth_core.runtime.synthesis.render` with
-:func:`synth_core.runtime.footlock.lock_feet`;
-this module does the same work, character by character in parallel (``prange``), frame by frame
-in registers, so nothing the size of (characters, frames, joints) is made more than once (the
-output). Tests hold the two to the same result. Without numba installed, ``AVAILABLE`` is False
-and synthesis uses the reference.
+Character by character in parallel (``prange``), frame by frame in registers, so nothing the size
+of (characters, frames, joints) is made more than once (the output). Numba compiles these
+functions (:func:`synth_core.compiled.jit.render_jit`); :data:`REFERENCE` is the same source --
+these and their helpers in :mod:`~synth_core.compiled.foot_kernels`,
+:mod:`~synth_core.compiled.limb_kernels`, :mod:`~synth_core.compiled.vec_kernels` and
+:mod:`~synth_core.compiled.ground_kernels` -- run by the interpreter, as the planner's is
+(slow: for tests and for a machine without numba). ``compiled=False`` asks the wrappers for it;
+:mod:`synth_core.compiled.backend` names the two.
 
 One character, in four passes over its frames:
 
 1. blend the plan's table rows (and the piece fading out), turn the root to the heading, put it
    on the path; forward kinematics of the joints above the feet only, in the character's unit
    (its world divided by its scale h: the library skeleton's geometry);
-2. plant targets per foot (:func:`synth_core.runtime.footlock.plant_targets`);
+2. plant targets per foot (:func:`~synth_core.compiled.foot_kernels.plant_targets`);
 3. the root's sink where a target needs a leg straighter than ``REACH`` (eased, bounded);
 4. limb IK (:func:`synth_core.build.ik.solve`, without the ground tipping) on the upper joint, hinge
    and ankle of each leg -- 16 frames at a time in SIMD lanes (see :mod:`~synth_core.compiled.limb_kernels`).
@@ -30,6 +33,7 @@ from numpy.typing import NDArray
 
 from synth_core import UP_AXIS
 from synth_core.build.ik import limb_rigs
+from synth_core.compiled import foot_kernels, ground_kernels, limb_kernels, vec_kernels
 from synth_core.compiled.foot_kernels import (
     LEG_REACH,
     LEG_TOE,
@@ -38,9 +42,11 @@ from synth_core.compiled.foot_kernels import (
     NOWHERE,
     ease_sink,
     ground_targets,
+    lock_contexts,
     plant_targets,
 )
-from synth_core.compiled.jit import render_jit
+from synth_core.compiled.jit import AVAILABLE as AVAILABLE  # callers ask kernels.AVAILABLE
+from synth_core.compiled.jit import interpreted, prange, render_jit, threads
 from synth_core.compiled.limb_kernels import LANES, fk, solve_legs, unit4, world_position
 from synth_core.compiled.scratch import Scratch
 from synth_core.compiled.vec_kernels import (
@@ -63,20 +69,10 @@ if TYPE_CHECKING:
     from synth_core.runtime.plan import Plan
     from synth_core.runtime.terrain import Grounding
 
-try:
-    import numba
-    AVAILABLE = True
-except ImportError:  # pragma: no cover - numba is a dependency; synth_core itself needs only numpy
-    AVAILABLE = False
-
-
 F = TypeVar("F", bound=Callable[..., Any])
 
 
 _jit = render_jit
-
-
-_prange: Any = numba.prange if AVAILABLE else range
 
 
 # --- the four passes ---------------------------------------------------------------------------
@@ -160,7 +156,12 @@ def _character(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, yaw
 
     ``heights (Nz, Nx)``: the terrain (``(0, 0)``: none), its grid's origin and spacing; the body
     then tilted by ``tilt[tilt_at + t]`` (``(T', 4)``) on frame t and its feet planted on the
-    terrain (:mod:`synth_core.runtime.terrain`)."""
+    terrain (:mod:`synth_core.runtime.terrain`). The feet are measured there with the tilt
+    taken back off: their height as without it (over the ground, the body's height is the
+    clip's), their place over the ground turned back by half the tilt -- legs hang between square
+    to the body and plumb. Plumb (the whole tilt taken off), a body pitched down a 30% slope swung
+    its forelegs 17 degrees forward of where it carries them and their shoulders flipped through
+    straight; square, the hooves slid 35 cm ahead of the root and the body leant back."""
     terrain = heights.shape[0] > 0
     T = out_rot.shape[0]
     if not foot_lock:
@@ -187,7 +188,7 @@ def _character(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, yaw
             up, hi, an, ef = rigs[f, 0], rigs[f, 1], rigs[f, 2], rigs[f, 3]
             p_up, p_hi = world_position(world, up, t - o), world_position(world, hi, t - o)
             p_an, p_ef = world_position(world, an, t - o), world_position(world, ef, t - o)
-            if terrain:  # as the leg hangs untilted, above the body's ground (terrain.untilt)
+            if terrain:  # as the leg hangs untilted, above the body's ground (see the doc)
                 r = vscale(v3(out_root[t]), 1.0 / h)
                 q = q4(tilt[tilt_at + t])
                 p = vadd(r, qrot(conj(unit4((q[0], q[1], q[2], q[3] + 1.0))), vsub(p_ef, r)))
@@ -238,7 +239,7 @@ def _render_all(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, ya
     C = out_rot.shape[0]
     workers = min(C, w_world.shape[0])
     none_known = np.empty((0, 4, 3))
-    for worker in _prange(workers):
+    for worker in prange(workers):
         world, feet, legs, targets = w_world[worker], w_feet[worker], w_legs[worker], w_targets[worker]
         sink, eased = w_sink[worker], w_eased[worker]
         recent = np.empty((PAD, 4, LEG_WIDTH))
@@ -271,7 +272,7 @@ def _render_windows(poses: Any, height: Any, surge: Any, rows: Any, weights: Any
         longest = max(longest, end[c] - begin[c])
     workers = min(c1 - c0, workers)
     keep = known_feet.shape[0] > 0
-    for worker in _prange(workers):
+    for worker in prange(workers):
         rot = np.empty((longest, J, 4), np.float32)
         root = np.empty((longest, 3))
         # See fk: from an origin up to LANES - 1 frames before the first posed.
@@ -311,46 +312,16 @@ def _render_windows(poses: Any, height: Any, surge: Any, rows: Any, weights: Any
                 known[c] = max(known[c], e) if known[c] >= b else e
 
 
-@_jit()
-def _run_start(flags: Any, t: int) -> int:
-    """The first frame of the run of equal flags that frame t is in."""
-    while t > 0 and flags[t - 1] == flags[t]:
-        t -= 1
-    return t
-
-
-@_jit()
-def _run_end(flags: Any, t: int) -> int:
-    """The frame after the last of the run of equal flags that frame t is in."""
-    T = len(flags)
-    while t + 1 < T and flags[t + 1] == flags[t]:
-        t += 1
-    return t + 1
-
-
-@_jit()
-def _lock_contexts(contacts: Any, start: int, stop: int, pad: int, begin: Any, end: Any) -> None:
-    C, T, F = contacts.shape
-    lo, hi = max(start - pad, 0), min(stop + pad, T)
-    for c in range(C):
-        b, e = T, 0
-        for f in range(F):
-            flags = contacts[c, :, f]
-            run = _run_start(flags, lo)  # the plant lo is in, or the plant before its swing
-            b = min(b, run if flags[lo] else (_run_start(flags, run - 1) if run > 0 else 0))
-            after = _run_end(flags, hi - 1)  # the plant hi - 1 is in, or the plant after its swing
-            e = max(e, after if flags[hi - 1] else (_run_end(flags, after) if after < T else T))
-        begin[c], end[c] = b, e
-
-
-def lock_context(contacts: NDArray[np.bool_], start: int, stop: int
+def lock_context(contacts: NDArray[np.bool_], start: int, stop: int, compiled: bool = True
                  ) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
-    """:func:`synth_core.runtime.streaming.lock_context`, compiled: a scan from the window's ends over
-    the runs each foot is in, instead of every frame's run bounds (a live session's every
-    window spent 20 ms per 4,000 characters on those)."""
+    """Per character ``(begin, end)``: the frames the foot lock of ``[start, stop)`` reads -- from
+    the start of the plant (or the plant before the swing) ``PAD`` frames before ``start`` to the
+    end of the plant (or the plant after the swing) ``PAD`` frames after ``stop``. A scan from the
+    window's ends over the runs each foot is in (every frame's run bounds cost a live session's
+    every window 20 ms per 4,000 characters). ``compiled``: else the reference."""
     C = contacts.shape[0]
     begin, end = np.empty(C, np.int64), np.empty(C, np.int64)
-    _lock_contexts(contacts, start, stop, PAD, begin, end)
+    (COMPILED if compiled else REFERENCE).lock_contexts(contacts, start, stop, PAD, begin, end)
     return begin, end
 
 
@@ -434,11 +405,12 @@ def render_window(bank: Bank, plan: Plan, start: int, stop: int, begin: NDArray[
                   end: NDArray[np.int64], foot_lock: bool = True, known: Posed | None = None,
                   out: NDArray[np.float32] | None = None,
                   share: Callable[[list[Callable[[], None]]], None] | None = None,
-                  ground: Grounding | None = None, pose: NDArray[np.bool_] | None = None
+                  ground: Grounding | None = None, pose: NDArray[np.bool_] | None = None,
+                  compiled: bool = True
                   ) -> tuple[NDArray[np.float32], NDArray[np.float32]]:
     """Root ``(C, stop - start, 3)`` and rotations of frames ``[start, stop)`` only, each
     character rendered over its context ``[begin, end)`` of ``plan`` (from
-    :func:`synth_core.runtime.streaming.lock_context`): the same numbers as :func:`render` of the whole
+    :func:`lock_context`): the same numbers as :func:`render` of the whole
     (with ``known``: to rounding, see tests/test_live.py).
 
     ``known``: what earlier windows over the same plan posed (a live session's windows share
@@ -459,9 +431,10 @@ def render_window(bank: Bank, plan: Plan, start: int, stop: int, begin: NDArray[
     ``pose (C,)``: the characters whose rotations are wanted (None: all). The others (a live
     session's far characters, at root_gait detail) get the plan's root alone -- no pose, no foot
     lock, so no sink: the root the full render would give but for its height where a leg could
-    not reach its plant -- and their rows of the rotations are not written."""
-    if not AVAILABLE:
-        raise RuntimeError("synth_core.compiled.kernels needs numba; use the numpy backend")
+    not reach its plant -- and their rows of the rotations are not written.
+
+    ``compiled``: else the reference (:data:`REFERENCE`, one thread)."""
+    kernels = COMPILED if compiled else REFERENCE
     C = plan.yaw.shape[0]
     pose = np.ones(C, np.bool_) if pose is None else np.ascontiguousarray(pose, np.bool_)
     assert pose.shape == (C,)
@@ -486,16 +459,16 @@ def render_window(bank: Bank, plan: Plan, start: int, stop: int, begin: NDArray[
     assert out_rot.flags.c_contiguous
     table, skeleton = _sink_limit(bank, ground)
     args = (*table, *_plan_arrays(plan.window(cb, ce)), *skeleton, foot_lock,
-            1 if share else numba.get_num_threads(), np.asarray(begin, np.int64) - cb,
+            1 if share or not compiled else threads(), np.asarray(begin, np.int64) - cb,
             np.asarray(end, np.int64) - cb, start - cb, out_rot, out_root,
             *_terrain_arrays(None if ground is None else ground.window(cb, ce)), pose,
             posed.feet[cb:ce] if known is not None else posed.feet, posed.frames, posed.legs, posed.legs_at)
     try:
         if share is None:
-            _render_windows(*args, 0, C)
+            kernels.render_windows(*args, 0, C)
         else:
             cuts = np.linspace(0, C, SHARED_PARTS + 1).round().astype(np.int64).tolist()
-            share([functools.partial(_render_windows, *args, a, b)
+            share([functools.partial(kernels.render_windows, *args, a, b)
                    for a, b in zip(cuts[:-1], cuts[1:], strict=True) if b > a])
     finally:
         posed.frames[...] += cb
@@ -505,18 +478,17 @@ def render_window(bank: Bank, plan: Plan, start: int, stop: int, begin: NDArray[
 
 def render(bank: Bank, plan: Plan, foot_lock: bool = True,
            out: tuple[NDArray[np.float32], NDArray[np.float32]] | None = None,
-           scratch: Scratch | None = None, ground: Grounding | None = None
+           scratch: Scratch | None = None, ground: Grounding | None = None, compiled: bool = True
            ) -> tuple[NDArray[np.float32], NDArray[np.float32]]:
-    """Root ``(C, T, 3)`` and local rotations ``(C, T, J, 4)`` of a plan (see
-    :func:`synth_core.runtime.synthesis.render`, the reference); into ``out`` (root, rotations) if given.
+    """Root ``(C, T, 3)`` and local rotations ``(C, T, J, 4)`` of a plan (the four passes of the
+    module doc); into ``out`` (root, rotations) if given.
     ``scratch``: where the workers' working sets are kept between calls (a small chunk's call
     would otherwise spend a fifth of its time faulting them in). ``ground``: the plan stands on
-    a terrain (:func:`synth_core.runtime.terrain.ground_plan`)."""
-    if not AVAILABLE:
-        raise RuntimeError("synth_core.compiled.kernels needs numba; use the numpy backend")
+    a terrain (:func:`synth_core.runtime.terrain.ground_plan`). ``compiled``: else the reference
+    (:data:`REFERENCE`, one thread)."""
     C, T = plan.yaw.shape
     J = bank.skeleton.n_joints
-    W = min(C, numba.get_num_threads())
+    W = min(C, threads() if compiled else 1)
     scratch = Scratch() if scratch is None else scratch
     work = [scratch.array(f"render.{name}", shape, np.float64)
             for name, shape in (("world", (W, -(-T // LANES), 7 * J, LANES)), ("feet", (W, T, 4, 3)),
@@ -527,10 +499,30 @@ def render(bank: Bank, plan: Plan, foot_lock: bool = True,
     out_rot = np.empty((C, T, J, 4), np.float32) if out is None else out[1]
     table, skeleton = _sink_limit(bank, ground)
     w_world, w_feet, w_legs, w_targets, w_sink, w_eased = work
-    _render_all(*table, *_plan_arrays(plan), *skeleton, foot_lock, out_rot, out_root, w_world, w_feet, w_legs,
-                w_targets, w_sink, w_eased, *_terrain_arrays(ground))
+    kernels = COMPILED if compiled else REFERENCE
+    kernels.render_all(*table, *_plan_arrays(plan), *skeleton, foot_lock, out_rot, out_root, w_world, w_feet,
+                       w_legs, w_targets, w_sink, w_eased, *_terrain_arrays(ground))
     assert UP_AXIS == 1  # the kernels index Y directly
     if out is None:
         return out_root.astype(np.float32), out_rot
     out[0][...] = out_root
     return out
+
+
+class RenderKernels(NamedTuple):
+    """The render's entry points; :data:`COMPILED` and :data:`REFERENCE` have the same signatures."""
+
+    name: str
+    render_all: Callable[..., None]
+    render_windows: Callable[..., None]
+    lock_contexts: Callable[..., None]
+
+
+# The reference: this source (and its helpers' in the other kernel modules) run by the
+# interpreter, as the planner's (synth_core.compiled.plan_kernels.REFERENCE). Here at the end, so
+# every kernel of the module is in the scope it runs in.
+_HELPERS = (vars(foot_kernels), vars(limb_kernels), vars(vec_kernels), vars(ground_kernels))
+_PLAIN = {**interpreted(vars(foot_kernels), *_HELPERS[1:]), **interpreted(globals(), *_HELPERS)}
+REFERENCE = RenderKernels("numpy", *(_PLAIN.get(name, globals()[name])
+                                     for name in ("_render_all", "_render_windows", "lock_contexts")))
+COMPILED = RenderKernels("numba", _render_all, _render_windows, lock_contexts) if AVAILABLE else REFERENCE

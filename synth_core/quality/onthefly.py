@@ -21,7 +21,7 @@ from synth_core.build.speed_map import build_speed_map
 from synth_core.compiled import kernels
 from synth_core.motion import quat
 from synth_core.runtime.bank import Bank, canonical_cycle
-from synth_core.runtime.synthesis import Options, Plan, Result, compiled_backend, plan, prepare_batch, render
+from synth_core.runtime.synthesis import Options, Plan, Result, compiled_backend, plan, prepare_batch
 
 DEFAULT_OPTIONS = Options()
 CHUNK = 512  # clips made per IK call (bounds memory)
@@ -88,7 +88,6 @@ def synthesize_onthefly(bank: Bank, library: Library, positions: ArrayLike, fps:
     segment = np.minimum(np.arange(T) // prep.segment, prep.segment_speeds.shape[1] - 1)
     segment = np.broadcast_to(segment[None, :], p.rows.shape[:2])
     extended, p = _remap(bank, p, segment, prep.segment_speeds / h[:, None], library)
-    draw = kernels.render if compiled_backend(options) else render
-    root, rotations = draw(extended, p, options.foot_lock)
+    root, rotations = kernels.render(extended, p, options.foot_lock, compiled=compiled_backend(options))
     return Result(root, rotations, p.gait, p.contacts, p.stitches, h, p.path,
                   prep.resample_rate, prep.kept, prep.rejected, prep.warnings)

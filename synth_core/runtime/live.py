@@ -61,8 +61,8 @@ from synth_core.runtime.plan import (
     lookahead,
     tables,
 )
-from synth_core.runtime.streaming import Window, lock_context
-from synth_core.runtime.synthesis import character_scales, character_tempo, render
+from synth_core.runtime.streaming import Window
+from synth_core.runtime.synthesis import character_scales, character_tempo
 from synth_core.runtime.terrain import HeightField, laid, on_ground
 from synth_core.runtime.trajectory import DEFAULT_SIGMA, GROUND, TELEPORT_M, TrajectoryError
 
@@ -498,29 +498,19 @@ class LiveSynth:
         ground = None
         if field is not None:
             buf, ground = on_ground(self.bank, buf, field, int(begin.min()), int(end.max()))
-        if self.compiled and keep:
-            # The feet of frames posed by earlier windows, by frame sent (from 0), kept for later ones.
-            o0, n = self.buffer.start, buf.yaw.shape[1]
-            self.feet.reserve(max(o0 + n - self.feet.stop, 0))
-            posed = kernels.Posed(self.feet.columns(o0, o0 + n)[0][0], self.known_feet - o0, self.recent_legs,
-                                  self.legs_at - o0)
-            out = None if self.scratch is None else self.scratch.array(
-                "live.rotations", (len(self.scales), hi - lo, self.bank.skeleton.n_joints, 4), np.float32)
-            root, rot = kernels.render_window(self.bank, buf, lo, hi, begin, end, self.foot_lock, posed, out,
-                                              self.share, ground, self.pose)
-            self.known_feet, self.legs_at = posed.frames + o0, posed.legs_at + o0
-            return root, rot
-        if self.compiled:
+        if not keep:
             return kernels.render_window(self.bank, buf, lo, hi, begin, end, self.foot_lock, None, None,
-                                         self.share, ground, self.pose)
-        cb, ce = int(begin.min()), int(end.max())
-        root, rot = render(self.bank, buf.window(cb, ce), self.foot_lock,
-                           None if ground is None else ground.window(cb, ce))
-        root, rot = root[:, lo - cb:hi - cb], rot[:, lo - cb:hi - cb]
-        if not self.pose.all():  # the reference: the unposed characters' root as the kernel gives it
-            free, _ = render(self.bank, buf.window(lo, hi), False,
-                             None if ground is None else ground.window(lo, hi))
-            root[~self.pose] = free[~self.pose]
+                                         self.share, ground, self.pose, self.compiled)
+        # The feet of frames posed by earlier windows, by frame sent (from 0), kept for later ones.
+        o0, n = self.buffer.start, buf.yaw.shape[1]
+        self.feet.reserve(max(o0 + n - self.feet.stop, 0))
+        posed = kernels.Posed(self.feet.columns(o0, o0 + n)[0][0], self.known_feet - o0, self.recent_legs,
+                              self.legs_at - o0)
+        out = None if self.scratch is None else self.scratch.array(
+            "live.rotations", (len(self.scales), hi - lo, self.bank.skeleton.n_joints, 4), np.float32)
+        root, rot = kernels.render_window(self.bank, buf, lo, hi, begin, end, self.foot_lock, posed, out,
+                                          self.share, ground, self.pose, self.compiled)
+        self.known_feet, self.legs_at = posed.frames + o0, posed.legs_at + o0
         return root, rot
 
     def _emit(self, start: int, stop: int) -> Window:
@@ -531,7 +521,7 @@ class LiveSynth:
         buf = self.buffer.plan()
         lo, hi = -(-start // k) - o0, -(-stop // k) - o0
         if self.foot_lock:
-            begin, end = (kernels.lock_context if self.compiled else lock_context)(buf.contacts, lo, hi)
+            begin, end = kernels.lock_context(buf.contacts, lo, hi, self.compiled)
             # An unposed character reads its window's frames alone (so does the copy of the plan
             # the kernel reads, when no posed character's lock reaches further).
             begin[~self.pose], end[~self.pose] = lo, hi

@@ -35,7 +35,7 @@ from numpy.typing import ArrayLike, NDArray
 from synth_core.compiled import kernels, render_pool
 from synth_core.runtime.bank import Bank
 from synth_core.runtime.footlock import PAD
-from synth_core.runtime.synthesis import Options, Plan, compiled_backend, plan, prepare_batch, render
+from synth_core.runtime.synthesis import Options, Plan, compiled_backend, plan, prepare_batch
 from synth_core.runtime.terrain import along_ground, ground_plan
 
 RENDER_CHUNKS = 4  # chunks rendered at once after the first (the context's cost spread over more)
@@ -45,39 +45,6 @@ RENDER_CHUNKS = 4  # chunks rendered at once after the first (the context's cost
 # slow walk's run to ~5; a standing animal's not before the batch does.
 FIRST_PLAN_STRIDES = (2.0, 5.5)
 MIN_PART = 32  # characters: a first window's part no smaller (a thread hop costs ~0.1 ms)
-
-
-def runs(contacts: NDArray[np.bool_]) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
-    """``(start, end)``, each ``(C, T, 4)``: the first frame of the run of equal contact flags each
-    frame is in, and the frame after its last."""
-    C, T, F = contacts.shape
-    t = np.arange(T)[None, :, None]
-    change = np.ones(contacts.shape, bool)
-    change[:, 1:] = contacts[:, 1:] != contacts[:, :-1]
-    start = np.maximum.accumulate(np.where(change, t, 0), axis=1)
-    after = np.full(contacts.shape, T)
-    after[:, :-1] = np.where(change[:, 1:], t[:, 1:], T)  # the next run's first frame, if it is t + 1
-    end = np.minimum.accumulate(after[:, ::-1], axis=1)[:, ::-1]
-    return start, end
-
-
-def lock_context(contacts: NDArray[np.bool_], start: int, stop: int,
-                 run_bounds: tuple[NDArray[np.int64], NDArray[np.int64]] | None = None
-                 ) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
-    """Per character ``(begin, end)``: the frames the foot lock of ``[start, stop)`` reads."""
-    C, T, F = contacts.shape
-    first, after = runs(contacts) if run_bounds is None else run_bounds
-    lo, hi = max(start - PAD, 0), min(stop + PAD, T)
-    c, f = np.arange(C)[:, None], np.arange(F)[None, :]
-    # At lo: the plant it is in, or the plant before the swing it is in.
-    run = first[:, lo]
-    before = first[c, np.maximum(run - 1, 0), f]
-    begin = np.where(contacts[:, lo], run, np.where(run > 0, before, 0))
-    # At hi - 1: the plant it is in, or the plant after the swing it is in.
-    run_end = after[:, hi - 1]
-    following = after[c, np.minimum(run_end, T - 1), f]
-    end = np.where(contacts[:, hi - 1], run_end, np.where(run_end < T, following, T))
-    return begin.min(axis=1), end.max(axis=1)
 
 
 @dataclass(frozen=True, eq=False)
@@ -141,15 +108,10 @@ class BatchStream:
                               compiled=compiled_backend(self.options))
         return self._plan
 
-    def _context(self, p: Plan, start: int, stop: int,
-                 bounds: tuple[NDArray[np.int64], NDArray[np.int64]] | None = None
-                 ) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
-        if compiled_backend(self.options):
-            return kernels.lock_context(p.contacts, start, stop)
-        return lock_context(p.contacts, start, stop, bounds)
+    def _context(self, p: Plan, start: int, stop: int) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+        return kernels.lock_context(p.contacts, start, stop, compiled_backend(self.options))
 
     def _render(self, p: Plan, start: int, stop: int,
-                bounds: tuple[NDArray[np.int64], NDArray[np.int64]] | None,
                 context: tuple[NDArray[np.int64], NDArray[np.int64]] | None = None,
                 shared: bool = False) -> Window:
         """Frames ``[start, stop)`` of plan ``p`` (``context``: their lock contexts, if known;
@@ -159,21 +121,16 @@ class BatchStream:
         if not lock:
             begin, end = np.full(C, start), np.full(C, stop)
         else:
-            begin, end = self._context(p, start, stop, bounds) if context is None else context
+            begin, end = self._context(p, start, stop) if context is None else context
         gait, contacts = p.gait[:, start:stop], p.contacts[:, start:stop]
         at, ground = start, None
         if self.options.ground is not None:  # the frames read, on the terrain (terrain.ground_plan)
             o = int(begin.min())
             p, ground = ground_plan(self.bank, p.window(o, int(end.max())), self.options.ground)
             start, stop, begin, end = start - o, stop - o, begin - o, end - o
-        if compiled_backend(self.options):
-            root, rot = kernels.render_window(self.bank, p, start, stop, begin, end, lock,
-                                              share=render_pool.shared if shared else None, ground=ground)
-        else:  # the reference: one context for all, the widest
-            b, e = int(begin.min()), int(end.max())
-            part = None if ground is None else ground.window(b, e)
-            root, rot = render(self.bank, p.window(b, e), lock, part)
-            root, rot = root[:, start - b:stop - b], rot[:, start - b:stop - b]
+        root, rot = kernels.render_window(self.bank, p, start, stop, begin, end, lock,
+                                          share=render_pool.shared if shared else None, ground=ground,
+                                          compiled=compiled_backend(self.options))
         return Window(at, root, rot, gait, contacts)
 
     def _first_part(self, rows: slice, stop: int, shared: bool = False) -> tuple[Window, Plan | None]:
@@ -189,12 +146,12 @@ class BatchStream:
             reach = stop + PAD + int(strides * self.bank.mean_cycle)
             early = plan(self.bank, prep, h, keys, margin, frames=reach, compiled=compiled)
             if early.yaw.shape[1] == T:  # that was all of it
-                return self._render(early, 0, stop, None, shared=shared), early
+                return self._render(early, 0, stop, shared=shared), early
             context = self._context(early, 0, stop) if lock else None
             if context is None or context[1].max() < early.yaw.shape[1]:
-                return self._render(early, 0, stop, None, context, shared), None
+                return self._render(early, 0, stop, context, shared), None
         whole = plan(self.bank, prep, h, keys, margin, compiled=compiled)  # a plant runs past them all
-        return self._render(whole, 0, stop, None, shared=shared), whole
+        return self._render(whole, 0, stop, shared=shared), whole
 
     def _first_window(self, stop: int) -> list[Window]:
         """Frames ``[0, stop)``: the characters in parts side by side (see the module doc), a
@@ -229,12 +186,9 @@ class BatchStream:
         if first_stop == T:
             return
         whole = self._whole_plan()
-        # The numpy reference finds every frame's run once; the compiled scan needs none.
-        numpy_lock = self.options.foot_lock and not compiled_backend(self.options)
-        bounds = runs(whole.contacts) if numpy_lock else None
         for a in range(first_stop, T, K * RENDER_CHUNKS):
             b = min(a + K * RENDER_CHUNKS, T)
-            w = self._render(whole, a, b, bounds)
+            w = self._render(whole, a, b)
             for s in range(a, b, K):
                 n = slice(s - a, min(s + K, b) - a)
                 yield [Window(s, w.root_pos[:, n], w.rotations[:, n], w.gait[:, n], w.contacts[:, n])]

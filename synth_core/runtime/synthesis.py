@@ -14,9 +14,10 @@ For a batch of characters at once, all array operations over (characters, frames
    clip's times h. Sideways sway of the clips is dropped: the path is the caller's.
 4. **Foot lock** (:mod:`synth_core.runtime.footlock`) pins each planted foot where it lands.
 
-:func:`render` does 2-4 in numpy, the reference of the compiled :mod:`synth_core.compiled.kernels`;
-:func:`synthesize` plans and renders a batch ``CHUNK`` characters at a time, with the compiled
-kernels unless ``Options.backend`` asks for the references (:mod:`synth_core.compiled.backend`).
+Steps 2-4 are the render, written once in :mod:`synth_core.compiled.kernels`;
+:func:`synthesize` plans and renders a batch ``CHUNK`` characters at a time, compiled unless
+``Options.backend`` asks for the references (the same source interpreted:
+:mod:`synth_core.compiled.backend`).
 """
 
 from __future__ import annotations
@@ -27,20 +28,18 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from synth_core import SIZE_MATCHING, TEMPO_SPREAD, UP_AXIS
+from synth_core import SIZE_MATCHING, TEMPO_SPREAD
 from synth_core.compiled import backend, kernels
 from synth_core.compiled.scratch import Scratch
-from synth_core.motion import quat
 from synth_core.runtime.bank import Bank
 from synth_core.runtime.draws import SCALE_STREAM, TEMPO_STREAM, character_keys, uniform
-from synth_core.runtime.footlock import lock_feet
 from synth_core.runtime.plan import MARGIN, MAX_RATE, N_HUBS, Plan, headings, plan
-from synth_core.runtime.terrain import Grounding, HeightField, along_ground, ground_plan
+from synth_core.runtime.terrain import HeightField, along_ground, ground_plan
 from synth_core.runtime.trajectory import DEFAULT_SIGMA, Prepared, TrajectoryError, prepare
 
 __all__ = ["CHUNK", "MARGIN", "N_HUBS", "Options", "Plan", "Rendered", "Result", "character_scales",
-           "character_tempo", "compiled_backend", "headings", "plan", "prepare_batch", "render",
-           "render_chunk", "render_chunks", "synthesize"]
+           "character_tempo", "compiled_backend", "headings", "plan", "prepare_batch", "render_chunk",
+           "render_chunks", "synthesize"]
 # (the plan's names too: callers import them from here)
 
 Floats = NDArray[np.float64]
@@ -109,47 +108,6 @@ def character_tempo(keys: NDArray[np.uint64], h: Floats, matching: str = "froude
     return np.asarray(base * (1 + spread * u), np.float64)
 
 
-def _nlerp(a: NDArray[np.float32], b: NDArray[np.float32], w: NDArray[np.float32]) -> NDArray[np.float32]:
-    """Normalized lerp of quaternions (..., J, 4) by ``w (...)``, b turned to a's side."""
-    sign = np.where(np.sum(a * b, axis=-1, keepdims=True) < 0, -1.0, 1.0).astype(np.float32)
-    w = w[..., None, None]
-    q = a * (1 - w) + b * (w * sign)
-    return np.asarray(q / np.linalg.norm(q, axis=-1, keepdims=True), dtype=np.float32)
-
-
-def render(bank: Bank, p: Plan, foot_lock: bool = True,
-           ground: Grounding | None = None) -> tuple[NDArray[np.float32], NDArray[np.float32]]:
-    """Root ``(C, T, 3)`` and local rotations ``(C, T, J, 4)`` of a plan: the numpy reference of
-    :func:`synth_core.compiled.kernels.render`. ``ground``: the plan stands on a terrain
-    (:func:`synth_core.runtime.terrain.ground_plan`)."""
-    r, wt = p.rows, p.weights
-    rotations = _nlerp(bank.poses[r[..., 0]], bank.poses[r[..., 1]], wt[..., 0])
-    height = bank.height[r[..., 0]] * (1 - wt[..., 0]) + bank.height[r[..., 1]] * wt[..., 0]
-    surge = bank.surge[r[..., 0]] * (1 - wt[..., 0]) + bank.surge[r[..., 1]] * wt[..., 0]
-    fading = wt[..., 2] > 0
-    if fading.any():
-        fr, fw = r[fading], wt[fading]
-        before = _nlerp(bank.poses[fr[:, 2]], bank.poses[fr[:, 3]], fw[:, 1])
-        rotations[fading] = _nlerp(rotations[fading], before, fw[:, 2])
-        p_height = bank.height[fr[:, 2]] * (1 - fw[:, 1]) + bank.height[fr[:, 3]] * fw[:, 1]
-        p_surge = bank.surge[fr[:, 2]] * (1 - fw[:, 1]) + bank.surge[fr[:, 3]] * fw[:, 1]
-        height[fading] = height[fading] * (1 - fw[:, 2]) + p_height * fw[:, 2]
-        surge[fading] = surge[fading] * (1 - fw[:, 2]) + p_surge * fw[:, 2]
-    # Warp onto the path.
-    h = p.scales[:, None]
-    forward = np.stack([np.sin(p.yaw), np.zeros_like(p.yaw), np.cos(p.yaw)], axis=-1)
-    root = p.path + forward * (surge * h)[..., None]
-    root[..., UP_AXIS] = p.path[..., UP_AXIS] + height * h
-    turn = quat.from_axis_angle(np.array([0.0, 1.0, 0.0]), p.yaw).astype(np.float32)
-    rotations[:, :, 0] = quat.mul(turn, rotations[:, :, 0])
-    if ground is not None:
-        rotations[:, :, 0] = quat.mul(ground.tilt, rotations[:, :, 0].astype(np.float64))
-    if not foot_lock:
-        return root.astype(np.float32), rotations
-    return lock_feet(bank.skeleton, root, rotations, p.contacts, p.scales, ground=p.path[..., UP_AXIS],
-                     bends=bank.bends, terrain=ground)
-
-
 def character_scales(keys: NDArray[np.uint64], scales: ArrayLike | None,
                      scale_range: tuple[float, float]) -> Floats:
     """Each character's scale: given, or (None, NaN) drawn from its key in ``scale_range``."""
@@ -191,7 +149,7 @@ def prepare_batch(bank: Bank, positions: ArrayLike, fps: float | None, scales: A
 
 
 def compiled_backend(options: Options) -> bool:
-    """Whether ``options`` render with the numba kernels (else the numpy reference)."""
+    """Whether ``options`` render with the numba kernels (else the reference: their source interpreted)."""
     return backend.compiled(options.backend)
 
 
@@ -226,10 +184,8 @@ def render_chunk(bank: Bank, prep: Prepared, h: Floats, keys: NDArray[np.uint64]
         out = (scratch.array("root", (n, T, 3), np.float32),
                scratch.array("rotations", (n, T, bank.skeleton.n_joints, 4), np.float32))
     root, rotations = out
-    if compiled:
-        kernels.render(bank, p, options.foot_lock, out=(root, rotations), scratch=scratch, ground=ground)
-    else:
-        root[...], rotations[...] = render(bank, p, options.foot_lock, ground)
+    kernels.render(bank, p, options.foot_lock, out=(root, rotations), scratch=scratch, ground=ground,
+                   compiled=compiled)
     return Rendered(sl, root, rotations, p)
 
 

@@ -2,23 +2,22 @@
 
 A :class:`HeightField` is a grid of ground heights ``heights (Nz, Nx)``: ``heights[i, j]`` is the
 ground's y at ``x = origin[0] + j * spacing``, ``z = origin[1] + i * spacing`` (metres, Y up);
-between grid points it is bilinear, outside the grid the nearest edge's height.
+between grid points it is bilinear, outside the grid the nearest edge's height
+(:func:`synth_core.compiled.ground_kernels.ground_at`).
 
 With a height field, a character's trajectory's y is not read: the ground gives it. The render
-(numpy reference :func:`synth_core.runtime.synthesis.render` with
-:func:`synth_core.runtime.footlock.lock_feet`, and the compiled
-:mod:`synth_core.compiled.kernels`) then
+(:mod:`synth_core.compiled.kernels`) then
 
 1. fits a plane, per frame, to the ground under the four feet of the character's standing
    footprint (:func:`ground_plan`): the root stands on the plane's height under it and the
    body turns by the plane's tilt (pitch and roll: a horse climbing lifts its forehand);
 2. measures the feet of that tilted body with the tilt taken back off (legs hang as gravity
    has them, not as the body leans) and relative to the ground under the body, plants them as
-   on flat ground (:func:`synth_core.runtime.footlock.plant_targets`), then puts each target on
-   the terrain under it (:func:`ground_targets`): a planted foot stands on it, a swinging foot
-   keeps its clip's height above the ground eased from lift-off to touchdown, raised to the
-   tent over the terrain above that, and never below the terrain under it (it starts up a step
-   or over a bump from lift-off, not as it gets there);
+   on flat ground (:mod:`synth_core.runtime.footlock`), then puts each target on the terrain
+   under it (:func:`synth_core.compiled.foot_kernels.ground_targets`): a planted foot stands on
+   it, a swinging foot keeps its clip's height above the ground eased from lift-off to
+   touchdown, raised to the tent over the terrain above that, and never below the terrain under
+   it (it starts up a step or over a bump from lift-off, not as it gets there);
 3. sinks the root where a leg cannot reach and solves the legs' IK as on flat ground.
 
 The gait is chosen on the speed along the ground (:func:`along_ground`).
@@ -37,7 +36,6 @@ from numpy.typing import ArrayLike, NDArray
 
 from synth_core import UP_AXIS
 from synth_core.compiled import ground_kernels
-from synth_core.compiled.jit import AVAILABLE
 from synth_core.motion import quat
 from synth_core.motion.skeleton import forward_kinematics
 
@@ -97,9 +95,8 @@ class HeightField:
 
     def sample(self, x: ArrayLike, z: ArrayLike) -> Floats:
         """The ground's height at ``(x, z)`` (any matching shapes), bilinear."""
-        how = ground_kernels.ground_samples if AVAILABLE else sample
-        return how(self.heights, self.origin[0], self.origin[1], self.spacing,
-                   np.asarray(x, np.float64), np.asarray(z, np.float64))
+        return ground_kernels.ground_samples(self.heights, self.origin[0], self.origin[1], self.spacing,
+                                             np.asarray(x, np.float64), np.asarray(z, np.float64))
 
 
 def read(path: str | Path) -> HeightField:
@@ -122,20 +119,6 @@ def read(path: str | Path) -> HeightField:
         if isinstance(exc, TerrainError):
             raise
         raise TerrainError("ground", f"cannot read {path}: {exc}") from None
-
-
-def sample(heights: Floats, x0: float, z0: float, spacing: float, x: Floats, z: Floats) -> Floats:
-    """Bilinear heights at (x, z), clamped to the grid (the compiled ``ground_kernels.ground_at`` does
-    the same arithmetic in the same order)."""
-    nz, nx = heights.shape
-    fx = np.clip((x - x0) / spacing, 0.0, nx - 1.0)
-    fz = np.clip((z - z0) / spacing, 0.0, nz - 1.0)
-    j = np.minimum(fx.astype(np.int64), nx - 2)
-    i = np.minimum(fz.astype(np.int64), nz - 2)
-    u, v = fx - j, fz - i
-    near = heights[i, j] * (1.0 - u) + heights[i, j + 1] * u
-    far = heights[i + 1, j] * (1.0 - u) + heights[i + 1, j + 1] * u
-    return np.asarray(near * (1.0 - v) + far * v)
 
 
 @dataclass(frozen=True, eq=False)
@@ -227,84 +210,3 @@ def along_ground(prep: Prepared, field: HeightField, fps: float) -> Prepared:
     positions = laid(prep.positions, field)
     speeds = segment_speeds(positions, prep.segment, fps, along_ground=True)
     return replace(prep, positions=positions, segment_speeds=speeds)
-
-
-def untilt(feet: Floats, root: Floats, tilt: Floats) -> Floats:
-    """Feet ``(C, T, 4, 3)`` of a body tilted by ``tilt (C, T, 4)`` about its root ``(C, T, 3)``,
-    their height as without the tilt (over the ground, the body's height is the clip's), their
-    place over the ground turned back by half the tilt: legs hang between square to the body and
-    plumb. Plumb (the whole tilt taken off), a body pitched down a 30% slope swung its forelegs
-    17 degrees forward of where it carries them and their shoulders flipped through straight;
-    square, the hooves slid 35 cm ahead of the root and the body leant back."""
-    half = tilt.copy()
-    half[..., 3] += 1.0  # the half turn about the same axis (tilt's w >= 0: the smallest rotation)
-    rel = feet - root[:, :, None]
-    out = root[:, :, None] + quat.rotate(quat.inv(quat.normalize(half))[:, :, None], rel)
-    out[..., UP_AXIS] = root[:, :, None, UP_AXIS] + quat.rotate(quat.inv(tilt)[:, :, None], rel)[..., UP_AXIS]
-    return np.asarray(out, np.float64)
-
-
-def swing_share(targets: Floats, last: NDArray[np.int64], nxt: NDArray[np.int64]) -> Floats:
-    """``(C, T, 4)``: how far each frame's target is along its swing, from the plant at frame
-    ``last`` to the one at ``nxt`` -- over the ground (its distance from the first over its
-    distances from both), or in time where the foot does not travel."""
-    C, T, F = last.shape
-    c, f = np.arange(C)[:, None, None], np.arange(F)[None, None, :]
-    here = targets[..., [0, 2]]
-    gone = np.hypot(*np.moveaxis(here - targets[c, np.clip(last, 0, T - 1), f][..., [0, 2]], -1, 0))
-    left = np.hypot(*np.moveaxis(targets[c, np.clip(nxt, 0, T - 1), f][..., [0, 2]] - here, -1, 0))
-    span = gone + left
-    timed = (np.arange(T)[None, :, None] - last) / np.where(nxt - last == 0, 1, nxt - last)
-    return np.asarray(np.where(span > 1e-9, gone / np.where(span > 1e-9, span, 1.0), timed))
-
-
-def _swing_max(values: Floats, run: NDArray[np.int64], reverse: bool) -> Floats:
-    """Running max of ``values (C, T, 4)`` over time (``reverse``: from the end) within each run
-    of frames of the same ``run`` key: ceil(log2 T) shifted maxima, not a loop over frames."""
-    out = values.copy()
-    T, s = values.shape[1], 1
-    while s < T:
-        a, b = (slice(None, -s), slice(s, None)) if reverse else (slice(s, None), slice(None, -s))
-        same = run[:, a] == run[:, b]
-        out[:, a] = np.where(same, np.maximum(out[:, a], out[:, b]), out[:, a])
-        s *= 2
-    return out
-
-
-def ground_targets(targets: Floats, contacts: NDArray[np.bool_], field: HeightField, h: Floats) -> Floats:
-    """Foot targets ``(C, T, 4, 3)`` (the library's unit: world / h) whose y is the height above
-    the body's ground, put on ``field``. Planted: on the terrain under the target. Swinging
-    between two plants: over the ground straight from the last plant's height to the next
-    one's (by :func:`swing_share`: on a plane, the plane's own heights), raised where the
-    terrain under the swing is above that line: to the tent over that excess (straight up from
-    lift-off to each point's excess and straight down from it to touchdown, along the swing's
-    progress: the mean of its share of the way and of the time), and never below the terrain
-    under it. A foot so rises onto a step or over a bump from lift-off on, reaches the top as it
-    gets there and no higher; it does not jump onto it in the frame it crosses the edge. A swing
-    with no plant before or after it (a window's ends): the terrain under it."""
-    C, T, F = contacts.shape
-    hs = np.asarray(h, np.float64)[:, None, None]
-    under = field.sample(targets[..., 0] * hs, targets[..., 2] * hs) / hs  # (C, T, 4)
-    t = np.arange(T)[None, :, None]
-    last = np.maximum.accumulate(np.where(contacts, t, -1), axis=1)
-    nxt = np.flip(np.minimum.accumulate(np.flip(np.where(contacts, t, T), axis=1), axis=1), axis=1)
-    swing = ~contacts & (last >= 0) & (nxt < T)
-    c, f = np.arange(C)[:, None, None], np.arange(F)[None, None, :]
-    g_last = under[c, np.maximum(last, 0), f]
-    g_next = under[c, np.minimum(nxt, T - 1), f]
-    x = swing_share(targets, last, nxt)
-    eased = g_last + (g_next - g_last) * x
-    # The tent over the excess: lift(u) >= excess(u') w(u) / w(u') for u' ahead of u, and
-    # excess(u') (1 - w(u)) / (1 - w(u')) for u' behind it (w: the swing's progress, 0 at lift-off,
-    # 1 at touchdown; running maxima of excess / w each way).
-    w = 0.5 * (x + (t - last) / np.maximum(nxt - last, 1))
-    w = np.where(swing, w, 0.5)
-    excess = np.where(swing, under - eased, -np.inf)
-    run = np.where(swing, last, -1)
-    ahead = w * _swing_max(excess / w, run, reverse=True)
-    behind = (1.0 - w) * _swing_max(excess / (1.0 - w), run, reverse=False)
-    lift = np.maximum(np.maximum(ahead, behind), 0.0)
-    ground = np.where(swing, np.maximum(eased + lift, under), under)
-    out = targets.copy()
-    out[..., UP_AXIS] = np.maximum(targets[..., UP_AXIS], 0.0) + ground
-    return out

@@ -10,6 +10,7 @@ from synth_core.builtin.gaits import GAIT_SPECS
 from synth_core.motion import quat
 from synth_core.motion.clip import Motion
 from synth_core.motion.skeleton import Skeleton
+from synth_core.runtime.terrain import HeightField
 
 
 def toy_skeleton() -> Skeleton:
@@ -76,3 +77,22 @@ _FREQUENCY_RATIO = max(GAIT_SPECS["dog"][g].frames / GAIT_SPECS["horse"][g].fram
 
 
 PEAK_JOINT_SPEED = {"dog": 2500.0, "horse": 2500.0 * _FREQUENCY_RATIO}
+
+
+def _hills(x: np.ndarray, z: np.ndarray) -> np.ndarray:
+    return np.asarray(0.5 * np.sin(x / 3.0) * np.cos(z / 4.0) + 0.1 * z)
+
+
+def herd_on_hills() -> tuple[np.ndarray, HeightField]:
+    """Three characters (1.5, 3 and 5 m/s, bending) over rolling hills, and the hills."""
+    xs = np.arange(-15.0, 40.0, 0.1)
+    x, z = np.meshgrid(xs, xs)
+    field = HeightField.make(_hills(x, z), origin=(-15.0, -15.0), spacing=0.1)
+    T = 360
+    s = np.linspace(0.0, 1.0, T)
+    paths = np.zeros((3, T, 3))
+    for c, (speed, bend) in enumerate(((1.5, 0.3), (3.0, -0.4), (5.0, 0.2))):
+        yaw = 0.5 + bend * s
+        step = np.stack([np.sin(yaw), np.zeros(T), np.cos(yaw)], -1) * speed / 60.0
+        paths[c] = np.cumsum(step, axis=0) + [c * 3.0, 0.0, 0.0]
+    return paths, field
