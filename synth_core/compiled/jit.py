@@ -8,8 +8,11 @@ a contact flag.
 
 from __future__ import annotations
 
+import hashlib
+import os
 import types
 from collections.abc import Callable
+from pathlib import Path
 from typing import Any, Literal, TypeVar, cast
 
 try:
@@ -17,6 +20,32 @@ try:
     AVAILABLE = True
 except ImportError:  # pragma: no cover - numba is a dependency; the interpreter runs the same code
     AVAILABLE = False
+
+
+def source_stamp(root: Path | None = None) -> str:
+    """A hash of every ``.py`` file of the core (``root``: synth_core's folder).
+
+    numba's cache checks only the file a kernel is written in: a kernel compiled with a helper
+    from another module (foot_kernels' ground targets into kernels' character) or a constant
+    imported from one (footlock's PAD) was loaded from the cache unchanged after only that other
+    module changed -- an upgrade would run the old code. Caches are kept per stamp instead."""
+    root = Path(__file__).resolve().parents[1] if root is None else root
+    digest = hashlib.blake2b(digest_size=8)
+    for path in sorted(root.rglob("*.py")):
+        digest.update(path.relative_to(root).as_posix().encode())
+        digest.update(path.read_bytes())
+    return digest.hexdigest()
+
+
+def cache_dir(base: str | None = None) -> str:
+    """Where the kernels are cached: ``numba-<stamp>`` under ``NUMBA_CACHE_DIR`` (``base``) if
+    set, else under this package's ``__pycache__`` (numba's own default place)."""
+    base = base or os.environ.get("NUMBA_CACHE_DIR") or str(Path(__file__).resolve().parent / "__pycache__")
+    return os.path.join(base, f"numba-{source_stamp()}")
+
+
+if AVAILABLE:  # before any kernel is decorated: each takes the cache directory then
+    numba.config.CACHE_DIR = cache_dir()  # type: ignore[attr-defined]
 
 F = TypeVar("F", bound=Callable[..., Any])
 prange: Any = numba.prange if AVAILABLE else range
