@@ -21,8 +21,9 @@ _jit = render_jit
 
 
 @_jit()
-def plant_targets(feet: Any, contacts: Any, out: Any) -> None:
-    """footlock.plant_targets for one character: feet (T, 4, 3), contacts (T, 4)."""
+def plant_targets(feet: Any, contacts: Any, out: Any, most: int) -> None:
+    """footlock.plant_targets for one character: feet (T, 4, 3), contacts (T, 4); a plant's
+    position averaged over its first ``most`` frames at most."""
     T = feet.shape[0]
     avg = np.empty((T, 3))  # per plant, indexed by its first frame
     for f in range(4):
@@ -36,11 +37,12 @@ def plant_targets(feet: Any, contacts: Any, out: Any) -> None:
             s = t
             acc0 = acc1 = acc2 = 0.0
             while t < T and contacts[t, f]:
-                acc0 += feet[t, f, 0]
-                acc1 += feet[t, f, 1]
-                acc2 += feet[t, f, 2]
+                if t - s < most:
+                    acc0 += feet[t, f, 0]
+                    acc1 += feet[t, f, 1]
+                    acc2 += feet[t, f, 2]
                 t += 1
-            n = t - s
+            n = min(t - s, most)
             avg[s, 0], avg[s, 1], avg[s, 2] = acc0 / n, acc1 / n, acc2 / n
             for u in range(s, t):
                 out[u, f, 0], out[u, f, 1], out[u, f, 2] = avg[s, 0], avg[s, 1], avg[s, 2]

@@ -40,8 +40,9 @@ EASE_FRAMES = 9
 PAD = EASE_FRAMES // 2 + int(4.0 * EASE_FRAMES / 6 + 0.5)
 
 
-def plant_targets(feet: NDArray[np.floating], contacts: NDArray[np.bool_]) -> Floats:
-    """Foot targets ``(C, T, 4, 3)`` from positions ``feet (C, T, 4, 3)`` and ``contacts (C, T, 4)``."""
+def plant_targets(feet: NDArray[np.floating], contacts: NDArray[np.bool_], most: int | None = None) -> Floats:
+    """Foot targets ``(C, T, 4, 3)`` from positions ``feet (C, T, 4, 3)`` and ``contacts (C, T, 4)``;
+    ``most``: a plant's position averages its first so many frames only (None: all of them)."""
     C, T, n_feet = contacts.shape
     R = C * n_feet
     con = np.ascontiguousarray(contacts.transpose(0, 2, 1)).reshape(R * T)
@@ -58,8 +59,9 @@ def plant_targets(feet: NDArray[np.floating], contacts: NDArray[np.bool_]) -> Fl
         return np.asarray(targets.reshape(C, n_feet, T, 3).transpose(0, 2, 1, 3))
     run = np.cumsum(con & ~prev) - 1  # the last plant started at or before each frame
     planted = np.flatnonzero(con)
-    counts = np.bincount(run[planted], minlength=len(starts))
-    average = np.stack([np.bincount(run[planted], weights=pos[planted, d], minlength=len(starts))
+    counted = planted if most is None else planted[planted - starts[run[planted]] < most]
+    counts = np.bincount(run[counted], minlength=len(starts))
+    average = np.stack([np.bincount(run[counted], weights=pos[counted, d], minlength=len(starts))
                         for d in range(3)], axis=-1) / counts[:, None]
     targets[planted] = average[run[planted]]
     # Swings: eased from the last plant's lift-off correction to the next one's touchdown one.
@@ -94,7 +96,8 @@ def lock_feet(skeleton: Skeleton, root_pos: NDArray[np.floating], rotations: NDA
               contacts: NDArray[np.bool_], scales: NDArray[np.floating],
               ground: NDArray[np.floating] | None = None, rigs: tuple[ik.LimbRig, ...] | None = None,
               bends: NDArray[np.floating] | None = None,
-              terrain: Grounding | None = None) -> tuple[NDArray[np.float32], NDArray[np.float32]]:
+              terrain: Grounding | None = None, plant_frames: int | None = None
+              ) -> tuple[NDArray[np.float32], NDArray[np.float32]]:
     """Root ``(C, T, 3)`` and local rotations ``(C, T, J, 4)`` with planted feet pinned.
 
     ``ground (C, T)``: the height planted feet stand at (default: as they are); ``bends (4, 3)``:
@@ -109,9 +112,9 @@ def lock_feet(skeleton: Skeleton, root_pos: NDArray[np.floating], rotations: NDA
     if terrain is not None and ground is not None:
         feet = untilt(feet, unit_root, terrain.tilt)
         feet[..., UP_AXIS] -= (np.asarray(ground, np.float64) / h[..., 0])[..., None]
-        targets = ground_targets(plant_targets(feet, contacts), contacts, terrain.field, h[:, 0, 0])
+        targets = ground_targets(plant_targets(feet, contacts, plant_frames), contacts, terrain.field, h[:, 0, 0])
     else:
-        targets = plant_targets(feet, contacts)
+        targets = plant_targets(feet, contacts, plant_frames)
     if ground is not None and terrain is None:  # planted feet on the ground the path runs over
         floor = (np.asarray(ground, np.float64) / h[..., 0])[..., None]
         targets[..., UP_AXIS] = np.maximum(targets[..., UP_AXIS], floor)

@@ -43,7 +43,7 @@ from synth_core.compiled import backend as backends
 from synth_core.compiled import kernels, render_pool
 from synth_core.compiled.foot_kernels import LEG_WIDTH, NOWHERE
 from synth_core.compiled.scratch import Scratch
-from synth_core.runtime import gaussian
+from synth_core.runtime import causal, gaussian
 from synth_core.runtime.bank import Bank
 from synth_core.runtime.columns import Columns, PlannedColumns
 from synth_core.runtime.draws import SCHEDULE_STREAM, character_keys, uniform
@@ -66,6 +66,12 @@ from synth_core.runtime.trajectory import DEFAULT_SIGMA, GROUND, TELEPORT_M, Tra
 
 KEEP_PLANS = 1  # of the slowest cycle: planned frames kept as the foot lock's context
 LOCK_LAG = 20  # frames planned but not yet sent, so that most plants a frame is in have ended
+# The low-latency mode (``latency_ms``): the budget's limits, and the default of its named profile.
+LATENCY_MS = (50.0, 2000.0)
+LOW_LATENCY_MS = 150.0
+# Its velocity fit (causal.fit_weights) is this many segments wide (sigma): a gait's speed read
+# over a fraction of a stride, not the point-to-point jitter of a simulator's path.
+SPEED_SIGMA = 1 / 8
 
 
 class LiveSynth:
@@ -93,7 +99,8 @@ class LiveSynth:
                  margin: int = MARGIN, foot_lock: bool = True, backend: str = "auto",
                  heading: float = 0.0, lock_lag: int = LOCK_LAG, first: int = 0,
                  reuse_windows: bool = False, share_render: bool = False, size_matching: str = "froude",
-                 tempo_spread: float = TEMPO_SPREAD, ground: HeightField | None = None) -> None:
+                 tempo_spread: float = TEMPO_SPREAD, ground: HeightField | None = None,
+                 latency_ms: float | None = None) -> None:
         if not (isinstance(n_characters, int) and n_characters >= 1):
             raise TrajectoryError(f"characters: need at least one, got {n_characters}")
         fps = bank.fps if fps is None else float(fps)
@@ -132,6 +139,12 @@ class LiveSynth:
         self.horizon = max(lookahead(self.m), self.step + int(self.frames_of[1:N_HUBS].max()))
         self.pad = int(np.ceil(4 * sigma)) if sigma > 0 else 0
         self.radius = int(4.0 * sigma + 0.5) if sigma > 0 else 0
+        # Points read either side of a smoothed frame: the Gaussian's radius (exact mode).
+        self.behind = self.ahead = self.radius
+        self.latency_ms = None if latency_ms is None else float(latency_ms)
+        self.plant_frames: int | None = None  # the exact mode's plants average all their frames
+        if self.latency_ms is not None:
+            self._low_latency(self.latency_ms)
         # Input (at fps) and the library-rate points made from it.
         self.inputs = np.zeros((C, 0, 3))
         self.inputs_start = 0  # global index of inputs[:, 0]
@@ -170,6 +183,30 @@ class LiveSynth:
         self.recent_legs = np.empty((C, PAD, 4, LEG_WIDTH))
         self.legs_at = np.full(C, NOWHERE)
 
+    def _low_latency(self, latency_ms: float) -> None:
+        """The low-latency mode: a frame is sent at most ``latency_ms`` after its point arrived
+        (counted in library frames: see :attr:`latency_frames`). Its path is a causal fit
+        (:mod:`synth_core.runtime.causal`) reading a few points ahead, its speed the fit's slope, its
+        gait decided on the speed known when the decision is due, and the foot lock given what is
+        left of the budget."""
+        lo, hi = LATENCY_MS
+        if not (np.isfinite(latency_ms) and lo <= latency_ms <= hi):
+            raise TrajectoryError(f"latency_ms: must be within [{lo:g}, {hi:g}] ms, got {latency_ms}")
+        budget = max(1, int(latency_ms * self.bank.fps / 1000 + 1e-9))  # library frames
+        # Half of what is left after the heading's next point reads ahead (a fit over points on
+        # both sides averages noise a one-sided one extrapolates), the rest waits for plants to end.
+        self.ahead = min((budget - 1) // 2, self.radius) if self.foot_lock else min(budget - 1, self.radius)
+        self.lock_lag = budget - 1 - self.ahead if self.foot_lock else 0
+        self.speed_sigma = max(self.sigma, SPEED_SIGMA * self.m)
+        self.behind = max(self.radius, int(4.0 * self.speed_sigma + 0.5))
+        self.pad = self.behind  # the head: the first point, held (a session starts standing)
+        self.horizon = 0  # decided on what has arrived
+        # A plant's target: its frames known (planned) when its first frame is sent, no later ones,
+        # so each window pins it where the last did (frames sent; see _emit).
+        self.plant_frames = max(self.lock_lag // self.out_step, 1)
+        self.frame_speed = np.zeros((len(self.scales), 0))  # per frame, the library's (as seg)
+        self.frame_speed_start = 0
+
     @property
     def window_frames(self) -> int:
         """Frames (sent) one segment settles: a window's usual size, a bound for larger ones."""
@@ -184,6 +221,8 @@ class LiveSynth:
     @property
     def latency_frames(self) -> int:
         """Library frames between a point arriving and its frame being sent, at most."""
+        if self.latency_ms is not None:  # the smoothing's look-ahead, the heading's next point, the lock
+            return self.ahead + 1 + self.lock_lag
         return int(self.horizon + 1.5 * self.m + self.radius + 2) + self.lock_lag
 
     # -- input -------------------------------------------------------------------------------
@@ -302,10 +341,13 @@ class LiveSynth:
         """Library-rate points into `longer`, behind the head the batch makes of the first ones."""
         if self.n_raw == 0:
             first = np.concatenate([self.first_points, new], axis=1)
-            if first.shape[1] < self.pad + 1:
+            if first.shape[1] < (self.pad + 1 if self.latency_ms is None else 1):
                 self.first_points = first
                 return
-            head = 2 * first[:, :1] - first[:, self.pad:0:-1]
+            if self.latency_ms is None:
+                head = 2 * first[:, :1] - first[:, self.pad:0:-1]
+            else:  # made at once: no point waited for (the session starts standing)
+                head = np.repeat(first[:, :1], self.pad, axis=1)
             self.longer = np.concatenate([head, first], axis=1)
             self.n_raw = first.shape[1]
             self.first_points = first[:, :0]
@@ -317,9 +359,12 @@ class LiveSynth:
 
     def _smooth(self) -> None:
         """Smoothed path for every frame whose Gaussian window has arrived."""
-        # Frame t reads `longer` (head first) up to t + pad + radius.
-        ready = self.longer_start + self.longer.shape[1] - self.pad - self.radius if self.n_raw else 0
+        # Frame t reads `longer` (head first) up to t + pad + ahead.
+        ready = self.longer_start + self.longer.shape[1] - self.pad - self.ahead if self.n_raw else 0
         if ready <= self.n_path:
+            return
+        if self.latency_ms is not None:
+            self._fit(ready)
             return
         if self.sigma > 0:
             lo = max(self.n_path + self.pad - self.radius, 0)  # in `longer` coordinates
@@ -347,6 +392,23 @@ class LiveSynth:
             self.seg = np.concatenate([self.seg, speeds / self.pace[:, None]], axis=1)
             self.n_seg = whole
 
+    def _fit(self, ready: int) -> None:
+        """The low-latency mode's path and speeds of frames [n_path, ready): causal fits."""
+        lo = self.n_path + self.pad - self.behind  # in `longer` coordinates
+        part = self.longer[:, lo - self.longer_start:ready + self.pad + self.ahead - self.longer_start]
+        n = ready - self.n_path
+        value, _ = causal.fit_weights(self.sigma, self.behind, self.ahead)
+        _, slope = causal.fit_weights(self.speed_sigma, self.behind, self.ahead)
+        self.path.reserve(n)[0][...] = causal.apply(part, value, self.behind, self.behind, n)
+        velocity = causal.apply(part[..., GROUND], slope, self.behind, self.behind, n)
+        speed = np.hypot(velocity[..., 0], velocity[..., 1]) * self.bank.fps / self.pace[:, None]
+        self.frame_speed = np.concatenate([self.frame_speed, speed], axis=1)
+        self.n_path = ready
+        drop = self.n_path + self.pad - self.behind - 1 - self.longer_start
+        if drop > 0:
+            self.longer = self.longer[:, drop:]
+            self.longer_start += drop
+
     def _path(self, a: int, b: int) -> Floats:
         """The smoothed path's frames [a, b) (a view)."""
         return self.path.columns(a, b)[0]
@@ -354,6 +416,9 @@ class LiveSynth:
     def _speeds(self, t: NDArray[np.int64], who: NDArray[np.int64] | None = None) -> Floats:
         """(C, len(t)) speed at frames t (interpolated between segment centres); of the
         characters ``who`` only, if given."""
+        if self.latency_ms is not None:
+            fs = self.frame_speed if who is None else self.frame_speed[who]
+            return np.asarray(fs[:, t - self.frame_speed_start])
         m = self.m
         pos = (t - (m - 1) / 2) / m
         k0 = np.maximum(np.floor(pos).astype(np.int64), 0)
@@ -365,6 +430,8 @@ class LiveSynth:
 
     def _speed_ready(self) -> int:
         """Frames [0, n) whose speed is known."""
+        if self.latency_ms is not None:
+            return self.n_path
         # Frame t reads segment floor((t - (m-1)/2) / m) + 1 (and at least segment 1).
         m = self.m
         return int(np.ceil((self.n_seg - 1) * m + (m - 1) / 2)) if self.n_seg >= 2 else 0
@@ -384,6 +451,8 @@ class LiveSynth:
             decisions = self.no_decision
             if t0 == a:
                 ahead = a + lookahead(self.m)
+                if self.latency_ms is not None:  # the speed known now: the newest
+                    ahead = min(ahead, v_ready - 1)
                 if limit is not None:
                     ahead = min(ahead, limit - 1)  # the batch's decisions read its last frame there
                 if a + self.horizon >= v_ready:
@@ -446,12 +515,12 @@ class LiveSynth:
             out = None if self.scratch is None else self.scratch.array(
                 "live.rotations", (len(self.scales), hi - lo, self.bank.skeleton.n_joints, 4), np.float32)
             root, rot = kernels.render_window(self.bank, buf, lo, hi, begin, end, self.foot_lock, posed, out,
-                                              self.share, ground)
+                                              self.share, ground, self.plant_frames)
             self.known_feet, self.legs_at = posed.frames + o0, posed.legs_at + o0
         else:
             cb, ce = int(begin.min()), int(end.max())
             root, rot = render(self.bank, buf.window(cb, ce), self.foot_lock,
-                               None if ground is None else ground.window(cb, ce))
+                               None if ground is None else ground.window(cb, ce), self.plant_frames)
             root, rot = root[:, lo - cb:hi - cb], rot[:, lo - cb:hi - cb]
         # Copies: the buffer's columns are written over by later blocks.
         window = Window(self.emitted, root, rot, buf.gait[:, lo:hi].copy(), buf.contacts[:, lo:hi].copy())
@@ -464,6 +533,10 @@ class LiveSynth:
             self.buffer.drop_before(-(-(stop - self.kept_frames) // k))
             self.feet.drop_before(self.buffer.start)
         self.path.drop_before(self.planned - 2)  # the path the next block and heading read
+        if self.latency_ms is not None:  # the speeds still read: the next block's, on
+            drop = self.planned - self.frame_speed_start
+            self.frame_speed, self.frame_speed_start = self.frame_speed[:, drop:], self.planned
+            return window
         first_seg = max(int(np.floor((self.planned - self.m / 2) / self.m)) - 1, 0)  # the speeds still read
         if first_seg > self.seg_start:
             self.seg = self.seg[:, first_seg - self.seg_start:]

@@ -117,11 +117,12 @@ def _nlerp(a: NDArray[np.float32], b: NDArray[np.float32], w: NDArray[np.float32
     return np.asarray(q / np.linalg.norm(q, axis=-1, keepdims=True), dtype=np.float32)
 
 
-def render(bank: Bank, p: Plan, foot_lock: bool = True,
-           ground: Grounding | None = None) -> tuple[NDArray[np.float32], NDArray[np.float32]]:
+def render(bank: Bank, p: Plan, foot_lock: bool = True, ground: Grounding | None = None,
+           plant_frames: int | None = None) -> tuple[NDArray[np.float32], NDArray[np.float32]]:
     """Root ``(C, T, 3)`` and local rotations ``(C, T, J, 4)`` of a plan: the numpy reference of
     :func:`synth_core.compiled.kernels.render`. ``ground``: the plan stands on a terrain
-    (:func:`synth_core.runtime.terrain.ground_plan`)."""
+    (:func:`synth_core.runtime.terrain.ground_plan`); ``plant_frames``: see
+    :func:`synth_core.runtime.footlock.plant_targets` (``most``)."""
     r, wt = p.rows, p.weights
     rotations = _nlerp(bank.poses[r[..., 0]], bank.poses[r[..., 1]], wt[..., 0])
     height = bank.height[r[..., 0]] * (1 - wt[..., 0]) + bank.height[r[..., 1]] * wt[..., 0]
@@ -147,7 +148,7 @@ def render(bank: Bank, p: Plan, foot_lock: bool = True,
     if not foot_lock:
         return root.astype(np.float32), rotations
     return lock_feet(bank.skeleton, root, rotations, p.contacts, p.scales, ground=p.path[..., UP_AXIS],
-                     bends=bank.bends, terrain=ground)
+                     bends=bank.bends, terrain=ground, plant_frames=plant_frames)
 
 
 def character_scales(keys: NDArray[np.uint64], scales: ArrayLike | None,
