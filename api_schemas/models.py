@@ -175,7 +175,7 @@ class SynthesizeRequest(BaseModel):
 
 LiveMode = Literal["exact", "low_latency"]
 LATENCY_MS = (50.0, 2000.0)  # as synth_core.runtime.live.LATENCY_MS (api_schemas imports no core)
-LOW_LATENCY_MS = 150.0  # the low_latency profile's budget (synth_core.runtime.live.LOW_LATENCY_MS)
+LOW_LATENCY_MS = 100.0  # the low_latency profile's budget (synth_core.runtime.live.LOW_LATENCY_MS)
 
 
 class LiveCharacter(BaseModel):

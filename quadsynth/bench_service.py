@@ -25,6 +25,9 @@ directory) and stops it after. Figures (500 horses, crowd-sim, seed 0, msgpack, 
   bytes on the wire: per joint-frame and per character-frame (whole chunk messages: root, gait
   and contacts included), per second per character at 30 fps, and per second for 100,000 horses
   at 30 fps at that cost (``link_MB_s_100k_at_30fps``: the figure to hold against a 1 Gbit/s link's 125).
+- ``live_latency_per_mode`` (:mod:`quadsynth.bench_latency`; alone: ``--latency``, 20 s): per live
+  mode, pose latency p50/p99/max in ms from sending a point (one a tick, 30 fps, real time) to
+  receiving its pose.
 """
 
 from __future__ import annotations
@@ -45,6 +48,7 @@ import numpy as np
 
 from api_schemas.client import read_body
 from api_schemas.wire import blob
+from quadsynth import bench_latency
 from quadsynth.bench_ws import LeanSocket
 from synth_core.quality import herd_sim as crowd
 
@@ -230,12 +234,15 @@ def encodings(url: str) -> dict[str, Any]:
     return out
 
 
-def run(url: str | None = None, repeats: int = REPEATS, only_encodings: bool = False) -> dict[str, Any]:
+def run(url: str | None = None, repeats: int = REPEATS, only_encodings: bool = False,
+        only_latency: bool = False) -> dict[str, Any]:
     if url is None:
         with local_service() as local:
-            return run(local, repeats, only_encodings)
+            return run(local, repeats, only_encodings, only_latency)
     if only_encodings:
         return {"encodings": encodings(url)}
+    if only_latency:
+        return {"live_latency_per_mode": bench_latency.per_mode(url)}
     paths = crowd.simulate(CHARACTERS, FRAMES, seed=0).astype(np.float32)
     body = {"seed": 1, "encoding": "s48",
             "characters": [{"id": f"h{c}", "points": blob(p)} for c, p in enumerate(paths)]}
@@ -255,4 +262,4 @@ def run(url: str | None = None, repeats: int = REPEATS, only_encodings: bool = F
             "live_paced_characters": paced, "live_latency_s_max": round(live_latency, 3),
             "bytes_per_joint_frame": len(rotations["data"]) / (frames * joints),
             "rest_seconds": round(seconds, 3), "response_bytes": len(content),
-            "encodings": encodings(url)}
+            "encodings": encodings(url), "live_latency_per_mode": bench_latency.per_mode(url)}

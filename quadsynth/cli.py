@@ -388,7 +388,7 @@ def _bench(args: argparse.Namespace, extra: list[str]) -> int:
 def _bench_service(args: argparse.Namespace, extra: list[str]) -> int:
     from quadsynth.bench_service import run
 
-    figures = run(args.url, args.repeats, args.encodings)
+    figures = run(args.url, args.repeats, args.encodings, args.latency)
     print(json.dumps(figures) if args.json else json.dumps(figures, indent=2))
     return 0
 
@@ -543,6 +543,8 @@ def _add_figures(sub: Any) -> None:
     bs.add_argument("--json", action="store_true", help="one JSON object on one line")
     bs.add_argument("--encodings", action="store_true",
                     help="only the bytes per joint-frame and per second of each encoding and LOD mix")
+    bs.add_argument("--latency", action="store_true",
+                    help="only the live pose latency (p50/p99 from point sent to pose received) per mode")
     bs.set_defaults(func=_bench_service, passthrough=False)
 
 

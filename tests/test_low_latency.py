@@ -71,7 +71,7 @@ def test_the_live_request_names_the_field_and_its_limits() -> None:
     with pytest.raises(ValidationError, match="mode"):
         LiveRequest.model_validate({"characters": chars, "mode": "fast"})
     assert LiveRequest.model_validate({"characters": chars}).budget_ms is None
-    assert LiveRequest.model_validate({"characters": chars, "mode": "low_latency"}).budget_ms == 150.0
+    assert LiveRequest.model_validate({"characters": chars, "mode": "low_latency"}).budget_ms == 100.0
     assert LiveRequest.model_validate({"characters": chars, "latency_ms": 80}).budget_ms == 80.0
 
 

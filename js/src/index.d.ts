@@ -106,7 +106,7 @@ export interface LiveOptions {
   seed?: number; sigma?: number; encoding?: Encoding; lod?: Lod; scale_min?: number; scale_max?: number; foot_lock?: boolean; heading?: number;
   /** 'exact' (default): the batch's frames, seconds late; 'low_latency': each pose at most `latency_ms` after its point. */
   mode?: 'exact' | 'low_latency';
-  /** The low-latency budget, 50-2000 ms (default 150); given alone it asks for 'low_latency'. */
+  /** The low-latency budget, 50-2000 ms (default 100); given alone it asks for 'low_latency'. */
   latency_ms?: number;
 }
 export interface LiveStart {

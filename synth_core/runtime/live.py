@@ -68,7 +68,7 @@ KEEP_PLANS = 1  # of the slowest cycle: planned frames kept as the foot lock's c
 LOCK_LAG = 20  # frames planned but not yet sent, so that most plants a frame is in have ended
 # The low-latency mode (``latency_ms``): the budget's limits, and the default of its named profile.
 LATENCY_MS = (50.0, 2000.0)
-LOW_LATENCY_MS = 150.0
+LOW_LATENCY_MS = 100.0
 # Its velocity fit (causal.fit_weights) is this many segments wide (sigma): a gait's speed read
 # over a fraction of a stride, not the point-to-point jitter of a simulator's path.
 SPEED_SIGMA = 1 / 8
