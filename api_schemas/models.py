@@ -222,7 +222,7 @@ class LiveRequest(BaseModel):
     @model_validator(mode="after")
     def _latency_is_low_latencys(self) -> LiveRequest:
         if self.latency_ms is not None and "mode" in self.model_fields_set and self.mode == "exact":
-            raise ValueError("latency_ms: only with mode low_latency (the exact mode's latency is the batch's)")
+            raise ValueError("latency_ms: only with mode low_latency (the exact mode's is the batch's)")
         return self
 
     @property

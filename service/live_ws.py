@@ -49,7 +49,8 @@ def open_live(body: Any, settings: Settings, banks: dict[str, Bank]) -> tuple[Li
                           scale_range=(req.scale_min, req.scale_max), sigma=req.sigma,
                           foot_lock=req.foot_lock, heading=req.heading, size_matching=req.size_matching,
                           tempo_spread=req.tempo_spread, ground=ground_field(req.ground),
-                          latency_ms=req.budget_ms, reuse_windows=True)  # a window is packed before the next is made
+                          latency_ms=req.budget_ms,
+                          reuse_windows=True)  # a window is packed before the next is made
     except TrajectoryError as exc:
         raise live_error(exc, "characters") from None
     return req, live

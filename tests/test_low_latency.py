@@ -8,8 +8,7 @@ import numpy as np
 import pytest
 from pydantic import ValidationError
 
-from api_schemas import LiveRequest
-from api_schemas import models
+from api_schemas import LiveRequest, models
 from synth_core.quality import evaluate
 from synth_core.quality import herd_sim as crowd
 from synth_core.quality.live_run import play
@@ -25,7 +24,8 @@ def herd() -> np.ndarray:
 
 
 @pytest.mark.parametrize("latency_ms", [50.0, 150.0, 400.0])
-def test_poses_lag_their_points_by_the_budget_at_most(bank: Bank, herd: np.ndarray, latency_ms: float) -> None:
+def test_poses_lag_their_points_by_the_budget_at_most(bank: Bank, herd: np.ndarray,
+                                                      latency_ms: float) -> None:
     run = play(bank, herd, latency_ms=latency_ms, points_per_tick=3)
     budget = int(latency_ms * bank.fps / 1000)
     assert run.latency_frames == budget
@@ -104,7 +104,8 @@ def test_a_plants_target_can_average_its_first_frames_only(bank: Bank) -> None:
             got = np.empty((40, 4, 3))
             kernels.plant_targets(feet[c], contacts[c], got, most)
             np.testing.assert_allclose(got, want[c], atol=1e-12)
-    np.testing.assert_array_equal(footlock.plant_targets(feet, contacts, 1000), footlock.plant_targets(feet, contacts))
+    whole = footlock.plant_targets(feet, contacts)
+    np.testing.assert_array_equal(footlock.plant_targets(feet, contacts, 1000), whole)
     # A plant's target is its first frame's foot with most=1: what frames after it hold changes nothing.
     later = feet.copy()
     later[:, 1:] += 1.0

@@ -35,14 +35,14 @@ def plant_targets(feet: Any, contacts: Any, out: Any, most: int) -> None:
                 t += 1
                 continue
             s = t
-            acc0 = acc1 = acc2 = 0.0
             while t < T and contacts[t, f]:
-                if t - s < most:
-                    acc0 += feet[t, f, 0]
-                    acc1 += feet[t, f, 1]
-                    acc2 += feet[t, f, 2]
                 t += 1
             n = min(t - s, most)
+            acc0 = acc1 = acc2 = 0.0
+            for u in range(s, s + n):
+                acc0 += feet[u, f, 0]
+                acc1 += feet[u, f, 1]
+                acc2 += feet[u, f, 2]
             avg[s, 0], avg[s, 1], avg[s, 2] = acc0 / n, acc1 / n, acc2 / n
             for u in range(s, t):
                 out[u, f, 0], out[u, f, 1], out[u, f, 2] = avg[s, 0], avg[s, 1], avg[s, 2]

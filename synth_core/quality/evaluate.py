@@ -25,9 +25,8 @@ from synth_core.build.animals import sync_frames
 from synth_core.build.motion_graph import HUBS
 from synth_core.motion.contacts import touchdowns
 from synth_core.motion.skeleton import Skeleton, forward_kinematics
-from synth_core.quality import edge
+from synth_core.quality import edge, live_run
 from synth_core.quality import herd_sim as crowd
-from synth_core.quality import live_run
 from synth_core.quality import metrics as M
 from synth_core.runtime.bank import STATIC, Bank, Piece
 from synth_core.runtime.synthesis import N_HUBS, Options, Result, headings, synthesize
@@ -443,7 +442,8 @@ def edge_suite(bank: Bank, seed: int = 0, names: list[str] | None = None, backen
                                  "frames": int(sc.positions.shape[1])}
         try:
             if live:
-                run = live_run.play(bank, sc.positions, sc.scales, seed, latency_ms, sc.ground, backend=backend)
+                run = live_run.play(bank, sc.positions, sc.scales, seed, latency_ms, sc.ground,
+                                    backend=backend)
                 result = run.result
                 entry |= {"lag_frames_max": int(run.lags.max()), "latency_frames": run.latency_frames}
             else:

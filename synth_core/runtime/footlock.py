@@ -103,7 +103,8 @@ def lock_feet(skeleton: Skeleton, root_pos: NDArray[np.floating], rotations: NDA
     ``ground (C, T)``: the height planted feet stand at (default: as they are); ``bends (4, 3)``:
     the legs' bend axes (:func:`synth_core.build.ik.bend_axes`; default: over this motion).
     ``terrain``: the body already tilted by ``terrain.tilt`` and standing on ``ground``; the feet
-    are planted on ``terrain.field`` (:mod:`synth_core.runtime.terrain`)."""
+    are planted on ``terrain.field`` (:mod:`synth_core.runtime.terrain`). ``plant_frames``: each
+    plant pinned at its first so many frames' average (:func:`plant_targets`' ``most``)."""
     rigs = ik.limb_rigs(skeleton) if rigs is None else rigs
     h = np.asarray(scales, np.float64)[:, None, None]
     unit_root = np.asarray(root_pos, np.float64) / h
@@ -112,7 +113,8 @@ def lock_feet(skeleton: Skeleton, root_pos: NDArray[np.floating], rotations: NDA
     if terrain is not None and ground is not None:
         feet = untilt(feet, unit_root, terrain.tilt)
         feet[..., UP_AXIS] -= (np.asarray(ground, np.float64) / h[..., 0])[..., None]
-        targets = ground_targets(plant_targets(feet, contacts, plant_frames), contacts, terrain.field, h[:, 0, 0])
+        targets = plant_targets(feet, contacts, plant_frames)
+        targets = ground_targets(targets, contacts, terrain.field, h[:, 0, 0])
     else:
         targets = plant_targets(feet, contacts, plant_frames)
     if ground is not None and terrain is None:  # planted feet on the ground the path runs over
