@@ -10,7 +10,7 @@ import base64
 import binascii
 from typing import Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, field_serializer, field_validator, model_validator
+from pydantic import BaseModel, ConfigDict, Field, ValidationInfo, field_serializer, field_validator
 
 from api_schemas.wire import DTYPES, ENCODINGS, Encoding
 
@@ -210,20 +210,22 @@ class LiveRequest(BaseModel):
     tempo_spread: float = Field(default=0.06, ge=0, le=0.25, description=TEMPO_SPREAD_DOC)
     ground: GroundIn | None = Field(default=None, description=GROUND_DOC + "; a `ground` message "
                                     "changes it during the session")
-    mode: LiveMode = Field(default="exact", description="exact: every frame as the batch would make it "
-                           "(sent seconds after its point: see the start message's latency_s); "
-                           "low_latency: sent at most latency_ms after its point (docs/streaming.md)")
+    mode: LiveMode | None = Field(default=None, description="exact (the default, unless latency_ms is "
+                                  "given): every frame as the batch would make it (sent seconds after "
+                                  "its point: see the start message's latency_s); low_latency: sent at "
+                                  "most latency_ms after its point (docs/streaming.md)")
     latency_ms: float | None = Field(default=None, ge=LATENCY_MS[0], le=LATENCY_MS[1],
                                      description="low_latency: the most a frame's pose lags its point, "
                                                  f"ms (default {LOW_LATENCY_MS:g}); given alone, "
                                                  "it asks for low_latency")
     characters: list[LiveCharacter] = Field(min_length=1)
 
-    @model_validator(mode="after")
-    def _latency_is_low_latencys(self) -> LiveRequest:
-        if self.latency_ms is not None and "mode" in self.model_fields_set and self.mode == "exact":
-            raise ValueError("latency_ms: only with mode low_latency (the exact mode's is the batch's)")
-        return self
+    @field_validator("latency_ms")
+    @classmethod
+    def _latency_is_low_latencys(cls, v: float | None, info: ValidationInfo) -> float | None:
+        if v is not None and info.data.get("mode") == "exact":
+            raise ValueError("only with mode low_latency (the exact mode's latency is the batch's)")
+        return v
 
     @property
     def budget_ms(self) -> float | None:
