@@ -25,6 +25,16 @@ whole trajectory's, bit for bit (tests/test_plan.py), but for:
 - no resampling (r = 1): live cannot slow time down, so a character faster than the library's
   fastest gait plays it up to MAX_RATE times faster, as in a batch, and slides beyond that.
 
+**The low-latency mode** (``latency_ms``, issue 31) drops those look-aheads for a budget of
+``latency_ms`` (library frames: ``latency_ms * fps / 1000``): the path is a causal local-linear
+fit (:mod:`synth_core.runtime.causal`) reading a few points ahead, a frame's speed the slope of a
+wider one, each gait decision reads the newest speed known (no stride horizon), and the foot lock
+gets the rest of the budget, each plant pinned at the average of its frames known when its first
+frame is sent (``plant_frames``), so no sent frame's plant moves later. What it costs: a plant
+pinned at its first frames leaves its whole drift (up to half a metre on a turn, in the clips as
+placed on the path) to the IK at its end where the batch's average leaves half, and the swing after
+it snaps toward the next plant once that is planned (docs/streaming.md has the figures).
+
 The foot lock pins a plant at its average position, which needs the plant's end: frames are
 sent ``lock_lag`` frames after they are planned (``LOCK_LAG``, a third of a second) and locked over
 every frame planned so far, so most plants a frame is in have ended; one still going on is pinned
