@@ -23,7 +23,8 @@ _jit = render_jit
 @_jit()
 def plant_targets(feet: Any, contacts: Any, out: Any, most: int) -> None:
     """footlock.plant_targets for one character: feet (T, 4, 3), contacts (T, 4); a plant's
-    position averaged over its first ``most`` frames at most."""
+    position averaged over its first ``most`` frames at most (and, ``most`` < T, a swing before
+    no plant eased out as there)."""
     T = feet.shape[0]
     avg = np.empty((T, 3))  # per plant, indexed by its first frame
     for f in range(4):
@@ -66,8 +67,11 @@ def plant_targets(feet: Any, contacts: Any, out: Any, most: int) -> None:
             if not (has_before or has_after):
                 continue
             for u in range(s, t):
-                if has_before and has_after:
-                    span = max(t - last_end, 1)
+                # A swing whose next plant is not planned yet (a live window; with `most`, one in
+                # the low-latency mode) eases its lift-off correction out over half its plant's
+                # length, a guess at the swing's: when the next plant comes, little is left to snap.
+                if has_before and (has_after or most < T):
+                    span = max(t - last_end if has_after else (last_end - last_start + 1) // 2, 1)
                     x = min(max((u - last_end) / span, 0.0), 1.0)
                     x = x * x * (3 - 2 * x)
                 elif has_after:

@@ -76,10 +76,15 @@ def plant_targets(feet: NDArray[np.floating], contacts: NDArray[np.bool_], most:
     lift = average[before] - pos[ends[before]]
     touch = average[after] - pos[starts[after]]
     lift[:, UP_AXIS] = touch[:, UP_AXIS] = 0.0
+    touch[~has_after] = 0.0
     span = np.maximum(starts[after] - ends[before], 1)
+    # With `most` (the low-latency live mode), a swing before no plant (not planned yet) eases its
+    # lift-off correction out over half its plant's length, a guess at the swing's.
+    eases = has_before & (has_after | (most is not None and most < T))
+    span = np.where(has_after, span, np.maximum((ends[before] - starts[before] + 1) // 2, 1))
     u = np.clip((swing - ends[before]) / span, 0.0, 1.0)
     u = u * u * (3 - 2 * u)
-    u = np.where(has_before & has_after, u, np.where(has_after, 1.0, 0.0))
+    u = np.where(eases, u, np.where(has_after, 1.0, 0.0))
     correction = (1 - u)[:, None] * lift + u[:, None] * touch
     correction[~(has_before | has_after)] = 0.0
     targets[swing] += correction
