@@ -32,8 +32,8 @@ wider one, each gait decision reads the newest speed known (no stride horizon), 
 gets the rest of the budget, each plant pinned at the average of its frames known when its first
 frame is sent (``plant_frames``), so no sent frame's plant moves later. What it costs: a plant
 pinned at its first frames leaves its whole drift (up to half a metre on a turn, in the clips as
-placed on the path) to the IK at its end where the batch's average leaves half, and the swing after
-it snaps toward the next plant once that is planned (docs/streaming.md has the figures).
+placed on the path) to the IK at its end where the batch's average leaves half; the swing after
+it eases that correction out before the next plant is planned (docs/streaming.md has the figures).
 
 The foot lock pins a plant at its average position, which needs the plant's end: frames are
 sent ``lock_lag`` frames after they are planned (``LOCK_LAG``, a third of a second) and locked over
