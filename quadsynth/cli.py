@@ -325,8 +325,10 @@ def _eval(args: argparse.Namespace, extra: list[str]) -> int:
     from synth_core.quality import evaluate
     from synth_core.runtime.bank import build_bank
 
-    if args.suite == "standard" and (args.scenario or args.out or args.live):  # before any library is built
-        raise ValueError("--scenario, --out and --live: only with --suite edge")
+    if args.suite == "standard" and (args.scenario or args.out):  # before any library is built
+        raise ValueError("--scenario and --out: only with --suite edge")
+    if args.suite == "standard" and args.live:
+        raise ValueError("--live: only with --suite edge")
     if args.latency_ms is not None and args.live != "low_latency":
         raise ValueError("--latency-ms: only with --live low_latency")
 
