@@ -15,6 +15,7 @@ from synth_core.quality.live_run import play
 from synth_core.runtime import causal, footlock, gaussian, live
 from synth_core.runtime.bank import Bank
 from synth_core.runtime.live import LiveSynth
+from synth_core.runtime.live_shards import LiveShards
 from synth_core.runtime.trajectory import TrajectoryError
 
 
@@ -112,3 +113,16 @@ def test_a_plants_target_can_average_its_first_frames_only(bank: Bank) -> None:
     first = contacts[:, 0] & contacts[:, 1]
     np.testing.assert_allclose(footlock.plant_targets(later, contacts, 1)[:, 1][first],
                                feet[:, 0][first], atol=1e-12)
+
+
+def test_shards_make_the_low_latency_sessions_frames(bank: Bank, herd: np.ndarray) -> None:
+    whole = LiveSynth(bank, len(herd), 60.0, seed=4, latency_ms=100.0)
+    shards = LiveShards(bank, len(herd), 60.0, seed=4, shards=3, latency_ms=100.0)
+    assert shards.latency_frames == whole.latency_frames
+    for i in range(0, 300, 7):
+        a, b = whole.append(herd[:, i:i + 7]), shards.append(herd[:, i:i + 7])
+        assert (a is None) == (b is None)
+        if a is not None and b is not None:
+            joined = np.concatenate([w.root_pos for w in b])
+            np.testing.assert_array_equal(joined, a.root_pos)
+            np.testing.assert_array_equal(np.concatenate([w.gait for w in b]), a.gait)
