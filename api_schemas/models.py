@@ -10,7 +10,7 @@ import base64
 import binascii
 from typing import Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, field_serializer, field_validator
+from pydantic import BaseModel, ConfigDict, Field, ValidationInfo, field_serializer, field_validator
 
 from api_schemas.wire import DTYPES, ENCODINGS, Encoding
 
@@ -173,6 +173,11 @@ class SynthesizeRequest(BaseModel):
     characters: list[CharacterIn] = Field(min_length=1)
 
 
+LiveMode = Literal["exact", "low_latency"]
+LATENCY_MS = (50.0, 2000.0)  # as synth_core.runtime.live.LATENCY_MS (api_schemas imports no core)
+LOW_LATENCY_MS = 100.0  # the low_latency profile's budget (synth_core.runtime.live.LOW_LATENCY_MS)
+
+
 class LiveCharacter(BaseModel):
     model_config = _STRICT
     id: str = Field(min_length=1, max_length=128)
@@ -205,7 +210,29 @@ class LiveRequest(BaseModel):
     tempo_spread: float = Field(default=0.06, ge=0, le=0.25, description=TEMPO_SPREAD_DOC)
     ground: GroundIn | None = Field(default=None, description=GROUND_DOC + "; a `ground` message "
                                     "changes it during the session")
+    mode: LiveMode | None = Field(default=None, description="exact (the default, unless latency_ms is "
+                                  "given): every frame as the batch would make it (sent seconds after "
+                                  "its point: see the start message's latency_s); low_latency: sent at "
+                                  "most latency_ms after its point (docs/streaming.md)")
+    latency_ms: float | None = Field(default=None, ge=LATENCY_MS[0], le=LATENCY_MS[1],
+                                     description="low_latency: the most a frame's pose lags its point, "
+                                                 f"ms (default {LOW_LATENCY_MS:g}); given alone, "
+                                                 "it asks for low_latency")
     characters: list[LiveCharacter] = Field(min_length=1)
+
+    @field_validator("latency_ms")
+    @classmethod
+    def _latency_is_low_latencys(cls, v: float | None, info: ValidationInfo) -> float | None:
+        if v is not None and info.data.get("mode") == "exact":
+            raise ValueError("only with mode low_latency (the exact mode's latency is the batch's)")
+        return v
+
+    @property
+    def budget_ms(self) -> float | None:
+        """The low-latency budget asked for (None: the exact mode)."""
+        if self.latency_ms is not None:
+            return self.latency_ms
+        return LOW_LATENCY_MS if self.mode == "low_latency" else None
 
 
 class CharacterOut(BaseModel):

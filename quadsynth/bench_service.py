@@ -28,6 +28,9 @@ directory) and stops it after. Figures (500 horses, crowd-sim, seed 0, msgpack, 
 - ``live_scale`` (:mod:`quadsynth.bench_live_scale`; alone: ``--live-scale``, a few minutes): per
   encoding and level-of-detail mix, the largest herd held at 30 fps (sessions of 5,000 side by
   side, fed in real time) and its bytes per second on the wire, against the issue's targets.
+- ``live_latency_per_mode`` (:mod:`quadsynth.bench_latency`; alone: ``--latency``, 20 s): per live
+  mode, pose latency p50/p99/max in ms from sending a point (one a tick, 30 fps, real time) to
+  receiving its pose.
 """
 
 from __future__ import annotations
@@ -48,6 +51,7 @@ import numpy as np
 
 from api_schemas.client import read_body
 from api_schemas.wire import blob
+from quadsynth import bench_latency
 from quadsynth.bench_ws import LeanSocket
 from synth_core.quality import herd_sim as crowd
 
@@ -249,15 +253,16 @@ def encodings(url: str) -> dict[str, Any]:
 
 
 def run(url: str | None = None, repeats: int = REPEATS, only_encodings: bool = False,
-        only_live_scale: bool = False) -> dict[str, Any]:
+        only_live_scale: bool = False, only_latency: bool = False) -> dict[str, Any]:
     from quadsynth.bench_live_scale import live_scale
 
     if url is None:
         with local_service() as local:
-            return run(local, repeats, only_encodings, only_live_scale)
-    if only_encodings or only_live_scale:
-        return ({"encodings": encodings(url)} if only_encodings else {}) | (
-            {"live_scale": live_scale(url, log=_log)} if only_live_scale else {})
+            return run(local, repeats, only_encodings, only_live_scale, only_latency)
+    if only_encodings or only_live_scale or only_latency:
+        return (({"encodings": encodings(url)} if only_encodings else {})
+                | ({"live_scale": live_scale(url, log=_log)} if only_live_scale else {})
+                | ({"live_latency_per_mode": bench_latency.per_mode(url)} if only_latency else {}))
     paths = crowd.simulate(CHARACTERS, FRAMES, seed=0).astype(np.float32)
     body = {"seed": 1, "encoding": "s48",
             "characters": [{"id": f"h{c}", "points": blob(p)} for c, p in enumerate(paths)]}
@@ -277,7 +282,8 @@ def run(url: str | None = None, repeats: int = REPEATS, only_encodings: bool = F
             "live_paced_characters": paced, "live_latency_s_max": round(live_latency, 3),
             "bytes_per_joint_frame": len(rotations["data"]) / (frames * joints),
             "rest_seconds": round(seconds, 3), "response_bytes": len(content),
-            "encodings": encodings(url), "live_scale": live_scale(url, log=_log)}
+            "encodings": encodings(url), "live_latency_per_mode": bench_latency.per_mode(url),
+            "live_scale": live_scale(url, log=_log)}
 
 
 def _log(line: str) -> None:

@@ -18,6 +18,10 @@ def _eval(args: argparse.Namespace, extra: list[str]) -> int:
 
     if args.suite == "standard" and (args.scenario or args.out):  # before any library is built
         raise ValueError("--scenario and --out: only with --suite edge")
+    if args.suite == "standard" and args.live:
+        raise ValueError("--live: only with --suite edge")
+    if args.latency_ms is not None and args.live != "low_latency":
+        raise ValueError("--latency-ms: only with --live low_latency")
 
     libraries: dict[str, Any] = {}
     for name in args.animal:
@@ -40,12 +44,15 @@ def _eval_edge(args: argparse.Namespace, banks: dict[str, Any]) -> int:
     """``eval --suite edge``: the edge scenarios per animal (JSON); with ``--out DIR`` also
     DIR/edge.json, DIR/edge.md (a table per animal) and DIR/edge_worst_<animal>.png."""
     from synth_core.quality import evaluate
+    from synth_core.runtime.live import LOW_LATENCY_MS
 
     suites: dict[str, Any] = {}
     kept: dict[str, dict[str, Any]] = {}
     for name, bank in banks.items():
         kept[name] = {}
-        suites[name] = evaluate.edge_suite(bank, args.seed, args.scenario, keep=kept[name])
+        budget = (args.latency_ms or LOW_LATENCY_MS) if args.live == "low_latency" else None
+        suites[name] = evaluate.edge_suite(bank, args.seed, args.scenario, keep=kept[name],
+                                           live=args.live is not None, latency_ms=budget)
         scenarios = suites[name]["scenarios"]
         failed = sum(bool(s["failed"]) for s in scenarios.values())
         print(f"{name}: {failed} of {len(scenarios)} scenarios miss a target", file=sys.stderr)
@@ -79,7 +86,7 @@ def _bench(args: argparse.Namespace, extra: list[str]) -> int:
 def _bench_service(args: argparse.Namespace, extra: list[str]) -> int:
     from quadsynth.bench_service import run
 
-    figures = run(args.url, args.repeats, args.encodings, args.live_scale)
+    figures = run(args.url, args.repeats, args.encodings, args.live_scale, args.latency)
     print(json.dumps(figures) if args.json else json.dumps(figures, indent=2))
     return 0
 
@@ -103,6 +110,11 @@ def add_figure_commands(sub: Any) -> None:
                     help="edge suite: only this scenario (repeatable; default: all)")
     ev.add_argument("--out", default=None, help="edge suite: also write DIR/edge.json, DIR/edge.md and a "
                     "contact sheet of each animal's worst scenario, DIR/edge_worst_<animal>.png")
+    ev.add_argument("--live", choices=["exact", "low_latency"], default=None,
+                    help="edge suite: each scenario played through a live session in this mode, fed a "
+                    "point a tick (default: the batch)")
+    ev.add_argument("--latency-ms", type=float, default=None,
+                    help="with --live low_latency: the budget (default: the low_latency profile's)")
     ev.set_defaults(func=_eval, passthrough=False)
 
     be = sub.add_parser("bench", help="synthesis speed on the built-in horse (JSON)")
@@ -119,4 +131,6 @@ def add_figure_commands(sub: Any) -> None:
     bs.add_argument("--live-scale", action="store_true",
                     help="only the largest live herd held at 30 fps per encoding and LOD mix, and its "
                          "bytes per second on the wire (with --encodings: both)")
+    bs.add_argument("--latency", action="store_true",
+                    help="only the live pose latency (p50/p99 from point sent to pose received) per mode")
     bs.set_defaults(func=_bench_service, passthrough=False)

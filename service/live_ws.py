@@ -49,6 +49,7 @@ def open_live(body: Any, settings: Settings, banks: dict[str, Bank]) -> tuple[Li
                           scale_range=(req.scale_min, req.scale_max), sigma=req.sigma,
                           foot_lock=req.foot_lock, heading=req.heading, size_matching=req.size_matching,
                           tempo_spread=req.tempo_spread, ground=ground_field(req.ground),
+                          latency_ms=req.budget_ms,
                           reuse_windows=True)  # a window is packed before the next is made
     except TrajectoryError as exc:
         raise live_error(exc, "characters") from None
@@ -222,6 +223,8 @@ def _start_message(s: Session, number: int, req: LiveRequest, synth: LiveShards,
             "fps": fps / synth.out_step / p.frame_step, "library_fps": fps,
             "frame_step": p.frame_step, "encoding": req.encoding, "details": list(p.details),
             "joints": registry.banks[req.animal].skeleton.n_joints, "resample_rate": 1.0,
+            "latency_mode": "exact" if req.budget_ms is None else "low_latency",
+            "latency_ms": req.budget_ms,
             "latency_frames": -(-synth.latency_frames // synth.out_step),
             "latency_s": synth.latency_frames / fps,
             "characters": [{"id": c.id, "scale": float(h)}

@@ -162,6 +162,10 @@ def test_eval_refuses_edge_options_without_the_edge_suite_and_unknown_scenarios(
         capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["eval", "--scenario", "creep"]) == 2
     assert "--scenario and --out: only with --suite edge" in capsys.readouterr().err
+    assert main(["eval", "--live", "low_latency"]) == 2
+    assert "--live: only with --suite edge" in capsys.readouterr().err
+    assert main(["eval", "--suite", "edge", "--latency-ms", "100"]) == 2
+    assert "--latency-ms: only with --live low_latency" in capsys.readouterr().err
     assert main(["eval", "--suite", "edge", "--animal", "dog", "--scenario", "moonwalk"]) == 2
     assert "scenario: unknown ['moonwalk']" in capsys.readouterr().err
 

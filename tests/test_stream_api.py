@@ -266,6 +266,31 @@ def test_live_refusals_name_the_field(server: str) -> None:
         closed_with(ws, 1007, 422, "points[1]", "NaN or Inf")
 
 
+def test_a_low_latency_session_sends_each_pose_within_its_budget(server: str) -> None:
+    for bad, words in ((20, ("greater than or equal to 50",)), (5000, ("less than or equal to 2000",))):
+        with connect(ws_url(server), compression=None) as ws:
+            send(ws, {"type": "live", "latency_ms": bad, "characters": [{"id": "a"}]})
+            closed_with(ws, 1007, 422, "latency_ms", *words)
+    with connect(ws_url(server), compression=None) as ws:
+        send(ws, {"type": "live", "mode": "exact", "latency_ms": 100, "characters": [{"id": "a"}]})
+        closed_with(ws, 1007, 422, "latency_ms", "only with mode low_latency")
+    path = crowd.simulate(2, 120, seed=4, fps=30.0).astype(np.float32)
+    with connect(ws_url(server), compression=None) as ws:
+        send(ws, {"type": "live", "fps": 30, "mode": "low_latency", "characters": [{"id": "a"}, {"id": "b"}]})
+        start = receive(ws)
+        assert (start["latency_mode"], start["latency_ms"], start["latency_frames"]) == ("low_latency", 100.0, 3)
+        frames = 0
+        for i in range(path.shape[1]):  # a point a message; each answered before the next is sent
+            send(ws, {"type": "points", "points": blob(path[:, i:i + 1])})
+            if i + 1 > start["latency_frames"]:  # from then on every point settles a frame
+                chunk = receive(ws)
+                assert chunk["type"] == "chunk" and chunk["start"] == frames, chunk
+                frames += chunk["frames"]
+                send(ws, {"type": "ack", "chunk": chunk["chunk"]})
+            assert i + 1 - frames <= start["latency_frames"]  # points received, poses sent
+        send(ws, {"type": "cancel"})
+
+
 def test_live_cancel_ends_the_session_and_the_next_can_start(server: str) -> None:
     with live_open(server) as ws:
         path = np.cumsum(np.full((3, 400, 3), [0.02, 0.0, 0.0], np.float32), axis=1)

@@ -113,9 +113,14 @@ export interface LiveOptions {
   characters: { id: string; scale?: number; seed?: number; detail?: Detail }[]; fps: number; animal?: string;
   seed?: number; sigma?: number; encoding?: Encoding; lod?: Lod; scale_min?: number; scale_max?: number; foot_lock?: boolean; heading?: number;
   ground?: Ground | null;
+  /** 'exact' (default): the batch's frames, seconds late; 'low_latency': each pose at most `latency_ms` after its point. */
+  mode?: 'exact' | 'low_latency';
+  /** The low-latency budget, 50-2000 ms (default 100); given alone it asks for 'low_latency'. */
+  latency_ms?: number;
 }
 export interface LiveStart {
   type: 'start'; mode: 'live'; fps: number; library_fps: number; latency_frames: number; latency_s: number;
+  latency_mode: 'exact' | 'low_latency'; latency_ms: number | null;
   characters: { id: string; scale: number }[];
 }
 export interface Codec { encode(value: unknown): Uint8Array; decode(bytes: Uint8Array): any }

@@ -22,22 +22,25 @@ _jit = render_jit
 
 
 @_jit()
-def plant_targets(feet: Any, contacts: Any, out: Any) -> None:
+def plant_targets(feet: Any, contacts: Any, out: Any, most: int) -> None:
     """Foot targets ``out (T, 4, 3)`` of one character from its feet ``(T, 4, 3)`` and ``contacts
     (T, 4)``: each plant at the foot's average over it; a swinging foot on its own path plus a
     correction eased (smoothstep) from the one its last plant needed at lift-off to the one its
-    next plant needs at touchdown, over the ground only (x and z: swing heights are the clip's)."""
+    next plant needs at touchdown, over the ground only (x and z: swing heights are the clip's).
+    ``most``: a plant's position averages its first so many frames at most (and, ``most`` < T, a
+    swing before no plant eases its correction out as there)."""
     T = feet.shape[0]
     avg = np.empty((T, 3))  # per plant, indexed by its first frame
     for f in range(4):
         out[:, f, :] = feet[:, f, :]
-        _plants(feet, contacts, f, avg, out)
-        _swings(feet, contacts, f, avg, out)
+        _plants(feet, contacts, f, avg, out, most)
+        _swings(feet, contacts, f, avg, out, most)
 
 
 @_jit()
-def _plants(feet: Any, contacts: Any, f: int, avg: Any, out: Any) -> None:
-    """Foot f's plants at their average positions (also into ``avg``, at each plant's first frame)."""
+def _plants(feet: Any, contacts: Any, f: int, avg: Any, out: Any, most: int) -> None:
+    """Foot f's plants at their average positions over their first ``most`` frames at most (also
+    into ``avg``, at each plant's first frame)."""
     T = feet.shape[0]
     t = 0
     while t < T:
@@ -45,20 +48,21 @@ def _plants(feet: Any, contacts: Any, f: int, avg: Any, out: Any) -> None:
             t += 1
             continue
         s = t
-        acc0 = acc1 = acc2 = 0.0
         while t < T and contacts[t, f]:
-            acc0 += feet[t, f, 0]
-            acc1 += feet[t, f, 1]
-            acc2 += feet[t, f, 2]
             t += 1
-        n = t - s
+        n = min(t - s, most)
+        acc0 = acc1 = acc2 = 0.0
+        for u in range(s, s + n):
+            acc0 += feet[u, f, 0]
+            acc1 += feet[u, f, 1]
+            acc2 += feet[u, f, 2]
         avg[s, 0], avg[s, 1], avg[s, 2] = acc0 / n, acc1 / n, acc2 / n
         for u in range(s, t):
             out[u, f, 0], out[u, f, 1], out[u, f, 2] = avg[s, 0], avg[s, 1], avg[s, 2]
 
 
 @_jit()
-def _swings(feet: Any, contacts: Any, f: int, avg: Any, out: Any) -> None:
+def _swings(feet: Any, contacts: Any, f: int, avg: Any, out: Any, most: int) -> None:
     """Foot f's swings: eased from the last plant's lift-off correction to the next one's
     touchdown one (``avg``: the plants' averages, by :func:`_plants`)."""
     T = feet.shape[0]
@@ -81,7 +85,7 @@ def _swings(feet: Any, contacts: Any, f: int, avg: Any, out: Any) -> None:
         if not (has_before or has_after):
             continue
         for u in range(s, t):
-            x = _eased(u, last_end, t, has_before, has_after)
+            x = _eased(u, last_start, last_end, t, has_before, has_after, most < T)
             for k in range(3):
                 if k == 1:
                     continue
@@ -91,11 +95,15 @@ def _swings(feet: Any, contacts: Any, f: int, avg: Any, out: Any) -> None:
 
 
 @_jit()
-def _eased(u: int, last_end: int, nxt: int, has_before: bool, has_after: bool) -> float:
-    """The touchdown correction's share on frame u of a swing from plant end ``last_end`` to the
-    plant starting at ``nxt`` (smoothstep; all of it, or none, where a plant is missing)."""
-    if has_before and has_after:
-        span = max(nxt - last_end, 1)
+def _eased(u: int, last_start: int, last_end: int, nxt: int, has_before: bool, has_after: bool,
+           unplanned: bool) -> float:
+    """The touchdown correction's share on frame u of a swing from the plant ``[last_start,
+    last_end]`` to the plant starting at ``nxt`` (smoothstep; all of it, or none, where a plant is
+    missing). ``unplanned``: a swing whose next plant is not planned yet (a live window in the
+    low-latency mode) eases its lift-off correction out over half its plant's length, a guess at
+    the swing's: when the next plant comes, little is left to snap."""
+    if has_before and (has_after or unplanned):
+        span = max(nxt - last_end if has_after else (last_end - last_start + 1) // 2, 1)
         x = min(max((u - last_end) / span, 0.0), 1.0)
         return float(x * x * (3 - 2 * x))
     return 1.0 if has_after else 0.0

@@ -75,6 +75,9 @@ F = TypeVar("F", bound=Callable[..., Any])
 _jit = render_jit
 
 
+WHOLE_PLANT = 1 << 62  # plant_frames: a plant's target averages all its frames
+
+
 # --- the four passes ---------------------------------------------------------------------------
 
 @_jit()
@@ -142,7 +145,7 @@ def _character(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, yaw
                     world: Any, feet: Any, legs: Any, targets: Any, sink: Any, eased: Any,
                     keep_from: int, keep_to: int, known_feet: Any, known: int, recent: Any,
                     recent_known: bool, tilt: Any, tilt_at: int, heights: Any, ground_x0: float,
-                    ground_z0: float, spacing: float) -> bool:
+                    ground_z0: float, spacing: float, plant_frames: int) -> bool:
     """All four passes for one character (scratch arrays given). Only frames ``[keep_from,
     keep_to)`` are wanted (a window rendered over its foot lock's context): the legs' IK, which
     reads nothing of other frames, is solved for those alone.
@@ -161,7 +164,9 @@ def _character(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, yaw
     clip's), their place over the ground turned back by half the tilt -- legs hang between square
     to the body and plumb. Plumb (the whole tilt taken off), a body pitched down a 30% slope swung
     its forelegs 17 degrees forward of where it carries them and their shoulders flipped through
-    straight; square, the hooves slid 35 cm ahead of the root and the body leant back."""
+    straight; square, the hooves slid 35 cm ahead of the root and the body leant back.
+    ``plant_frames``: a plant's target is its foot's average over its first so many frames
+    (foot_kernels.plant_targets' ``most``)."""
     terrain = heights.shape[0] > 0
     T = out_rot.shape[0]
     if not foot_lock:
@@ -202,7 +207,7 @@ def _character(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, yaw
             leg[LEG_REACH] = norm3(vsub(p_hi, p_up)) + norm3(vsub(p_an, p_hi))
     if known_feet.shape[0] > 0:
         known_feet[a:] = feet[a:]
-    plant_targets(feet, contacts, targets)
+    plant_targets(feet, contacts, targets, plant_frames)
     if terrain:
         ground_targets(targets, contacts, heights, ground_x0, ground_z0, spacing, h, sink)
     for t in range(s, T):
@@ -249,7 +254,7 @@ def _render_all(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, ya
                        contacts[c], parents, offsets, fk_joints, rigs, bends, sink_limit, foot_lock,
                        out_rot[c], out_root[c], world, feet, legs, targets, sink, eased, 0,
                        out_rot.shape[1], none_known, 0, recent, False, own_tilt, 0, heights, ground_x0,
-                       ground_z0, spacing)
+                       ground_z0, spacing, WHOLE_PLANT)
 
 
 @_jit(parallel=True)
@@ -258,7 +263,7 @@ def _render_windows(poses: Any, height: Any, surge: Any, rows: Any, weights: Any
                     bends: Any, sink_limit: float, foot_lock: bool, workers: int, begin: Any, end: Any,
                     start: int, out_rot: Any, out_root: Any, tilt: Any, heights: Any, ground_x0: float,
                     ground_z0: float, spacing: float, pose: Any, known_feet: Any, known: Any,
-                    known_legs: Any, legs_at: Any, c0: int, c1: int) -> None:
+                    known_legs: Any, legs_at: Any, plant_frames: int, c0: int, c1: int) -> None:
     """Frames ``[start, start + out.shape[1])`` of characters ``[c0, c1)``, each rendered over
     its own context ``[begin[c], end[c])`` of the plan (see :func:`render_window`);
     ``known_feet (T, C, 4, 3)`` (or none: ``(0, C, 4, 3)``), ``known``, ``known_legs``,
@@ -302,7 +307,7 @@ def _render_windows(poses: Any, height: Any, surge: Any, rows: Any, weights: Any
                               targets[:k], sink[:k], eased[:k], start - b, start - b + n,
                               known_feet[b:e, c], kn, own_legs, recent_known,
                               own_tilt, b, heights, ground_x0,
-                              ground_z0, spacing)
+                              ground_z0, spacing, plant_frames)
             out_rot[c] = rot[start - b:start - b + n]
             out_root[c] = root[start - b:start - b + n]
             if keep and foot_lock:
@@ -406,7 +411,7 @@ def render_window(bank: Bank, plan: Plan, start: int, stop: int, begin: NDArray[
                   out: NDArray[np.float32] | None = None,
                   share: Callable[[list[Callable[[], None]]], None] | None = None,
                   ground: Grounding | None = None, pose: NDArray[np.bool_] | None = None,
-                  compiled: bool = True
+                  compiled: bool = True, plant_frames: int | None = None
                   ) -> tuple[NDArray[np.float32], NDArray[np.float32]]:
     """Root ``(C, stop - start, 3)`` and rotations of frames ``[start, stop)`` only, each
     character rendered over its context ``[begin, end)`` of ``plan`` (from
@@ -432,6 +437,9 @@ def render_window(bank: Bank, plan: Plan, start: int, stop: int, begin: NDArray[
     session's far characters, at root_gait detail) get the plan's root alone -- no pose, no foot
     lock, so no sink: the root the full render would give but for its height where a leg could
     not reach its plant -- and their rows of the rotations are not written.
+
+    ``plant_frames``: a plant's target averages its first so many frames only (None: all): what
+    a live session sends of a plant before its end is planned then stays where it was sent.
 
     ``compiled``: else the reference (:data:`REFERENCE`, one thread)."""
     kernels = COMPILED if compiled else REFERENCE
@@ -462,7 +470,8 @@ def render_window(bank: Bank, plan: Plan, start: int, stop: int, begin: NDArray[
             1 if share or not compiled else threads(), np.asarray(begin, np.int64) - cb,
             np.asarray(end, np.int64) - cb, start - cb, out_rot, out_root,
             *_terrain_arrays(None if ground is None else ground.window(cb, ce)), pose,
-            posed.feet[cb:ce] if known is not None else posed.feet, posed.frames, posed.legs, posed.legs_at)
+            posed.feet[cb:ce] if known is not None else posed.feet, posed.frames, posed.legs, posed.legs_at,
+            WHOLE_PLANT if plant_frames is None else max(int(plant_frames), 1))
     try:
         if share is None:
             kernels.render_windows(*args, 0, C)

@@ -25,7 +25,7 @@ from synth_core.build.animals import sync_frames
 from synth_core.build.motion_graph import HUBS
 from synth_core.motion.contacts import touchdowns
 from synth_core.motion.skeleton import Skeleton, forward_kinematics
-from synth_core.quality import edge
+from synth_core.quality import edge, live_run
 from synth_core.quality import herd_sim as crowd
 from synth_core.quality import metrics as M
 from synth_core.runtime.bank import STATIC, Bank, Piece
@@ -441,10 +441,14 @@ def worst(scenarios: dict[str, dict[str, Any]]) -> dict[str, dict[str, Any]]:
 
 
 def edge_suite(bank: Bank, seed: int = 0, names: list[str] | None = None, backend: str = "auto",
-               keep: dict[str, tuple[edge.Scenario, Result]] | None = None) -> dict[str, Any]:
+               keep: dict[str, tuple[edge.Scenario, Result]] | None = None, live: bool = False,
+               latency_ms: float | None = None) -> dict[str, Any]:
     """Every edge scenario synthesized for this library and measured (:func:`edge_figures`),
     each figure judged against the issue's targets, and the worst over scenarios. ``keep``:
-    filled with each scenario and its result (for previews)."""
+    filled with each scenario and its result (for previews). ``live``: each scenario played
+    through a live session fed a point a tick (:mod:`synth_core.quality.live_run`), in the
+    low-latency mode with ``latency_ms`` (None: the exact mode); each scenario's report then has
+    the frames its sent poses lagged its points (``lag_frames_max``)."""
     ref = library_reference(bank)
     gaits = {HUBS[h]: (float(s[0]), float(s[-1])) for h, s in bank.speeds.items()}
     scenarios: dict[str, dict[str, Any]] = {}
@@ -452,8 +456,14 @@ def edge_suite(bank: Bank, seed: int = 0, names: list[str] | None = None, backen
         entry: dict[str, Any] = {"about": sc.about, "characters": int(sc.positions.shape[0]),
                                  "frames": int(sc.positions.shape[1])}
         try:
-            result = synthesize(bank, sc.positions, bank.fps, scales=sc.scales,
-                                options=Options(seed=seed, backend=backend, ground=sc.ground))
+            if live:
+                run = live_run.play(bank, sc.positions, sc.scales, seed, latency_ms, sc.ground,
+                                    backend=backend)
+                result = run.result
+                entry |= {"lag_frames_max": int(run.lags.max()), "latency_frames": run.latency_frames}
+            else:
+                result = synthesize(bank, sc.positions, bank.fps, scales=sc.scales,
+                                    options=Options(seed=seed, backend=backend, ground=sc.ground))
         except ValueError as exc:  # a refusal is a figure too: the scenario could not be played
             scenarios[sc.name] = entry | {"error": str(exc), "failed": ["error"]}
             continue
@@ -469,6 +479,8 @@ def edge_suite(bank: Bank, seed: int = 0, names: list[str] | None = None, backen
             keep[sc.name] = (sc, result)
     return {
         "seed": seed,
+        "mode": ("low_latency" if latency_ms is not None else "exact") if live else "batch",
+        **({"latency_ms": latency_ms} if live and latency_ms is not None else {}),
         "targets": {f: f"{op} {limit:g}" for f, (op, limit) in EDGE_TARGETS.items()},
         "scenarios_passed": sum(not s["failed"] for s in scenarios.values()),
         "scenarios": scenarios,

@@ -25,6 +25,16 @@ whole trajectory's, bit for bit (tests/test_plan.py), but for:
 - no resampling (r = 1): live cannot slow time down, so a character faster than the library's
   fastest gait plays it up to MAX_RATE times faster, as in a batch, and slides beyond that.
 
+**The low-latency mode** (``latency_ms``, issue 31) drops those look-aheads for a budget of
+``latency_ms`` (library frames: ``latency_ms * fps / 1000``): the path is a causal local-linear
+fit (:mod:`synth_core.runtime.causal`) reading a few points ahead, a frame's speed the slope of a
+wider one, each gait decision reads the newest speed known (no stride horizon), and the foot lock
+gets the rest of the budget, each plant pinned at the average of its frames known when its first
+frame is sent (``plant_frames``), so no sent frame's plant moves later. What it costs: a plant
+pinned at its first frames leaves its whole drift (up to half a metre on a turn, in the clips as
+placed on the path) to the IK at its end where the batch's average leaves half; the swing after
+it eases that correction out before the next plant is planned (docs/streaming.md has the figures).
+
 The foot lock pins a plant at its average position, which needs the plant's end: frames are
 sent ``lock_lag`` frames after they are planned (``LOCK_LAG``, a third of a second) and locked over
 every frame planned so far, so most plants a frame is in have ended; one still going on is pinned
@@ -44,7 +54,7 @@ from synth_core.compiled import kernels, render_pool
 from synth_core.compiled.foot_kernels import LEG_WIDTH, NOWHERE
 from synth_core.compiled.scratch import Scratch
 from synth_core.motion import quat
-from synth_core.runtime import gaussian
+from synth_core.runtime import causal, gaussian
 from synth_core.runtime.bank import Bank
 from synth_core.runtime.columns import Columns, PlannedColumns
 from synth_core.runtime.draws import SCHEDULE_STREAM, character_keys, uniform
@@ -71,6 +81,13 @@ LOCK_LAG = 20  # frames planned but not yet sent, so that most plants a frame is
 # A new ground (set_ground) is faded in over this much of the frames rendered after it: a herd
 # whose ground rises 20 cm under it is lifted over 0.4 s, not in one frame.
 GROUND_BLEND_S = 0.4
+
+# The low-latency mode (``latency_ms``): the budget's limits, and the default of its named profile.
+LATENCY_MS = (50.0, 2000.0)
+LOW_LATENCY_MS = 100.0
+# Its velocity fit (causal.fit_weights) is this many segments wide (sigma): a gait's speed read
+# over a fraction of a stride, not the point-to-point jitter of a simulator's path.
+SPEED_SIGMA = 1 / 8
 
 
 def _checked_fps(bank: Bank, n_characters: int, fps: float | None, sigma: float) -> float:
@@ -111,7 +128,8 @@ class LiveSynth:
                  margin: int = MARGIN, foot_lock: bool = True, backend: str = "auto",
                  heading: float = 0.0, lock_lag: int = LOCK_LAG, first: int = 0,
                  reuse_windows: bool = False, share_render: bool = False, size_matching: str = "froude",
-                 tempo_spread: float = TEMPO_SPREAD, ground: HeightField | None = None) -> None:
+                 tempo_spread: float = TEMPO_SPREAD, ground: HeightField | None = None,
+                 latency_ms: float | None = None) -> None:
         fps = _checked_fps(bank, n_characters, fps, sigma)
         C = n_characters
         self.bank, self.fps, self.sigma, self.margin = bank, fps, float(sigma), margin
@@ -130,7 +148,7 @@ class LiveSynth:
         # synth_core.runtime.live_shards), so each draws as it would among all of them.
         self.keys = character_keys(seed, C, seeds, first)
         self._draw_characters(scales, scale_range, size_matching, tempo_spread)
-        self._set_timing(sigma)
+        self._set_timing(sigma, latency_ms)
         self._start_input(C)
         self._start_plan(C, margin, backend)
         self._start_foot_lock(C)
@@ -145,8 +163,9 @@ class LiveSynth:
         self.tempo = character_tempo(self.keys, self.scales, size_matching, tempo_spread)
         self.pace = self.scales * self.tempo  # path speed over this: the library's (plan.plan)
 
-    def _set_timing(self, sigma: float) -> None:
-        """Frame steps, decision step, look-ahead and the smoothing's reach."""
+    def _set_timing(self, sigma: float, latency_ms: float | None) -> None:
+        """Frame steps, decision step, look-ahead and the smoothing's reach (``latency_ms``: the
+        low-latency mode's, see :meth:`_low_latency`)."""
         bank, fps = self.bank, self.fps
         ratio = bank.fps / fps
         self.out_step = int(round(ratio)) if abs(ratio - round(ratio)) < 1e-9 else 1
@@ -160,6 +179,12 @@ class LiveSynth:
         self.horizon = max(lookahead(self.m), self.step + int(self.frames_of[1:N_HUBS].max()))
         self.pad = int(np.ceil(4 * sigma)) if sigma > 0 else 0
         self.radius = int(4.0 * sigma + 0.5) if sigma > 0 else 0
+        # Points read either side of a smoothed frame: the Gaussian's radius (exact mode).
+        self.behind = self.ahead = self.radius
+        self.latency_ms = None if latency_ms is None else float(latency_ms)
+        self.plant_frames: int | None = None  # the exact mode's plants average all their frames
+        if self.latency_ms is not None:
+            self._low_latency(self.latency_ms)
 
     def _start_input(self, C: int) -> None:
         """Input (at fps) and the library-rate points made from it, none yet."""
@@ -207,6 +232,30 @@ class LiveSynth:
         self.pose = np.ones(C, bool)
         self.posed_frames = 0
 
+    def _low_latency(self, latency_ms: float) -> None:
+        """The low-latency mode: a frame is sent at most ``latency_ms`` after its point arrived
+        (counted in library frames: see :attr:`latency_frames`). Its path is a causal fit
+        (:mod:`synth_core.runtime.causal`) reading a few points ahead, its speed the fit's slope, its
+        gait decided on the speed known when the decision is due, and the foot lock given what is
+        left of the budget."""
+        lo, hi = LATENCY_MS
+        if not (np.isfinite(latency_ms) and lo <= latency_ms <= hi):
+            raise TrajectoryError(f"latency_ms: must be within [{lo:g}, {hi:g}] ms, got {latency_ms}")
+        budget = max(1, int(latency_ms * self.bank.fps / 1000 + 1e-9))  # library frames
+        # Half of what is left after the heading's next point reads ahead (a fit over points on
+        # both sides averages noise a one-sided one extrapolates), the rest waits for plants to end.
+        self.ahead = min((budget - 1) // 2, self.radius) if self.foot_lock else min(budget - 1, self.radius)
+        self.lock_lag = budget - 1 - self.ahead if self.foot_lock else 0
+        self.speed_sigma = max(self.sigma, SPEED_SIGMA * self.m)
+        self.behind = max(self.radius, int(4.0 * self.speed_sigma + 0.5))
+        self.pad = self.behind  # the head: the first point, held (a session starts standing)
+        self.horizon = 0  # decided on what has arrived
+        # A plant's target: its frames known (planned) when its first frame is sent, no later ones,
+        # so each window pins it where the last did (frames sent; see _emit).
+        self.plant_frames = max(self.lock_lag // self.out_step, 1)
+        self.frame_speed = np.zeros((len(self.scales), 0))  # per frame, the library's (as seg)
+        self.frame_speed_start = 0
+
     @property
     def window_frames(self) -> int:
         """Frames (sent) one segment settles: a window's usual size, a bound for larger ones."""
@@ -221,6 +270,8 @@ class LiveSynth:
     @property
     def latency_frames(self) -> int:
         """Library frames between a point arriving and its frame being sent, at most."""
+        if self.latency_ms is not None:  # the smoothing's look-ahead, the heading's next point, the lock
+            return self.ahead + 1 + self.lock_lag
         return int(self.horizon + 1.5 * self.m + self.radius + 2) + self.lock_lag
 
     # -- input -------------------------------------------------------------------------------
@@ -356,10 +407,13 @@ class LiveSynth:
         """Library-rate points into `longer`, behind the head the batch makes of the first ones."""
         if self.n_raw == 0:
             first = np.concatenate([self.first_points, new], axis=1)
-            if first.shape[1] < self.pad + 1:
+            if first.shape[1] < (self.pad + 1 if self.latency_ms is None else 1):
                 self.first_points = first
                 return
-            head = 2 * first[:, :1] - first[:, self.pad:0:-1]
+            if self.latency_ms is None:
+                head = 2 * first[:, :1] - first[:, self.pad:0:-1]
+            else:  # made at once: no point waited for (the session starts standing)
+                head = np.repeat(first[:, :1], self.pad, axis=1)
             self.longer = np.concatenate([head, first], axis=1)
             self.n_raw = first.shape[1]
             self.first_points = first[:, :0]
@@ -371,9 +425,12 @@ class LiveSynth:
 
     def _smooth(self) -> None:
         """Smoothed path for every frame whose Gaussian window has arrived."""
-        # Frame t reads `longer` (head first) up to t + pad + radius.
-        ready = self.longer_start + self.longer.shape[1] - self.pad - self.radius if self.n_raw else 0
+        # Frame t reads `longer` (head first) up to t + pad + ahead.
+        ready = self.longer_start + self.longer.shape[1] - self.pad - self.ahead if self.n_raw else 0
         if ready <= self.n_path:
+            return
+        if self.latency_ms is not None:
+            self._fit(ready)
             return
         if self.sigma > 0:
             lo = max(self.n_path + self.pad - self.radius, 0)  # in `longer` coordinates
@@ -403,6 +460,23 @@ class LiveSynth:
             self.seg = np.concatenate([self.seg, speeds / self.pace[:, None]], axis=1)
             self.n_seg = whole
 
+    def _fit(self, ready: int) -> None:
+        """The low-latency mode's path and speeds of frames [n_path, ready): causal fits."""
+        lo = self.n_path + self.pad - self.behind  # in `longer` coordinates
+        part = self.longer[:, lo - self.longer_start:ready + self.pad + self.ahead - self.longer_start]
+        n = ready - self.n_path
+        value, _ = causal.fit_weights(self.sigma, self.behind, self.ahead)
+        _, slope = causal.fit_weights(self.speed_sigma, self.behind, self.ahead)
+        self.path.reserve(n)[0][...] = causal.apply(part, value, self.behind, self.behind, n)
+        velocity = causal.apply(part[..., GROUND], slope, self.behind, self.behind, n)
+        speed = np.hypot(velocity[..., 0], velocity[..., 1]) * self.bank.fps / self.pace[:, None]
+        self.frame_speed = np.concatenate([self.frame_speed, speed], axis=1)
+        self.n_path = ready
+        drop = self.n_path + self.pad - self.behind - 1 - self.longer_start
+        if drop > 0:
+            self.longer = self.longer[:, drop:]
+            self.longer_start += drop
+
     def _path(self, a: int, b: int) -> Floats:
         """The smoothed path's frames [a, b) (a view)."""
         return self.path.columns(a, b)[0]
@@ -410,6 +484,9 @@ class LiveSynth:
     def _speeds(self, t: NDArray[np.int64], who: NDArray[np.int64] | None = None) -> Floats:
         """(C, len(t)) speed at frames t (interpolated between segment centres); of the
         characters ``who`` only, if given."""
+        if self.latency_ms is not None:
+            fs = self.frame_speed if who is None else self.frame_speed[who]
+            return np.asarray(fs[:, t - self.frame_speed_start])
         m = self.m
         pos = (t - (m - 1) / 2) / m
         k0 = np.maximum(np.floor(pos).astype(np.int64), 0)
@@ -421,6 +498,8 @@ class LiveSynth:
 
     def _speed_ready(self) -> int:
         """Frames [0, n) whose speed is known."""
+        if self.latency_ms is not None:
+            return self.n_path
         # Frame t reads segment floor((t - (m-1)/2) / m) + 1 (and at least segment 1).
         m = self.m
         return int(np.ceil((self.n_seg - 1) * m + (m - 1) / 2)) if self.n_seg >= 2 else 0
@@ -440,6 +519,8 @@ class LiveSynth:
             decisions = self.no_decision
             if t0 == a:
                 ahead = a + lookahead(self.m)
+                if self.latency_ms is not None:  # the speed known now: the newest
+                    ahead = min(ahead, v_ready - 1)
                 if limit is not None:
                     ahead = min(ahead, limit - 1)  # the batch's decisions read its last frame there
                 if a + self.horizon >= v_ready:
@@ -500,7 +581,7 @@ class LiveSynth:
             buf, ground = on_ground(self.bank, buf, field, int(begin.min()), int(end.max()))
         if not keep:
             return kernels.render_window(self.bank, buf, lo, hi, begin, end, self.foot_lock, None, None,
-                                         self.share, ground, self.pose, self.compiled)
+                                         self.share, ground, self.pose, self.compiled, self.plant_frames)
         # The feet of frames posed by earlier windows, by frame sent (from 0), kept for later ones.
         o0, n = self.buffer.start, buf.yaw.shape[1]
         self.feet.reserve(max(o0 + n - self.feet.stop, 0))
@@ -509,7 +590,7 @@ class LiveSynth:
         out = None if self.scratch is None else self.scratch.array(
             "live.rotations", (len(self.scales), hi - lo, self.bank.skeleton.n_joints, 4), np.float32)
         root, rot = kernels.render_window(self.bank, buf, lo, hi, begin, end, self.foot_lock, posed, out,
-                                          self.share, ground, self.pose, self.compiled)
+                                          self.share, ground, self.pose, self.compiled, self.plant_frames)
         self.known_feet, self.legs_at = posed.frames + o0, posed.legs_at + o0
         return root, rot
 
@@ -548,6 +629,10 @@ class LiveSynth:
             self.buffer.drop_before(-(-(stop - self.kept_frames) // k))
             self.feet.drop_before(self.buffer.start)
         self.path.drop_before(self.planned - 2)  # the path the next block and heading read
+        if self.latency_ms is not None:  # the speeds still read: the next block's, on
+            drop = self.planned - self.frame_speed_start
+            self.frame_speed, self.frame_speed_start = self.frame_speed[:, drop:], self.planned
+            return window
         first_seg = max(int(np.floor((self.planned - self.m / 2) / self.m)) - 1, 0)  # the speeds still read
         if first_seg > self.seg_start:
             self.seg = self.seg[:, first_seg - self.seg_start:]
