@@ -259,3 +259,16 @@ def test_path_distance_maps_time_and_ignores_running_ahead_along_the_path() -> N
     cut[60, 0] = 0.07  # 7 cm off the path once
     assert M.path_distance_cm(cut, target).max() == pytest.approx(7.0)
     assert M.mapped_frames(T, F)[[0, 2, -1]] == pytest.approx([0.0, 1.0, F - 1.0])
+
+
+def test_same_pattern_share_is_one_in_lock_step_and_chance_level_out_of_it() -> None:
+    rng = np.random.default_rng(0)
+    stride = rng.random((40, 4)) < 0.5  # a 40-frame pattern cycle
+    lock = np.broadcast_to(stride, (6, 40, 4))
+    assert M.same_pattern_share(lock) == pytest.approx(1.0)
+    shifted = np.stack([np.roll(stride, 7 * c, axis=0) for c in range(6)])
+    pairs = [(a, b) for a in range(6) for b in range(a + 1, 6)]
+    looped = np.mean([(shifted[a] == shifted[b]).all(axis=-1).mean() for a, b in pairs])
+    assert M.same_pattern_share(shifted) == pytest.approx(looped)
+    with pytest.raises(ValueError, match="2 characters"):
+        M.same_pattern_share(lock[:1])

@@ -231,6 +231,29 @@ def _tick(f: Any, t: int, v: float, tempo: float, high: Any, max_rate: float, sl
 
 
 @jit(inline="always")
+def _tween(kind: int, d: float, local: int, speed: float, offset: Any, frames_of: Any, clips: Any,
+           cyclic: Any, curve_at: Any, curves: Any, contacts_of: Any, o: int, rows: Any,
+           weights: Any) -> None:
+    """A gait's stride clock between clip frames: ``d`` (in [-0.5, 0.5)) from the frame shown,
+    ``local``. Its neighbour that way goes into the free fading rows of output row ``o``, weighted
+    ``|d|``, so the pose is interpolated in time. Played at any rate but 1 (a character's tempo,
+    its size's, a stride faster than the fastest clip), whole clip frames were shown, repeated or
+    skipped now and then: a skipped frame moved a paw two frames' way in one (issue 28: the real
+    dog's galloping paws jumped up to 14 cm). Not where a foot lands or lifts between the two: the
+    foot lock pins the shown frame's planted feet, and a foot drawn part way to or from its plant
+    skimmed the ground unpinned (the edge suite's strict skate and touchdown speeds)."""
+    if d == 0.0:
+        return
+    q0, q1, qw = _row(kind, local + (1 if d > 0 else -1), speed, 0.0, False, offset, frames_of, clips, cyclic,
+                      curve_at, curves)
+    for foot in range(4):
+        if contacts_of[q0, foot] != contacts_of[rows[o, 0], foot]:
+            return
+    rows[o, 2], rows[o, 3], weights[o, 1] = q0, q1, qw
+    weights[o, 2] = abs(d)
+
+
+@jit(inline="always")
 def _frame_rows(kind: int, local: int, walked: float, since: int, p_kind: int, p_local: int, v: float,
                 offset: Any, frames_of: Any, clips: Any, cyclic: Any, source: Any, target: Any, curve_at: Any,
                 curves: Any, contacts_of: Any, margin: int, o: int, rows: Any, weights: Any,
@@ -307,6 +330,10 @@ def _character(t0: int, v: Any, pts: Any, h: float, tempo: float, asked_speed: A
             gait[o] = _frame_rows(kind, local, walked_since, since, pk, p_local, v[i], offset,
                                   frames_of, clips, cyclic, source, target, curve_at, curves, contacts_of,
                                   margin, o, rows, weights, contacts)
+            if p_local < 0 and cyclic[kind]:
+                clock = s[FIRST] + f[CLOCKS + min(kind, n_hubs)] - f[CLOCK0]
+                _tween(kind, clock - local, local, v[i], offset, frames_of, clips, cyclic, curve_at, curves,
+                       contacts_of, o, rows, weights)
             stitches[o] = started and t >= 1
             sent, o = sent + out_step, o + 1
         _tick(f, t, v[i], tempo, high, max_rate, slowest, slow, share)

@@ -392,3 +392,20 @@ def path_distance_cm(root_pos: Floats, target: Floats, window: int = 30) -> Floa
     s = np.clip(np.sum(rel * d, axis=-1) / np.maximum(np.sum(d * d, axis=-1), 1e-18), 0.0, 1.0)
     gap = np.linalg.norm(rel - s[..., None] * d, axis=-1)
     return np.asarray(gap.min(axis=-1) * 100.0)
+
+
+def same_pattern_share(down: NDArray[np.bool_]) -> float:
+    """How much a herd steps as one: over every pair of characters, the share of frames both show
+    the same 4-foot contact pattern, averaged over the pairs (issue 28). ``down (C, F, 4)``: feet
+    down after FK (e.g. :func:`strict_plants`). Characters with random stride phases score the
+    gait's chance level (the sum of its patterns' squared shares: ~0.13 in a walk, ~0.34 in a
+    trot); a herd in lock-step, 1."""
+    down = np.asarray(down, bool)
+    C, F = down.shape[:2]
+    if C < 2:
+        raise ValueError(f"same_pattern_share: need at least 2 characters, got {C}")
+    code = down @ (1 << np.arange(down.shape[-1]))  # (C, F) pattern number
+    counts = np.zeros((F, 1 << down.shape[-1]), np.int64)
+    np.add.at(counts, (np.broadcast_to(np.arange(F), (C, F)), code), 1)
+    same_pairs = (counts * (counts - 1) // 2).sum(axis=1)  # per frame: pairs showing one pattern
+    return float(same_pairs.sum() / (F * C * (C - 1) / 2))
