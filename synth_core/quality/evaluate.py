@@ -28,7 +28,8 @@ from synth_core.motion.skeleton import Skeleton, forward_kinematics
 from synth_core.quality import edge, live_run
 from synth_core.quality import herd_sim as crowd
 from synth_core.quality import metrics as M
-from synth_core.runtime.bank import STATIC, Bank, Piece
+from synth_core.quality.reference import LibraryReference, library_reference
+from synth_core.runtime.bank import STATIC, Bank
 from synth_core.runtime.synthesis import N_HUBS, Options, Result, headings, synthesize
 from synth_core.runtime.terrain import HeightField
 
@@ -183,7 +184,6 @@ def standard(bank: Bank, characters: int = 500, frames: int = 500, seed: int = 0
 # own standing height, the low tenth of its heights while annotated planted in the library clips
 # (the paw rolls in stance; its median is 1 cm higher behind). The glide is measured from the
 # ground itself, as the published figure and the real dog's 0.066-0.106 are.
-SOLE_PERCENTILE = 10.0
 SLOW_BODY = 0.1  # m/s: "floating" is the lowest foot's height while the body is slower than this
 BODY_SPEED_WINDOW_S = 0.25  # the body's speed, averaged over this (a stride's surge is no speed)
 
@@ -209,64 +209,6 @@ TERRAIN_TARGETS: dict[str, tuple[str, float]] = {
 PITCH_WINDOW_S = 1.0  # the body's pitch is judged on its mean over about a stride
 HIGHER_IS_BETTER = {"walk_support_share", "still_four_down_share", "footfall_preserved",
                     "footfall_across_transitions", "clock_kept"}
-
-
-@dataclass(frozen=True, eq=False)
-class LibraryReference:
-    """What the edge figures compare the output with, from the library's own clips after FK."""
-
-    soles: Floats  # (N_HUBS, 4) per hub each foot joint's height when it stands (SOLE_PERCENTILE)
-    reach: Floats  # (4,) each limb's longest hip-to-foot reach in the clips, m
-    stance: Floats  # (N_HUBS,) per hub its clips' longest strict plant, frames (static: the slowest gait's)
-    clip_plants: NDArray[np.bool_]  # (K, 4) strict plants of every pose row (cyclic clips wrapped)
-
-
-def _rows(piece: Piece) -> slice:
-    return slice(piece.offset, piece.offset + piece.frames * piece.clips)
-
-
-def _clip_plants(heights: Floats, piece: Piece, cyclic: bool) -> tuple[NDArray[np.bool_], int]:
-    """Strict plants of a piece's rows ``(clips * frames, 4)``, and its longest plant (frames;
-    0 unless ``cyclic``, where a plant over a clip's end goes on at its start)."""
-    clips = heights.reshape(piece.clips, piece.frames, 4)
-    if not cyclic:
-        return M.strict_plants(clips).reshape(-1, 4), 0
-    thrice = M.strict_plants(np.concatenate([clips] * 3, axis=1))
-    longest = int(M.run_lengths(np.moveaxis(thrice, -1, -2)).max())
-    # A foot that never lifts would have a plant as long as the tiling: a stride at most.
-    return thrice[:, piece.frames:2 * piece.frames].reshape(-1, 4), min(longest, piece.frames)
-
-
-def _soles(raw: M.Floats, planted: NDArray[np.bool_], fallback: Floats) -> Floats:
-    """(4,) each foot's standing height in ``raw (n, 4)`` heights, where ``planted``."""
-    return np.array([np.percentile(raw[planted[:, k], k], SOLE_PERCENTILE) if planted[:, k].any()
-                     else fallback[k] for k in range(4)])
-
-
-def library_reference(bank: Bank) -> LibraryReference:
-    sk = bank.skeleton
-    root = np.zeros((len(bank.poses), 3))
-    root[:, UP_AXIS] = bank.height
-    pos = np.asarray(forward_kinematics(sk, root, bank.poses)[0], np.float64)
-    raw = M.foot_heights(pos[:, sk.foot_joints], bank.ground)
-    overall = _soles(raw, bank.contacts, np.zeros(4))
-    soles = np.tile(overall, (N_HUBS, 1))
-    plants = np.zeros(bank.contacts.shape, bool)
-    stance = np.zeros(N_HUBS)
-    # Per piece: a mocap paw's end site stands higher in one take than in another (the real
-    # dog's right hind: 0.9 cm over all its clips, 2 cm in its walk).
-    for hub, piece in [(STATIC, bank.idle), *bank.gaits.items()]:
-        rows = _rows(piece)
-        soles[hub] = _soles(raw[rows], bank.contacts[rows], overall)
-        plants[rows], longest = _clip_plants(raw[rows] - soles[hub], piece, cyclic=hub != STATIC)
-        stance[hub] = longest
-    for piece in bank.transitions.values():
-        rows = _rows(piece)
-        plants[rows] = _clip_plants(raw[rows] - _soles(raw[rows], bank.contacts[rows], overall), piece,
-                                    cyclic=False)[0]
-    stance[[h for h in range(N_HUBS) if h not in bank.speeds]] = stance.max()
-    stance[STATIC] = stance[min(bank.speeds)]
-    return LibraryReference(soles, M.limb_reach(pos, sk).max(axis=0), stance, plants)
 
 
 def _round(x: float, digits: int = 4) -> float | None:

@@ -54,11 +54,11 @@ from synth_core.compiled import kernels, render_pool
 from synth_core.compiled.foot_kernels import LEG_WIDTH, NOWHERE
 from synth_core.compiled.scratch import Scratch
 from synth_core.motion import quat
-from synth_core.runtime import causal, gaussian
 from synth_core.runtime.bank import Bank
 from synth_core.runtime.columns import Columns, PlannedColumns
 from synth_core.runtime.draws import SCHEDULE_STREAM, character_keys, uniform
 from synth_core.runtime.footlock import EASE_FRAMES, PAD
+from synth_core.runtime.live_path import LivePath
 from synth_core.runtime.plan import (
     MARGIN,
     N_HUBS,
@@ -73,8 +73,8 @@ from synth_core.runtime.plan import (
 )
 from synth_core.runtime.streaming import Window
 from synth_core.runtime.synthesis import character_scales, character_tempo
-from synth_core.runtime.terrain import HeightField, laid, on_ground
-from synth_core.runtime.trajectory import DEFAULT_SIGMA, GROUND, TELEPORT_M, TrajectoryError
+from synth_core.runtime.terrain import HeightField, on_ground
+from synth_core.runtime.trajectory import DEFAULT_SIGMA, GROUND, TrajectoryError
 
 KEEP_PLANS = 1  # of the slowest cycle: planned frames kept as the foot lock's context
 LOCK_LAG = 20  # frames planned but not yet sent, so that most plants a frame is in have ended
@@ -102,7 +102,7 @@ def _checked_fps(bank: Bank, n_characters: int, fps: float | None, sigma: float)
     return fps
 
 
-class LiveSynth:
+class LiveSynth(LivePath):
     """Characters whose trajectories grow: :meth:`append` points, get back the new frames.
 
     All characters advance together (a simulation steps every agent each tick): each ``append``
@@ -185,18 +185,6 @@ class LiveSynth:
         self.plant_frames: int | None = None  # the exact mode's plants average all their frames
         if self.latency_ms is not None:
             self._low_latency(self.latency_ms)
-
-    def _start_input(self, C: int) -> None:
-        """Input (at fps) and the library-rate points made from it, none yet."""
-        self.inputs = np.zeros((C, 0, 3))
-        self.inputs_start = 0  # global index of inputs[:, 0]
-        self.n_inputs = 0
-        self.made = 0  # library-rate points made from the inputs
-        self.first_points = np.zeros((C, 0, 3))  # until the head can be made from them
-        self.longer = np.zeros((C, 0, 3))  # head reflection + raw points at the library's rate
-        self.longer_start = 0
-        self.n_raw = 0  # raw points in `longer` (after its head)
-        self.ended = False
 
     def _start_plan(self, C: int, margin: int, backend: str) -> None:
         """Smoothed path, segment speeds, and what the plan carries from block to block."""
@@ -324,34 +312,6 @@ class LiveSynth:
         self.rendered = stop
         return self._emit(start, stop)
 
-    def check(self, points: ArrayLike) -> Floats:
-        """The points :meth:`append` would take, as float64 -- or :class:`TrajectoryError` for
-        the first character they are unusable for; nothing is changed either way."""
-        if self.ended:
-            raise TrajectoryError("points: the trajectories have ended (finish was called)")
-        arr = np.asarray(points, np.float64)
-        C = len(self.scales)
-        if arr.ndim != 3 or arr.shape[0] != C or arr.shape[2] != 3 or arr.shape[1] < 1:
-            raise TrajectoryError(f"points: expected shape ({C}, n >= 1, 3), got {arr.shape}")
-        if self.compiled:  # a fast pass (its numpy took a millisecond of a 2,000-horse tick's serial part)
-            last = self.inputs[:, -1] if self.inputs.shape[1] else np.full((C, 3), np.nan)
-            # Contiguous: one compiled signature for every call (none compiled mid-session).
-            if self.planner.kernels.points_fine(np.ascontiguousarray(last), np.ascontiguousarray(arr),
-                                                float(TELEPORT_M)):
-                return arr  # else found and named below
-        finite = np.isfinite(arr).all(axis=(1, 2))
-        if not finite.all():
-            c = int(np.flatnonzero(~finite)[0])
-            frame = int(np.flatnonzero(~np.isfinite(arr[c]).all(axis=-1))[0])
-            raise TrajectoryError(f"points: NaN or Inf at its point {frame} of this message", c)
-        joined = np.concatenate([self.inputs[:, -1:], arr], axis=1)
-        jump = np.linalg.norm(np.diff(joined, axis=1), axis=-1)
-        if jump.size and jump.max() > TELEPORT_M:
-            c = int(jump.max(axis=1).argmax())
-            raise TrajectoryError(f"points: jumps {jump[c].max():.1f} m in one frame (limit {TELEPORT_M} m: "
-                                  "a teleport, not locomotion)", c)
-        return arr
-
     def finish(self, frames: int | None = None) -> Window | None:
         """The trajectories end with the points given: the rest of the frames (at most
         ``frames`` of them, the rest left for :meth:`take`: the rest of a 10,000-horse session,
@@ -382,127 +342,7 @@ class LiveSynth:
         self._raw(np.concatenate([tail, hold], axis=1))
         self._advance(limit=end)
 
-    def _retime(self) -> None:
-        """Library-rate points from the inputs so far (linear, as :func:`trajectory.retime`)."""
-        ratio = self.fps / self.bank.fps
-        if ratio == 1.0:
-            new = self.inputs[:, self.made - self.inputs_start:]
-        else:
-            last = int(np.floor((self.n_inputs - 1) / ratio + 1e-9))
-            j = np.arange(self.made, last + 1)
-            t = j * ratio
-            i0 = np.clip(np.floor(t + 1e-9).astype(np.int64), 0, max(self.n_inputs - 2, 0))
-            w = np.clip(t - i0, 0.0, 1.0)[None, :, None]
-            base = self.inputs_start
-            a = self.inputs[:, i0 - base]
-            b = self.inputs[:, np.minimum(i0 + 1, self.n_inputs - 1) - base]
-            new = a * (1 - w) + b * w
-        self.made += new.shape[1]
-        self._raw(new)
-        keep = max(self.n_inputs - 2, 0)  # the inputs the next points may interpolate from
-        self.inputs = self.inputs[:, keep - self.inputs_start:]
-        self.inputs_start = keep
-
-    def _raw(self, new: Floats) -> None:
-        """Library-rate points into `longer`, behind the head the batch makes of the first ones."""
-        if self.n_raw == 0:
-            first = np.concatenate([self.first_points, new], axis=1)
-            if first.shape[1] < (self.pad + 1 if self.latency_ms is None else 1):
-                self.first_points = first
-                return
-            if self.latency_ms is None:
-                head = 2 * first[:, :1] - first[:, self.pad:0:-1]
-            else:  # made at once: no point waited for (the session starts standing)
-                head = np.repeat(first[:, :1], self.pad, axis=1)
-            self.longer = np.concatenate([head, first], axis=1)
-            self.n_raw = first.shape[1]
-            self.first_points = first[:, :0]
-            return
-        self.longer = np.concatenate([self.longer, new], axis=1)
-        self.n_raw += new.shape[1]
-
     # -- planning ------------------------------------------------------------------------------
-
-    def _smooth(self) -> None:
-        """Smoothed path for every frame whose Gaussian window has arrived."""
-        # Frame t reads `longer` (head first) up to t + pad + ahead.
-        ready = self.longer_start + self.longer.shape[1] - self.pad - self.ahead if self.n_raw else 0
-        if ready <= self.n_path:
-            return
-        if self.latency_ms is not None:
-            self._fit(ready)
-            return
-        if self.sigma > 0:
-            lo = max(self.n_path + self.pad - self.radius, 0)  # in `longer` coordinates
-            hi = ready + self.pad + self.radius
-            part = self.longer[:, lo - self.longer_start:hi - self.longer_start]
-            # Only the frames made (half of what scipy would filter); the same numbers.
-            new = gaussian.smooth_frames(part, self.sigma, self.n_path + self.pad - lo, ready - self.n_path)
-        else:
-            new = self.longer[:, self.n_path - self.longer_start:ready - self.longer_start]
-        self.path.reserve(new.shape[1])[0][...] = new
-        self.n_path = ready
-        drop = max(self.n_path + self.pad - self.radius - 1, 0) - self.longer_start
-        if drop > 0:
-            self.longer = self.longer[:, drop:]
-            self.longer_start += drop
-        # Segment speeds (m/s in each character's own unit), for every whole segment.
-        m = self.m
-        whole = (self.n_path - 1) // m
-        if whole > self.n_seg:
-            a, b = self.n_seg * m, whole * m + 1
-            pts = self._path(a, b)
-            # With a terrain, the speed along the ground, as the batch's (terrain.along_ground).
-            on = pts[..., GROUND] if self.ground is None else laid(pts, self.ground)
-            step = np.linalg.norm(np.diff(on, axis=1), axis=-1)
-            counts = np.full(whole - self.n_seg, m)  # as segment_speeds divides, for the same bits
-            speeds = step.reshape(len(step), -1, m).sum(axis=2) / counts * self.bank.fps
-            self.seg = np.concatenate([self.seg, speeds / self.pace[:, None]], axis=1)
-            self.n_seg = whole
-
-    def _fit(self, ready: int) -> None:
-        """The low-latency mode's path and speeds of frames [n_path, ready): causal fits."""
-        lo = self.n_path + self.pad - self.behind  # in `longer` coordinates
-        part = self.longer[:, lo - self.longer_start:ready + self.pad + self.ahead - self.longer_start]
-        n = ready - self.n_path
-        value, _ = causal.fit_weights(self.sigma, self.behind, self.ahead)
-        _, slope = causal.fit_weights(self.speed_sigma, self.behind, self.ahead)
-        self.path.reserve(n)[0][...] = causal.apply(part, value, self.behind, self.behind, n)
-        velocity = causal.apply(part[..., GROUND], slope, self.behind, self.behind, n)
-        speed = np.hypot(velocity[..., 0], velocity[..., 1]) * self.bank.fps / self.pace[:, None]
-        self.frame_speed = np.concatenate([self.frame_speed, speed], axis=1)
-        self.n_path = ready
-        drop = self.n_path + self.pad - self.behind - 1 - self.longer_start
-        if drop > 0:
-            self.longer = self.longer[:, drop:]
-            self.longer_start += drop
-
-    def _path(self, a: int, b: int) -> Floats:
-        """The smoothed path's frames [a, b) (a view)."""
-        return self.path.columns(a, b)[0]
-
-    def _speeds(self, t: NDArray[np.int64], who: NDArray[np.int64] | None = None) -> Floats:
-        """(C, len(t)) speed at frames t (interpolated between segment centres); of the
-        characters ``who`` only, if given."""
-        if self.latency_ms is not None:
-            fs = self.frame_speed if who is None else self.frame_speed[who]
-            return np.asarray(fs[:, t - self.frame_speed_start])
-        m = self.m
-        pos = (t - (m - 1) / 2) / m
-        k0 = np.maximum(np.floor(pos).astype(np.int64), 0)
-        k1 = k0 + 1
-        f = np.clip(pos - k0, 0.0, 1.0)
-        s = self.seg_start
-        seg = self.seg if who is None else self.seg[who]
-        return np.asarray(seg[:, k0 - s] * (1 - f) + seg[:, k1 - s] * f)
-
-    def _speed_ready(self) -> int:
-        """Frames [0, n) whose speed is known."""
-        if self.latency_ms is not None:
-            return self.n_path
-        # Frame t reads segment floor((t - (m-1)/2) / m) + 1 (and at least segment 1).
-        m = self.m
-        return int(np.ceil((self.n_seg - 1) * m + (m - 1) / 2)) if self.n_seg >= 2 else 0
 
     def _advance(self, limit: int | None = None) -> None:
         """Plan every frame the points so far settle (up to ``limit``, the last, at the end)."""
