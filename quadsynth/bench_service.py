@@ -184,13 +184,7 @@ def live(url: str, characters: int = LIVE_CHARACTERS, seconds: float = LIVE_SECO
                 continue
             if message["type"] == "chunk":
                 frames += message["frames"]
-                if wire is not None:
-                    wire["bytes"] = wire.get("bytes", 0) + ws.last_bytes
-                    wire["frames"] = frames
-                # From sending the point of this chunk's last frame to having its pose.
-                sent = sent_at[min((frames - 1) // LIVE_TICK, len(sent_at) - 1)]
-                worst = max(worst, time.perf_counter() - sent)
-                ws.send(msgpack.packb({"type": "ack", "chunk": message["chunk"]}))
+                worst = max(worst, _chunk_taken(ws, message, frames, sent_at, wire))
                 if paced and frames >= settled:
                     break
             elif message["type"] == "end":
@@ -199,6 +193,19 @@ def live(url: str, characters: int = LIVE_CHARACTERS, seconds: float = LIVE_SECO
                 raise SystemExit(f"bench-service: the live session failed: {message}")
         wall = time.perf_counter() - t0
     return characters * (F / 30) / wall, worst
+
+
+def _chunk_taken(ws: LeanSocket, message: dict[str, Any], frames: int, sent_at: list[float],
+                 wire: dict[str, float] | None) -> float:
+    """A live chunk acked and counted (``frames``: sent so far, this one's included); returns the
+    time from sending the point of its last frame to having its pose."""
+    if wire is not None:
+        wire["bytes"] = wire.get("bytes", 0) + ws.last_bytes
+        wire["frames"] = frames
+    sent = sent_at[min((frames - 1) // LIVE_TICK, len(sent_at) - 1)]
+    taken = time.perf_counter() - sent
+    ws.send(msgpack.packb({"type": "ack", "chunk": message["chunk"]}))
+    return taken
 
 
 def _started(header: dict[str, Any], wire: dict[str, float] | None,

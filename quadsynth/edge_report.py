@@ -15,6 +15,7 @@ from synth_core.motion.clip import Motion
 from synth_core.quality import evaluate
 from synth_core.quality import metrics as M
 from synth_core.quality.edge import Scenario
+from synth_core.quality.reference import library_reference
 from synth_core.runtime.bank import Bank
 from synth_core.runtime.synthesis import Result
 
@@ -56,7 +57,7 @@ def worst_moment(bank: Bank, scenario: Scenario, result: Result, figure: str) ->
     """(character, frame) where ``figure`` is at its worst: the largest off-path distance
     (``path_cm_max``), the largest strict-plant slide (``strict_skate_mm_p95``), else the
     largest one-frame foot jump."""
-    fk = evaluate.feet_after_fk(bank, result, evaluate.library_reference(bank))
+    fk = evaluate.feet_after_fk(bank, result, library_reference(bank))
     if figure == "path_cm_max":
         at = M.path_distance_cm(result.root_pos, scenario.reference[result.kept])
     elif figure == "strict_skate_mm_p95":
@@ -79,7 +80,7 @@ def render_worst(bank: Bank, scenario: Scenario, result: Result, entry: dict[str
     figure = max(misses, key=lambda f: misses[f] / (abs(evaluate.EDGE_TARGETS[f][1]) or 1.0),
                  default="jump_cm_max")
     c, f = worst_moment(bank, scenario, result, figure)
-    fk = evaluate.feet_after_fk(bank, result, evaluate.library_reference(bank))
+    fk = evaluate.feet_after_fk(bank, result, library_reference(bank))
     skeleton = scaled_skeleton(bank.skeleton, float(result.scales[c]))
     motion = Motion(skeleton, result.root_pos[c], result.rotations[c], bank.fps, fk.down[c],
                     f"{scenario.name} #{c}, worst {figure}")

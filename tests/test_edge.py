@@ -13,6 +13,7 @@ import pytest
 
 from quadsynth.cli import main
 from synth_core.quality import edge, evaluate
+from synth_core.quality.reference import library_reference
 from synth_core.runtime.bank import Bank
 
 FPS = 60.0
@@ -197,6 +198,6 @@ def test_a_big_dogs_steady_canter_carries_it_no_longer_alone_than_its_tempo_give
     F = edge.frames_for(0.5 + v / edge.SPEED_UP + 6.0, FPS)
     sc = edge.herd([edge.run(F, FPS, edge.start_at(v))], [2.0])
     result = synthesize(bank, sc.positions, FPS, scales=sc.scales, options=Options(seed=0))
-    figures = evaluate.edge_figures(bank, result, sc.reference, F, evaluate.library_reference(bank))
+    figures = evaluate.edge_figures(bank, result, sc.reference, F, library_reference(bank))
     assert figures["gait_frames"]["canter"] > 4 * 60  # it does canter, seconds of it
     assert figures["single_support_ratio_max"] <= 1.0

@@ -13,6 +13,7 @@ from synth_core.motion.contacts import runs
 from synth_core.quality import evaluate
 from synth_core.quality import herd_sim as crowd
 from synth_core.quality.live_run import play
+from synth_core.quality.reference import library_reference
 from synth_core.runtime import causal, gaussian, live
 from synth_core.runtime.bank import Bank
 from synth_core.runtime.live import LiveSynth
@@ -49,7 +50,7 @@ def test_points_at_30_fps_come_back_within_the_budget(bank: Bank) -> None:
 
 def test_feet_stay_planted_after_fk(bank: Bank, herd: np.ndarray) -> None:
     run = play(bank, herd, seed=2, latency_ms=150.0)
-    figures = evaluate.edge_figures(bank, run.result, herd, herd.shape[1], evaluate.library_reference(bank))
+    figures = evaluate.edge_figures(bank, run.result, herd, herd.shape[1], library_reference(bank))
     assert figures["strict_skate_mm_p95"] <= 5.0  # issue 31's targets
     assert figures["glide_ratio"] <= 0.12
     assert figures["nan_count"] == 0

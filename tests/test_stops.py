@@ -15,6 +15,7 @@ from synth_core.build.animals import build_builtin
 from synth_core.build.motion_graph import HUBS
 from synth_core.motion.skeleton import forward_kinematics
 from synth_core.quality import edge, evaluate
+from synth_core.quality.reference import library_reference
 from synth_core.runtime.bank import STATIC, Bank, build_bank
 from synth_core.runtime.live import LiveSynth
 from synth_core.runtime.plan import decision_step, lookahead
@@ -70,7 +71,7 @@ def assert_settles(bank: Bank, result: Result, positions: np.ndarray) -> int:
     as the idle breathes; every foot within the idle clip's own sway + 5 mm) -- up to the plan's
     look-ahead before it moves again (a start is anticipated); returns
     how many stops were checked."""
-    fk = evaluate.feet_after_fk(bank, result, evaluate.library_reference(bank))
+    fk = evaluate.feet_after_fk(bank, result, library_reference(bank))
     sway = idle_foot_sway(bank) + 0.005
     checked = 0
     for c, stop, again in stops(positions):
