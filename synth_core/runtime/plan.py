@@ -28,7 +28,9 @@ carries on across it. Within a gait every speed-map clip has the same frames and
 stride phase runs on (k clip frames per output frame, up to ``MAX_RATE`` faster above the fastest
 clip, down to ``STAND_SHARE`` below the slowest gait's slowest) and the speed only moves the pair
 of clips blended, ``M = (1 - a) M_i + a M_j``. Where a piece starts, the piece before it fades
-out over ``margin`` frames. A character whose path stops (slower than a standing one's, or still
+out over ``margin`` frames; where it starts within the margin of the one before's start, what
+fades out is the blend shown (the one before over the one before that, each by its nearer row),
+so no piece vanishes in one frame (issue 27: 25-38 cm hoof jumps between two transitions). A character whose path stops (slower than a standing one's, or still
 for ``STILL_S``) stands at once: the idle fades in over the margin, from whatever gait or
 transition played (issue 27: transitions play by distance, so the chain trot -> walk -> static
 on a stopped path took hundreds of frames, the animal frozen mid-stride); it leaves standing
