@@ -337,7 +337,10 @@ def _character(t0: int, v: Any, pts: Any, h: float, tempo: float, asked_speed: A
                 elif nxt != s[CURRENT]:
                     s[ASKED], s[ASKED_UNTIL] = nxt, t + step
             ask, k = ask + step, k + 1
-        if s[STAGE] == WAITING and f[CLOCKS + s[FROM]] >= f[DUE]:
+        # Leaving a stand waits for the path to move: chosen on the speed ahead, the static ->
+        # walk transition (which plays by distance) stepped in place with a hoof up for up to a
+        # second before (turn_on_spot: 32 cm, highest still foot).
+        if s[STAGE] == WAITING and f[CLOCKS + s[FROM]] >= f[DUE] and not (s[FROM] == STATIC and f[STILL] > 0):
             _start(s, f, s[TRANSITION], 0, t, float(t), travelled, margin)  # a transition's clock is time
             s[STAGE], started = MOVING, True
         if t == sent:
@@ -432,6 +435,29 @@ def headings(g: Any, off: int, ends: bool, fps: float, min_speed: float, last_di
 
 
 @jit()
+def turn(yaw: Any, g: Any, off: int, fps: float, max_rate: float, max_lateral: float, last: Any) -> None:
+    """In place, each character's yaw ``(C, n)`` of frames ``[t0, t0 + n)`` turned toward the one
+    given by at most ``min(max_rate, max_lateral / v)`` radians a second, v its path's ground speed
+    there (``g (C, m, 2)`` holding frame t0 at ``off``, as for :func:`headings`): a body pivots
+    only so fast, and at speed turns no faster than its grip allows (v omega: the lateral
+    acceleration). ``last (C,)``: each one's yaw the frame before (NaN: none), carried on."""
+    for c in range(yaw.shape[0]):
+        prev = last[c]
+        for i in range(yaw.shape[1]):
+            want = yaw[c, i]
+            if not math.isnan(prev):
+                dx, dz = _direction(g[c], off + i)
+                v = math.sqrt(dx * dx + dz * dz) * fps
+                cap = (max_rate if v * max_rate <= max_lateral else max_lateral / v) / fps
+                d = (want - prev + math.pi) % (2.0 * math.pi) - math.pi
+                want = prev + min(max(d, -cap), cap)
+                want = (want + math.pi) % (2.0 * math.pi) - math.pi
+            yaw[c, i] = want
+            prev = want
+        last[c] = prev
+
+
+@jit()
 def points_fine(last: Any, pts: Any, limit: float) -> bool:
     """Whether every point of ``pts (C, n, 3)`` is finite and within ``limit`` of the one before
     (``last (C, 3)``: each character's point before them; NaN: none)."""
@@ -456,10 +482,11 @@ class Kernels:
     name: str
     advance: Any  # see advance()
     headings: Any  # see headings()
+    turn: Any  # see turn()
     points_fine: Any  # see points_fine()
 
 
 _PLAIN = interpreted(globals())
-REFERENCE = Kernels("numpy", *(_PLAIN.get(name, globals()[name]) for name in ("advance", "headings",
+REFERENCE = Kernels("numpy", *(_PLAIN.get(name, globals()[name]) for name in ("advance", "headings", "turn",
                                                                               "points_fine")))
-COMPILED = Kernels("numba", advance, headings, points_fine) if AVAILABLE else REFERENCE
+COMPILED = Kernels("numba", advance, headings, turn, points_fine) if AVAILABLE else REFERENCE

@@ -30,11 +30,17 @@ clip, down to ``STAND_SHARE`` below the slowest gait's slowest) and the speed on
 of clips blended, ``M = (1 - a) M_i + a M_j``. Where a piece starts, the piece before it fades
 out over ``margin`` frames; where it starts within the margin of the one before's start, what
 fades out is the blend shown (the one before over the one before that, each by its nearer row),
-so no piece vanishes in one frame (issue 27: 25-38 cm hoof jumps between two transitions). A character whose path stops (slower than a standing one's, or still
-for ``STILL_S``) stands at once: the idle fades in over the margin, from whatever gait or
-transition played (issue 27: transitions play by distance, so the chain trot -> walk -> static
-on a stopped path took hundreds of frames, the animal frozen mid-stride); it leaves standing
-by the static -> walk transition, as from the start.
+so no piece vanishes in one frame (issue 27: 25-38 cm hoof jumps between two transitions). A
+character whose path stops (slower than a standing one's, or still for ``STILL_S``) stands at
+once: the idle fades in over the margin, from whatever gait or transition played (issue 27:
+transitions play by distance, so the chain trot -> walk -> static on a stopped path took hundreds
+of frames, the animal frozen mid-stride); it leaves standing by the static -> walk transition, as
+from the start, once its path moves (chosen on the speed ahead, the transition crept on the spot
+with a hoof up for as long as the path still stood).
+
+The heading follows the path's direction (:class:`Headings`), turning no faster than
+``MAX_YAW_RATE``, and at speed than ``MAX_LATERAL / v``: the root stays on the path, the body lags
+where the path turns faster.
 """
 
 from __future__ import annotations
@@ -68,6 +74,14 @@ STAND_SHARE = 0.08
 # or its held points would read as stops.
 STILL_S = 0.2
 MIN_TURN_SPEED = 0.05  # m/s: slower than this the heading holds (a standing animal does not spin)
+# The body turns toward the path's heading at most MAX_YAW_RATE (pivoting, and at a walk: a horse
+# turns on its haunches through 180 deg in about a second, quicker when hurried) and, faster,
+# no faster than MAX_LATERAL allows (v omega, the grip's lateral acceleration: 2.5 g, between a
+# horse's and a greyhound's hardest turns) -- 270 deg/s up to 5 m/s, 175 deg/s at 8 m/s. The
+# root stays on the path; where it turns faster the body lags (issue 27: it swung round at up to
+# 10,000 deg/s, the whole body in one frame as a standing animal moved off in a new direction).
+MAX_YAW_RATE = float(np.radians(270.0))  # rad/s
+MAX_LATERAL = 2.5 * 9.81  # m/s^2
 LOOKAHEAD = 2  # segments: gaits are chosen on the speed this far ahead, as transitions take time
 DECISION_SHARE = 4  # gait decisions this many times a segment
 MAX_RATE = 1.6  # a gait asked to go faster than its fastest clip plays its stride up to this fast
@@ -231,12 +245,14 @@ class Headings:
         self.kernels = planner(backend)
         self.last_dir = np.zeros((characters, 2))  # the heading held, as a ground direction
         self.moved = np.zeros(characters, bool)  # moved yet (else it faces where it will first go)
+        self.last_yaw = np.full(characters, np.nan)  # the yaw of the frame before (NaN: none yet)
 
     def advance(self, ground: Floats, off: int, n: int, fps: float, facing: Floats, ends: bool = False,
                 ahead: Callable[[NDArray[np.int64]], Floats] | None = None) -> Floats:
         """(C, n) yaw (about +Y, 0 = +Z) of frames ``[t0, t0 + n)``: the tangent of the path's
         ground points ``ground (C, m, 2)`` (frame t0 at ``off``), held where the character moves
-        slower than MIN_TURN_SPEED (a standing animal does not spin with its trajectory's jitter);
+        slower than MIN_TURN_SPEED (a standing animal does not spin with its trajectory's jitter),
+        reached no faster than MAX_YAW_RATE and MAX_LATERAL allow (:func:`plan_kernels.turn`);
         before it first moves, the way it first moves -- searched on in ``ground`` (to its end if
         ``ends``: the path's end), or in ``ahead(characters)``, their ground from the same point
         on as far as known -- else ``facing (C,)``."""
@@ -250,7 +266,11 @@ class Headings:
                                   self.moved[unknown], again)
             held[unknown] = again
         yaw = np.arctan2(held[..., 0], held[..., 1])
-        return np.asarray(np.where(np.isnan(yaw[:, :1]), facing[:, None], yaw)) if len(unknown) else yaw
+        if len(unknown):
+            yaw = np.asarray(np.where(np.isnan(yaw[:, :1]), facing[:, None], yaw))
+        yaw = np.ascontiguousarray(yaw)
+        self.kernels.turn(yaw, ground, off, fps, MAX_YAW_RATE, MAX_LATERAL, self.last_yaw)
+        return yaw
 
 
 def headings(path: Floats, fps: float, frames: int | None = None, backend: str = "auto") -> Floats:
