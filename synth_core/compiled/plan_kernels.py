@@ -435,26 +435,41 @@ def headings(g: Any, off: int, ends: bool, fps: float, min_speed: float, last_di
 
 
 @jit()
-def turn(yaw: Any, g: Any, off: int, fps: float, max_rate: float, max_lateral: float, last: Any) -> None:
+def turn(yaw: Any, g: Any, off: int, fps: float, max_rate: float, max_lateral: float, max_lean: float,
+         lean_rate: float, last: Any, last_lean: Any, lean: Any) -> None:
     """In place, each character's yaw ``(C, n)`` of frames ``[t0, t0 + n)`` turned toward the one
     given by at most ``min(max_rate, max_lateral / v)`` radians a second, v its path's ground speed
     there (``g (C, m, 2)`` holding frame t0 at ``off``, as for :func:`headings`): a body pivots
     only so fast, and at speed turns no faster than its grip allows (v omega: the lateral
-    acceleration). ``last (C,)``: each one's yaw the frame before (NaN: none), carried on."""
+    acceleration). ``lean (C, n)``: the body's roll into the turn, radians about its forward axis
+    (+Z turned by the yaw; positive: its top toward its right), atan(v omega / g) toward the
+    turn's centre (the centripetal acceleration over gravity), within ``max_lean``, reached at
+    most ``lean_rate`` radians a second. ``last``, ``last_lean`` ``(C,)``: each one's yaw (NaN:
+    none) and lean the frame before, carried on."""
     for c in range(yaw.shape[0]):
-        prev = last[c]
+        prev, tilt = last[c], last_lean[c]
         for i in range(yaw.shape[1]):
             want = yaw[c, i]
+            omega = 0.0
+            v = 0.0
             if not math.isnan(prev):
                 dx, dz = _direction(g[c], off + i)
                 v = math.sqrt(dx * dx + dz * dz) * fps
                 cap = (max_rate if v * max_rate <= max_lateral else max_lateral / v) / fps
                 d = (want - prev + math.pi) % (2.0 * math.pi) - math.pi
-                want = prev + min(max(d, -cap), cap)
-                want = (want + math.pi) % (2.0 * math.pi) - math.pi
+                d = min(max(d, -cap), cap)
+                want = (prev + d + math.pi) % (2.0 * math.pi) - math.pi
+                omega = d * fps
+            # Yaw grows turning from +Z toward +X, the left of a body facing +Z (Y up, right-handed),
+            # where the turn's centre then is; a roll of +a about +Z tips the top toward -X.
+            target = -math.atan(v * omega / 9.81)
+            target = min(max(target, -max_lean), max_lean)
+            step = lean_rate / fps
+            tilt = tilt + min(max(target - tilt, -step), step)
             yaw[c, i] = want
+            lean[c, i] = tilt
             prev = want
-        last[c] = prev
+        last[c], last_lean[c] = prev, tilt
 
 
 @jit()

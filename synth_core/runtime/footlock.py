@@ -24,6 +24,7 @@ from scipy.ndimage import gaussian_filter1d, maximum_filter1d
 
 from synth_core import UP_AXIS
 from synth_core.build import ik
+from synth_core.motion import quat
 from synth_core.motion.skeleton import Skeleton, forward_kinematics
 from synth_core.runtime.terrain import Grounding, ground_targets, untilt
 
@@ -38,6 +39,17 @@ EASE_FRAMES = 9
 # Frames either side of a frame that its eased sink reads: the running max's half width plus the
 # Gaussian's radius (ease_sink: sigma EASE_FRAMES / 6, truncated at 4 sigma).
 PAD = EASE_FRAMES // 2 + int(4.0 * EASE_FRAMES / 6 + 0.5)
+
+
+def hip_half_width(skeleton: Skeleton) -> float:
+    """The legs' upper joints' widest distance sideways (X) from the root, in the rest pose: how
+    far the outer hip rises per unit sine of a lean (the root lowered by that much keeps the outer
+    legs' plants within reach; the foot lock's sink is capped well below it)."""
+    rest = np.zeros((1, skeleton.n_joints, 4))
+    rest[..., 3] = 1.0
+    pos, _ = forward_kinematics(skeleton, np.zeros((1, 3)), rest)
+    upper = [r.upper for r in ik.limb_rigs(skeleton)]
+    return float(np.abs(np.asarray(pos, np.float64)[0, upper, 0] - np.asarray(pos)[0, 0, 0]).max())
 
 
 def plant_targets(feet: NDArray[np.floating], contacts: NDArray[np.bool_]) -> Floats:
@@ -94,23 +106,31 @@ def lock_feet(skeleton: Skeleton, root_pos: NDArray[np.floating], rotations: NDA
               contacts: NDArray[np.bool_], scales: NDArray[np.floating],
               ground: NDArray[np.floating] | None = None, rigs: tuple[ik.LimbRig, ...] | None = None,
               bends: NDArray[np.floating] | None = None,
-              terrain: Grounding | None = None) -> tuple[NDArray[np.float32], NDArray[np.float32]]:
+              terrain: Grounding | None = None, lean: NDArray[np.floating] | None = None
+              ) -> tuple[NDArray[np.float32], NDArray[np.float32]]:
     """Root ``(C, T, 3)`` and local rotations ``(C, T, J, 4)`` with planted feet pinned.
 
     ``ground (C, T)``: the height planted feet stand at (default: as they are); ``bends (4, 3)``:
     the legs' bend axes (:func:`synth_core.build.ik.bend_axes`; default: over this motion).
     ``terrain``: the body already tilted by ``terrain.tilt`` and standing on ``ground``; the feet
-    are planted on ``terrain.field`` (:mod:`synth_core.runtime.terrain`)."""
+    are planted on ``terrain.field`` (:mod:`synth_core.runtime.terrain`). ``lean (C, T, 4)``: the
+    body already leant into its turn by these world rotations (under the tilt); plants are made
+    from the feet as they hang unleaned, as on a terrain."""
     rigs = ik.limb_rigs(skeleton) if rigs is None else rigs
     h = np.asarray(scales, np.float64)[:, None, None]
     unit_root = np.asarray(root_pos, np.float64) / h
     pos, _ = forward_kinematics(skeleton, unit_root, rotations)
     feet = np.asarray(pos, np.float64)[..., skeleton.foot_joints, :]
     if terrain is not None and ground is not None:
-        feet = untilt(feet, unit_root, terrain.tilt)
+        tilt = terrain.tilt if lean is None else np.asarray(quat.mul(terrain.tilt, lean), np.float64)
+        feet = untilt(feet, unit_root, tilt)
         feet[..., UP_AXIS] -= (np.asarray(ground, np.float64) / h[..., 0])[..., None]
         targets = ground_targets(plant_targets(feet, contacts), contacts, terrain.field, h[:, 0, 0])
     else:
+        if lean is not None:
+            leans = np.asarray(lean, np.float64)
+            leant = (leans[..., :3] != 0).any(axis=-1)  # (the rest as they are, bit for bit)
+            feet = np.where(leant[..., None, None], untilt(feet, unit_root, leans), feet)
         targets = plant_targets(feet, contacts)
     if ground is not None and terrain is None:  # planted feet on the ground the path runs over
         floor = (np.asarray(ground, np.float64) / h[..., 0])[..., None]

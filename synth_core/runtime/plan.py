@@ -82,6 +82,11 @@ MIN_TURN_SPEED = 0.05  # m/s: slower than this the heading holds (a standing ani
 # 10,000 deg/s, the whole body in one frame as a standing animal moved off in a new direction).
 MAX_YAW_RATE = float(np.radians(270.0))  # rad/s
 MAX_LATERAL = 2.5 * 9.81  # m/s^2
+# Turning, the body leans into the turn: rolled by atan(v omega / g) (the centripetal acceleration
+# over gravity, as a runner or a bike leans), at most MAX_LEAN (a galloping horse's tightest turns
+# lean about 20 deg), reached at most LEAN_RATE (a body rolls over in a few strides, not a frame).
+MAX_LEAN = float(np.radians(20.0))  # rad
+LEAN_RATE = float(np.radians(90.0))  # rad/s
 LOOKAHEAD = 2  # segments: gaits are chosen on the speed this far ahead, as transitions take time
 DECISION_SHARE = 4  # gait decisions this many times a segment
 MAX_RATE = 1.6  # a gait asked to go faster than its fastest clip plays its stride up to this fast
@@ -107,12 +112,13 @@ class Plan:
     contacts: NDArray[np.bool_]  # (C, T, 4)
     stitches: NDArray[np.bool_]  # (C, T)
     gait: NDArray[np.int8]  # (C, T)
+    lean: Floats  # (C, T) roll into the turn, radians about the body's forward axis (+: top to its right)
 
     def window(self, start: int, stop: int, step: int = 1) -> Plan:
         """Frames ``[start, stop)`` (every ``step``-th) of every character."""
         t = slice(start, stop, step)
         return Plan(self.rows[:, t], self.weights[:, t], self.yaw[:, t], self.path[:, t], self.scales,
-                    self.contacts[:, t], self.stitches[:, t], self.gait[:, t])
+                    self.contacts[:, t], self.stitches[:, t], self.gait[:, t], self.lean[:, t])
 
 
 def empty_plan(characters: int, frames: int, scales: Floats) -> Plan:
@@ -120,7 +126,7 @@ def empty_plan(characters: int, frames: int, scales: Floats) -> Plan:
     C, T = characters, frames
     return Plan(np.empty((C, T, 4), np.int32), np.empty((C, T, 3), np.float32), np.empty((C, T)),
                 np.empty((C, T, 3)), scales, np.empty((C, T, 4), bool), np.empty((C, T), bool),
-                np.empty((C, T), np.int8))
+                np.empty((C, T), np.int8), np.empty((C, T)))
 
 
 @dataclass(frozen=True)
@@ -246,13 +252,15 @@ class Headings:
         self.last_dir = np.zeros((characters, 2))  # the heading held, as a ground direction
         self.moved = np.zeros(characters, bool)  # moved yet (else it faces where it will first go)
         self.last_yaw = np.full(characters, np.nan)  # the yaw of the frame before (NaN: none yet)
+        self.last_lean = np.zeros(characters)  # the lean of the frame before
 
     def advance(self, ground: Floats, off: int, n: int, fps: float, facing: Floats, ends: bool = False,
-                ahead: Callable[[NDArray[np.int64]], Floats] | None = None) -> Floats:
+                ahead: Callable[[NDArray[np.int64]], Floats] | None = None) -> tuple[Floats, Floats]:
         """(C, n) yaw (about +Y, 0 = +Z) of frames ``[t0, t0 + n)``: the tangent of the path's
         ground points ``ground (C, m, 2)`` (frame t0 at ``off``), held where the character moves
         slower than MIN_TURN_SPEED (a standing animal does not spin with its trajectory's jitter),
-        reached no faster than MAX_YAW_RATE and MAX_LATERAL allow (:func:`plan_kernels.turn`);
+        reached no faster than MAX_YAW_RATE and MAX_LATERAL allow, and (C, n) the lean into the
+        turn (:func:`plan_kernels.turn`);
         before it first moves, the way it first moves -- searched on in ``ground`` (to its end if
         ``ends``: the path's end), or in ``ahead(characters)``, their ground from the same point
         on as far as known -- else ``facing (C,)``."""
@@ -269,13 +277,22 @@ class Headings:
         if len(unknown):
             yaw = np.asarray(np.where(np.isnan(yaw[:, :1]), facing[:, None], yaw))
         yaw = np.ascontiguousarray(yaw)
-        self.kernels.turn(yaw, ground, off, fps, MAX_YAW_RATE, MAX_LATERAL, self.last_yaw)
-        return yaw
+        lean = np.empty_like(yaw)
+        self.kernels.turn(yaw, ground, off, fps, MAX_YAW_RATE, MAX_LATERAL, MAX_LEAN, LEAN_RATE,
+                          self.last_yaw, self.last_lean, lean)
+        return yaw, lean
 
 
 def headings(path: Floats, fps: float, frames: int | None = None, backend: str = "auto") -> Floats:
-    """(C, T) yaw of a whole path ``(C, T, 3)`` (:meth:`Headings.advance`); a character that never
-    moves faces its path's first step. ``frames``: the first ``frames`` only (the same numbers)."""
+    """(C, T) yaw of a whole path ``(C, T, 3)`` (:func:`turning`)."""
+    return turning(path, fps, frames, backend)[0]
+
+
+def turning(path: Floats, fps: float, frames: int | None = None, backend: str = "auto"
+            ) -> tuple[Floats, Floats]:
+    """(C, T) yaw and lean of a whole path ``(C, T, 3)`` (:meth:`Headings.advance`); a character
+    that never moves faces its path's first step. ``frames``: the first ``frames`` only (the same
+    numbers)."""
     ground = np.ascontiguousarray(path[..., GROUND])
     T = ground.shape[1]
     n = T if frames is None else min(frames, T)
@@ -335,6 +352,6 @@ def plan(bank: Bank, prep: Prepared, h: Floats, keys: NDArray[np.uint64], margin
     out = empty_plan(C, keep, h)
     planner = Planner(bank, h, tempo, margin, backend)
     planner.advance(0, np.ascontiguousarray(v[:, :keep]), path, decisions, out)
-    out.yaw[...] = headings(path, bank.fps, keep, backend)
+    out.yaw[...], out.lean[...] = turning(path, bank.fps, keep, backend)
     out.path[...] = path[:, :keep]
     return out
