@@ -436,16 +436,16 @@ def headings(g: Any, off: int, ends: bool, fps: float, min_speed: float, last_di
 
 @jit()
 def turn(yaw: Any, g: Any, off: int, fps: float, max_rate: float, max_lateral: float, max_lean: float,
-         lean_rate: float, last: Any, last_lean: Any, lean: Any) -> None:
+         lean_rate: float, gentle: float, last: Any, last_lean: Any, lean: Any) -> None:
     """In place, each character's yaw ``(C, n)`` of frames ``[t0, t0 + n)`` turned toward the one
     given by at most ``min(max_rate, max_lateral / v)`` radians a second, v its path's ground speed
     there (``g (C, m, 2)`` holding frame t0 at ``off``, as for :func:`headings`): a body pivots
     only so fast, and at speed turns no faster than its grip allows (v omega: the lateral
     acceleration). ``lean (C, n)``: the body's roll into the turn, radians about its forward axis
     (+Z turned by the yaw; positive: its top toward its right), atan(v omega / g) toward the
-    turn's centre (the centripetal acceleration over gravity), within ``max_lean``, reached at
-    most ``lean_rate`` radians a second. ``last``, ``last_lean`` ``(C,)``: each one's yaw (NaN:
-    none) and lean the frame before, carried on."""
+    turn's centre (the centripetal acceleration over gravity) less ``gentle`` (a gentle curve
+    leans none), within ``max_lean``, reached at most ``lean_rate`` radians a second. ``last``,
+    ``last_lean`` ``(C,)``: each one's yaw (NaN: none) and lean the frame before, carried on."""
     for c in range(yaw.shape[0]):
         prev, tilt = last[c], last_lean[c]
         for i in range(yaw.shape[1]):
@@ -463,7 +463,7 @@ def turn(yaw: Any, g: Any, off: int, fps: float, max_rate: float, max_lateral: f
             # Yaw grows turning from +Z toward +X, the left of a body facing +Z (Y up, right-handed),
             # where the turn's centre then is; a roll of +a about +Z tips the top toward -X.
             target = -math.atan(v * omega / 9.81)
-            target = min(max(target, -max_lean), max_lean)
+            target = min(max(target - gentle, 0.0), max_lean) + max(min(target + gentle, 0.0), -max_lean)
             step = lean_rate / fps
             tilt = tilt + min(max(target - tilt, -step), step)
             yaw[c, i] = want

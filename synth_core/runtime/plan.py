@@ -85,8 +85,12 @@ MAX_LATERAL = 2.5 * 9.81  # m/s^2
 # Turning, the body leans into the turn: rolled by atan(v omega / g) (the centripetal acceleration
 # over gravity, as a runner or a bike leans), at most MAX_LEAN (a galloping horse's tightest turns
 # lean about 20 deg), reached at most LEAN_RATE (a body rolls over in a few strides, not a frame).
+# Gentle curves lean none: the lean is atan(v omega / g) less GENTLE_LEAN (so it grows from 0 as a
+# turn tightens; a herd's meandering paths leant a degree, which changed nothing a viewer sees
+# but the plants' IK).
 MAX_LEAN = float(np.radians(20.0))  # rad
 LEAN_RATE = float(np.radians(90.0))  # rad/s
+GENTLE_LEAN = float(np.radians(3.0))  # rad
 LOOKAHEAD = 2  # segments: gaits are chosen on the speed this far ahead, as transitions take time
 DECISION_SHARE = 4  # gait decisions this many times a segment
 MAX_RATE = 1.6  # a gait asked to go faster than its fastest clip plays its stride up to this fast
@@ -278,7 +282,7 @@ class Headings:
             yaw = np.asarray(np.where(np.isnan(yaw[:, :1]), facing[:, None], yaw))
         yaw = np.ascontiguousarray(yaw)
         lean = np.empty_like(yaw)
-        self.kernels.turn(yaw, ground, off, fps, MAX_YAW_RATE, MAX_LATERAL, MAX_LEAN, LEAN_RATE,
+        self.kernels.turn(yaw, ground, off, fps, MAX_YAW_RATE, MAX_LATERAL, MAX_LEAN, LEAN_RATE, GENTLE_LEAN,
                           self.last_yaw, self.last_lean, lean)
         return yaw, lean
 
