@@ -56,7 +56,7 @@ from synth_core.compiled.vec_kernels import (
     vscale,
     vsub,
 )
-from synth_core.runtime.footlock import MAX_SINK, PAD, REACH, TERRAIN_MAX_SINK, hip_half_width
+from synth_core.runtime.footlock import MAX_SINK, PAD, REACH, TERRAIN_MAX_SINK
 
 if TYPE_CHECKING:
     from synth_core.runtime.bank import Bank
@@ -83,7 +83,7 @@ _prange: Any = numba.prange if AVAILABLE else range
 
 @_jit()
 def _assemble(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, yaw: Any, lean: Any, path: Any,
-              h: float, width: float, out_rot: Any, out_root: Any) -> None:
+              h: float, out_rot: Any, out_root: Any) -> None:
     """Pass 1 without FK: blended, turned, warped pose of each frame of one character.
     ``poses (K, 4, J)``: the pose table components first (see :func:`nlerp_into`); the frame is
     blended that way and written out as xyzw rows (``out_rot (T, J, 4)``)."""
@@ -116,9 +116,7 @@ def _assemble(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, yaw:
         else:
             put(frame[0], qmul((0.0, sh, 0.0, ch), q4(frame[0])))
         out_root[t, 0] = path[t, 0] + 2.0 * sh * ch * sg * h
-        # Leant, the root lowered as far as the outer hip rises (``width``: footlock.hip_half_width):
-        # about the root, the outer legs' plants were out of reach (hooves 1-6 cm up while planted).
-        out_root[t, 1] = path[t, 1] + (ht - width * abs(math.sin(lean[t]))) * h
+        out_root[t, 1] = path[t, 1] + ht * h
         out_root[t, 2] = path[t, 2] + (ch * ch - sh * sh) * sg * h
 
 
@@ -132,7 +130,7 @@ def lean_tilt(yaw: float, lean: float) -> Any:
 @_jit()
 def _character(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, yaw: Any, lean: Any, path: Any,
                     h: float, contacts: Any, parents: Any, offsets: Any, fk_joints: Any, rigs: Any,
-                    bends: Any, sink_limit: float, width: float, foot_lock: bool, out_rot: Any, out_root: Any,
+                    bends: Any, sink_limit: float, foot_lock: bool, out_rot: Any, out_root: Any,
                     world: Any, feet: Any, legs: Any, targets: Any, sink: Any, eased: Any,
                     keep_from: int, keep_to: int, known_feet: Any, known: int, recent: Any,
                     recent_known: bool, tilt: Any, tilt_at: int, heights: Any, ground_x0: float,
@@ -161,7 +159,7 @@ def _character(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, yaw
         legs[s:a] = recent
     else:
         s = a = max(min(known, keep_from - PAD), 0)
-    _assemble(poses, height, surge, rows[a:], weights[a:], yaw[a:], lean[a:], path[a:], h, width, out_rot[a:],
+    _assemble(poses, height, surge, rows[a:], weights[a:], yaw[a:], lean[a:], path[a:], h, out_rot[a:],
               out_root[a:])
     if terrain:
         for t in range(a, T):
@@ -225,7 +223,7 @@ def _character(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, yaw
 @_jit(parallel=True)
 def _render_all(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, yaw: Any, lean: Any, path: Any,
                 scales: Any, contacts: Any, parents: Any, offsets: Any, fk_joints: Any, rigs: Any,
-                bends: Any, sink_limit: float, width: float, foot_lock: bool, out_rot: Any, out_root: Any,
+                bends: Any, sink_limit: float, foot_lock: bool, out_rot: Any, out_root: Any,
                 w_world: Any, w_feet: Any, w_legs: Any, w_targets: Any, w_sink: Any, w_eased: Any,
                 tilt: Any, heights: Any, ground_x0: float, ground_z0: float, spacing: float) -> None:
     """``w_*``: one working set per worker (first axis), reused for its characters: a fresh
@@ -240,7 +238,7 @@ def _render_all(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, ya
         for c in range(worker, C, workers):
             own_tilt = tilt[c] if heights.shape[0] > 0 else tilt[0]
             _character(poses, height, surge, rows[c], weights[c], yaw[c], lean[c], path[c], scales[c],
-                       contacts[c], parents, offsets, fk_joints, rigs, bends, sink_limit, width, foot_lock,
+                       contacts[c], parents, offsets, fk_joints, rigs, bends, sink_limit, foot_lock,
                        out_rot[c], out_root[c], world, feet, legs, targets, sink, eased, 0,
                        out_rot.shape[1], none_known, 0, recent, False, own_tilt, 0, heights, ground_x0,
                        ground_z0, spacing)
@@ -249,7 +247,7 @@ def _render_all(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, ya
 @_jit(parallel=True)
 def _render_windows(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, yaw: Any, lean: Any,
                     path: Any, scales: Any, contacts: Any, parents: Any, offsets: Any, fk_joints: Any,
-                    rigs: Any, bends: Any, sink_limit: float, width: float, foot_lock: bool, workers: int,
+                    rigs: Any, bends: Any, sink_limit: float, foot_lock: bool, workers: int,
                     begin: Any, end: Any, start: int, out_rot: Any, out_root: Any, tilt: Any, heights: Any,
                     ground_x0: float, ground_z0: float, spacing: float, known_feet: Any, known: Any,
                     known_legs: Any, legs_at: Any, c0: int, c1: int) -> None:
@@ -284,7 +282,7 @@ def _render_windows(poses: Any, height: Any, surge: Any, rows: Any, weights: Any
             own_legs = known_legs[c] if keep else no_recent
             made = _character(poses, height, surge, rows[c, b:e], weights[c, b:e], yaw[c, b:e], lean[c, b:e],
                               path[c, b:e], scales[c], contacts[c, b:e], parents, offsets, fk_joints, rigs,
-                              bends, sink_limit, width, foot_lock, rot[:k], root[:k], world, feet[:k],
+                              bends, sink_limit, foot_lock, rot[:k], root[:k], world, feet[:k],
                               legs[:k], targets[:k], sink[:k], eased[:k], start - b, start - b + n,
                               known_feet[b:e, c], kn, own_legs, recent_known,
                               own_tilt, b, heights, ground_x0,
@@ -362,11 +360,11 @@ def _plan_arrays(plan: Plan) -> tuple[Any, Any, Any, Any, Any, Any, Any]:
 
 
 @functools.lru_cache(maxsize=8)
-def _bank_tables(bank: Bank) -> tuple[tuple[Any, Any, Any], tuple[Any, Any, Any, Any, Any, float, float]]:
+def _bank_tables(bank: Bank) -> tuple[tuple[Any, Any, Any], tuple[Any, Any, Any, Any, Any, float]]:
     """The bank's arrays as the kernels take them (made once per bank: a small batch's call
     would otherwise spend a third of its time here): (pose table, heights, surges) and (parents,
     offsets, the joints above the feet (FK needs no others), the legs' rig table, bend axes,
-    the sink limit, the hips' half width: footlock.hip_half_width)."""
+    the sink limit)."""
     sk = bank.skeleton
     rigs = limb_rigs(sk)
     rig_table = np.array([[r.upper, r.hinge, r.ankle, r.effector] for r in rigs], np.int64)
@@ -380,16 +378,16 @@ def _bank_tables(bank: Bank) -> tuple[tuple[Any, Any, Any], tuple[Any, Any, Any,
     return ((poses, bank.height.astype(np.float64), bank.surge.astype(np.float64)),
             (sk.parents.astype(np.int64), sk.offsets.astype(np.float64),
              np.flatnonzero(needed).astype(np.int64), rig_table, np.asarray(bank.bends, np.float64),
-             MAX_SINK * sk.leg_length(), hip_half_width(sk)))
+             MAX_SINK * sk.leg_length()))
 
 
 def _sink_limit(bank: Bank, ground: Grounding | None
-                ) -> tuple[tuple[Any, Any, Any], tuple[Any, Any, Any, Any, Any, float, float]]:
+                ) -> tuple[tuple[Any, Any, Any], tuple[Any, Any, Any, Any, Any, float]]:
     """:func:`_bank_tables`, the sink limit that on a terrain (footlock.TERRAIN_MAX_SINK)."""
     table, skeleton = _bank_tables(bank)
     if ground is None:
         return table, skeleton
-    return table, (*skeleton[:5], TERRAIN_MAX_SINK * bank.skeleton.leg_length(), skeleton[6])
+    return table, (*skeleton[:5], TERRAIN_MAX_SINK * bank.skeleton.leg_length())
 
 
 # Parts of a shared window's characters (see render_window): enough that a thread done with its own

@@ -41,17 +41,6 @@ EASE_FRAMES = 9
 PAD = EASE_FRAMES // 2 + int(4.0 * EASE_FRAMES / 6 + 0.5)
 
 
-def hip_half_width(skeleton: Skeleton) -> float:
-    """The legs' upper joints' widest distance sideways (X) from the root, in the rest pose: how
-    far the outer hip rises per unit sine of a lean (the root lowered by that much keeps the outer
-    legs' plants within reach; the foot lock's sink is capped well below it)."""
-    rest = np.zeros((1, skeleton.n_joints, 4))
-    rest[..., 3] = 1.0
-    pos, _ = forward_kinematics(skeleton, np.zeros((1, 3)), rest)
-    upper = [r.upper for r in ik.limb_rigs(skeleton)]
-    return float(np.abs(np.asarray(pos, np.float64)[0, upper, 0] - np.asarray(pos)[0, 0, 0]).max())
-
-
 def plant_targets(feet: NDArray[np.floating], contacts: NDArray[np.bool_]) -> Floats:
     """Foot targets ``(C, T, 4, 3)`` from positions ``feet (C, T, 4, 3)`` and ``contacts (C, T, 4)``."""
     C, T, n_feet = contacts.shape

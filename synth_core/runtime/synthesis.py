@@ -33,7 +33,7 @@ from synth_core.compiled.scratch import Scratch
 from synth_core.motion import quat
 from synth_core.runtime.bank import Bank
 from synth_core.runtime.draws import SCALE_STREAM, TEMPO_STREAM, character_keys, uniform
-from synth_core.runtime.footlock import hip_half_width, lock_feet
+from synth_core.runtime.footlock import lock_feet
 from synth_core.runtime.plan import MARGIN, MAX_RATE, N_HUBS, Plan, headings, plan
 from synth_core.runtime.terrain import Grounding, HeightField, along_ground, ground_plan
 from synth_core.runtime.trajectory import DEFAULT_SIGMA, Prepared, TrajectoryError, prepare
@@ -139,9 +139,7 @@ def render(bank: Bank, p: Plan, foot_lock: bool = True,
     h = p.scales[:, None]
     forward = np.stack([np.sin(p.yaw), np.zeros_like(p.yaw), np.cos(p.yaw)], axis=-1)
     root = p.path + forward * (surge * h)[..., None]
-    # Leant, the root lowered as far as the outer hip rises (see kernels._assemble).
-    drop = hip_half_width(bank.skeleton) * np.abs(np.sin(p.lean))
-    root[..., UP_AXIS] = p.path[..., UP_AXIS] + (height - drop) * h
+    root[..., UP_AXIS] = p.path[..., UP_AXIS] + height * h
     turn = quat.from_axis_angle(np.array([0.0, 1.0, 0.0]), p.yaw)
     roll = quat.from_axis_angle(np.array([0.0, 0.0, 1.0]), p.lean)  # about its forward axis
     rotations[:, :, 0] = quat.mul(quat.mul(turn, roll).astype(np.float32), rotations[:, :, 0])
