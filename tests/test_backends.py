@@ -199,11 +199,11 @@ def test_planner_blocks_and_state_are_the_references(bank: Bank) -> None:
             out = empty_plan(C, -(-t1 // 2) - -(-t0 // 2), h)
             planner.advance(t0, v[:, t0:t1], prep.positions[:, t0:t1 + 1], decisions, out, 2)
             lo = max(t0 - 1, 0)
-            yaw = headings[name].advance(ground[:, lo:t1 + 1], t0 - lo, t1 - t0, bank.fps, np.zeros(C),
-                                         ahead=lambda who, lo=lo: ground[who, lo:])  # type: ignore[misc]
-            outs[name] = (out, yaw)
+            turned = headings[name].advance(ground[:, lo:t1 + 1], t0 - lo, t1 - t0, bank.fps, np.zeros(C),
+                                            ahead=lambda who, lo=lo: ground[who, lo:])  # type: ignore[misc]
+            outs[name] = (out, turned)
         for f in fields(Plan):
-            if f.name not in ("scales", "yaw", "path"):
+            if f.name not in ("scales", "yaw", "lean", "path"):  # yaw and lean: from Headings
                 assert np.array_equal(getattr(outs["numba"][0], f.name), getattr(outs["numpy"][0], f.name))
         assert np.array_equal(outs["numba"][1], outs["numpy"][1])
         assert np.array_equal(planners["numba"].ints, planners["numpy"].ints)

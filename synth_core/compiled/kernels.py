@@ -81,7 +81,7 @@ WHOLE_PLANT = 1 << 62  # plant_frames: a plant's target averages all its frames
 # --- the four passes ---------------------------------------------------------------------------
 
 @_jit()
-def _assemble(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, yaw: Any, path: Any,
+def _assemble(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, yaw: Any, lean: Any, path: Any,
               h: float, out_rot: Any, out_root: Any) -> None:
     """Pass 1 without FK: blended, turned, warped pose of each frame of one character.
     ``poses (K, 4, J)``: the pose table components first (see :func:`nlerp_into`); the frame is
@@ -108,7 +108,11 @@ def _assemble(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, yaw:
             for k in range(4):
                 frame[j, k] = pose[k, j]
         sh, ch = _put_root(ht, sg, yaw[t], path[t], h, out_root[t])
-        put(frame[0], qmul((0.0, sh, 0.0, ch), q4(frame[0])))
+        if lean[t] != 0.0:  # turned, then rolled about its forward axis: (yaw about Y) (lean about Z)
+            sr, cr = math.sin(0.5 * lean[t]), math.cos(0.5 * lean[t])
+            put(frame[0], qmul((sh * sr, sh * cr, ch * sr, ch * cr), q4(frame[0])))
+        else:
+            put(frame[0], qmul((0.0, sh, 0.0, ch), q4(frame[0])))
 
 
 @_jit()
@@ -139,7 +143,14 @@ def _root_only(height: Any, surge: Any, rows: Any, weights: Any, yaw: Any, path:
 
 
 @_jit()
-def _character(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, yaw: Any, path: Any,
+def lean_tilt(yaw: float, lean: float) -> Any:
+    """The world rotation of a lean: ``lean`` about the forward axis of heading ``yaw``."""
+    sr, cr = math.sin(0.5 * lean), math.cos(0.5 * lean)
+    return (math.sin(yaw) * sr, 0.0, math.cos(yaw) * sr, cr)
+
+
+@_jit()
+def _character(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, yaw: Any, lean: Any, path: Any,
                     h: float, contacts: Any, parents: Any, offsets: Any, fk_joints: Any, rigs: Any,
                     bends: Any, sink_limit: float, foot_lock: bool, out_rot: Any, out_root: Any,
                     world: Any, feet: Any, legs: Any, targets: Any, sink: Any, eased: Any,
@@ -177,7 +188,8 @@ def _character(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, yaw
         legs[s:a] = recent
     else:
         s = a = max(min(known, keep_from - PAD), 0)
-    _assemble(poses, height, surge, rows[a:], weights[a:], yaw[a:], path[a:], h, out_rot[a:], out_root[a:])
+    _assemble(poses, height, surge, rows[a:], weights[a:], yaw[a:], lean[a:], path[a:], h, out_rot[a:],
+              out_root[a:])
     if terrain:
         for t in range(a, T):
             put(out_rot[t, 0], qmul(q4(tilt[tilt_at + t]), q4(out_rot[t, 0])))
@@ -193,12 +205,16 @@ def _character(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, yaw
             up, hi, an, ef = rigs[f, 0], rigs[f, 1], rigs[f, 2], rigs[f, 3]
             p_up, p_hi = world_position(world, up, t - o), world_position(world, hi, t - o)
             p_an, p_ef = world_position(world, an, t - o), world_position(world, ef, t - o)
-            if terrain:  # as the leg hangs untilted, above the body's ground (see the doc)
+            if terrain or lean[t] != 0.0:  # as the leg hangs untilted, unleaned (see the doc)
                 r = vscale(v3(out_root[t]), 1.0 / h)
-                q = q4(tilt[tilt_at + t])
+                q = lean_tilt(yaw[t], lean[t])
+                if terrain:
+                    q = qmul(q4(tilt[tilt_at + t]), q)
                 p = vadd(r, qrot(conj(unit4((q[0], q[1], q[2], q[3] + 1.0))), vsub(p_ef, r)))
                 y = r[1] + qrot(conj(q), vsub(p_ef, r))[1]
-                feet[t, f, 0], feet[t, f, 1], feet[t, f, 2] = p[0], y - path[t, 1] / h, p[2]
+                # On a terrain above the body's ground (ground_targets puts it on the terrain).
+                y = y - path[t, 1] / h if terrain else y
+                feet[t, f, 0], feet[t, f, 1], feet[t, f, 2] = p[0], y, p[2]
             else:
                 feet[t, f, 0], feet[t, f, 1], feet[t, f, 2] = p_ef
             leg = legs[t, f]
@@ -234,7 +250,7 @@ def _character(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, yaw
 
 
 @_jit(parallel=True)
-def _render_all(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, yaw: Any, path: Any,
+def _render_all(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, yaw: Any, lean: Any, path: Any,
                 scales: Any, contacts: Any, parents: Any, offsets: Any, fk_joints: Any, rigs: Any,
                 bends: Any, sink_limit: float, foot_lock: bool, out_rot: Any, out_root: Any,
                 w_world: Any, w_feet: Any, w_legs: Any, w_targets: Any, w_sink: Any, w_eased: Any,
@@ -250,7 +266,7 @@ def _render_all(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, ya
         recent = np.empty((PAD, 4, LEG_WIDTH))
         for c in range(worker, C, workers):
             own_tilt = tilt[c] if heights.shape[0] > 0 else tilt[0]
-            _character(poses, height, surge, rows[c], weights[c], yaw[c], path[c], scales[c],
+            _character(poses, height, surge, rows[c], weights[c], yaw[c], lean[c], path[c], scales[c],
                        contacts[c], parents, offsets, fk_joints, rigs, bends, sink_limit, foot_lock,
                        out_rot[c], out_root[c], world, feet, legs, targets, sink, eased, 0,
                        out_rot.shape[1], none_known, 0, recent, False, own_tilt, 0, heights, ground_x0,
@@ -258,12 +274,12 @@ def _render_all(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, ya
 
 
 @_jit(parallel=True)
-def _render_windows(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, yaw: Any, path: Any,
-                    scales: Any, contacts: Any, parents: Any, offsets: Any, fk_joints: Any, rigs: Any,
-                    bends: Any, sink_limit: float, foot_lock: bool, workers: int, begin: Any, end: Any,
-                    start: int, out_rot: Any, out_root: Any, tilt: Any, heights: Any, ground_x0: float,
-                    ground_z0: float, spacing: float, pose: Any, known_feet: Any, known: Any,
-                    known_legs: Any, legs_at: Any, plant_frames: int, c0: int, c1: int) -> None:
+def _render_windows(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, yaw: Any, lean: Any,
+                    path: Any, scales: Any, contacts: Any, parents: Any, offsets: Any, fk_joints: Any,
+                    rigs: Any, bends: Any, sink_limit: float, foot_lock: bool, workers: int,
+                    begin: Any, end: Any, start: int, out_rot: Any, out_root: Any, tilt: Any, heights: Any,
+                    ground_x0: float, ground_z0: float, spacing: float, pose: Any, known_feet: Any,
+                    known: Any, known_legs: Any, legs_at: Any, plant_frames: int, c0: int, c1: int) -> None:
     """Frames ``[start, start + out.shape[1])`` of characters ``[c0, c1)``, each rendered over
     its own context ``[begin[c], end[c])`` of the plan (see :func:`render_window`);
     ``known_feet (T, C, 4, 3)`` (or none: ``(0, C, 4, 3)``), ``known``, ``known_legs``,
@@ -301,10 +317,10 @@ def _render_windows(poses: Any, height: Any, surge: Any, rows: Any, weights: Any
             recent_known = keep and legs_at[c] == start and start - b >= PAD and kn >= start - b
             own_tilt = tilt[c] if heights.shape[0] > 0 else tilt[0]
             own_legs = known_legs[c] if keep else no_recent
-            made = _character(poses, height, surge, rows[c, b:e], weights[c, b:e], yaw[c, b:e],
+            made = _character(poses, height, surge, rows[c, b:e], weights[c, b:e], yaw[c, b:e], lean[c, b:e],
                               path[c, b:e], scales[c], contacts[c, b:e], parents, offsets, fk_joints, rigs,
-                              bends, sink_limit, foot_lock, rot[:k], root[:k], world, feet[:k], legs[:k],
-                              targets[:k], sink[:k], eased[:k], start - b, start - b + n,
+                              bends, sink_limit, foot_lock, rot[:k], root[:k], world, feet[:k],
+                              legs[:k], targets[:k], sink[:k], eased[:k], start - b, start - b + n,
                               known_feet[b:e, c], kn, own_legs, recent_known,
                               own_tilt, b, heights, ground_x0,
                               ground_z0, spacing, plant_frames)
@@ -340,15 +356,15 @@ def _terrain_arrays(ground: Grounding | None) -> tuple[Any, Any, float, float, f
             f.origin[0], f.origin[1], f.spacing)
 
 
-def _plan_arrays(plan: Plan) -> tuple[Any, Any, Any, Any, Any, Any]:
-    """rows, weights, yaw, path, scales, contacts: C-contiguous, whatever view the plan holds.
+def _plan_arrays(plan: Plan) -> tuple[Any, Any, Any, Any, Any, Any, Any]:
+    """rows, weights, yaw, lean, path, scales, contacts: C-contiguous, whatever view the plan holds.
 
     One memory layout, so each kernel is compiled once: numba compiles a view ('A' layout) and a
     contiguous array ('C') separately, and fastmath code for the two may round differently --
     a window of a batch would then differ from the whole in the last bits."""
     c = np.ascontiguousarray
-    return (c(plan.rows), c(plan.weights), c(plan.yaw), c(plan.path), c(plan.scales, np.float64),
-            c(plan.contacts))
+    return (c(plan.rows), c(plan.weights), c(plan.yaw), c(plan.lean, np.float64), c(plan.path),
+            c(plan.scales, np.float64), c(plan.contacts))
 
 
 @functools.lru_cache(maxsize=8)

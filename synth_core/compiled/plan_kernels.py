@@ -13,7 +13,8 @@ Every frame ``t`` of a character, in this order (Sung 2011 section 6, steps 1-2;
 4. a change waits for the gait's stride clock to reach the transition's entry phase: the
    transition starts at the first frame where it has;
 5. the frame's table rows: the piece playing at its clip frame (the stride clock since it started)
-   and, over ``margin`` frames after a start, the piece before it fading out;
+   and, over ``margin`` frames after a start, the piece before it fading out (itself still over
+   the one before it, where it had started within the margin: :func:`_start`);
 6. every kind's stride clock, the distance walked and how long the path has stood still move on
    to the next frame.
 
@@ -57,7 +58,11 @@ TO = 10
 RESUME = 11
 ASKED = 12  # a change asked of a character not free (-1: none), valid before frame ASKED_UNTIL
 ASKED_UNTIL = 13
-N_INTS = 14
+PREV_START = 14  # the frame the piece before started (its own fade over OLD ran from there)
+OLD_KIND = 15  # a piece still fading out under the one before, when the one playing started
+OLD_FIRST = 16  # within the margin of the one before's start (HAS_OLD): see _start
+HAS_OLD = 17
+N_INTS = 18
 # ... and float64 fields
 CLOCK0 = 0  # the piece playing's kind's clock at its start, and the distance travelled there (over h)
 TRAV0 = 1
@@ -65,7 +70,8 @@ PREV_CLOCK0 = 2
 DUE = 3  # the stride clock (of FROM) at which the transition may start
 WALKED = 4  # distance along the path (unscaled) at the next frame
 STILL = 5  # frames the path has stood still (each step under ``still_step``) by the next frame
-CLOCKS = 6  # + kind row (hubs, then every transition's: time): stride frames played by the next frame
+OLD_CLOCK0 = 6
+CLOCKS = 7  # + kind row (hubs, then every transition's: time): stride frames played by the next frame
 FREE, WAITING, MOVING = 0, 1, 2
 
 
@@ -163,10 +169,31 @@ def _row(kind: int, local: int, speed: float, walked: float, has_walked: bool, o
 
 
 @jit(inline="always")
-def _start(s: Any, f: Any, kind: int, first: int, t: int, clock0: float, travelled: float) -> None:
-    """Piece ``kind`` starts at frame t at clip frame ``first``: the one playing fades out."""
+def _fade(since: int, margin: int) -> float:
+    """The share left of a piece fading out ``since`` frames after the next one started (1 -
+    smoothstep over ``margin`` frames; 0 once they are over)."""
+    if since >= margin:
+        return 0.0
+    u = (since + 1) / (margin + 1)
+    return 1 - u * u * (3 - 2 * u)
+
+
+@jit(inline="always")
+def _start(s: Any, f: Any, kind: int, first: int, t: int, clock0: float, travelled: float,
+           margin: int) -> None:
+    """Piece ``kind`` starts at frame t at clip frame ``first``: the one playing fades out.
+
+    If the one playing started less than ``margin`` frames ago, the one before it still shows
+    (fading out under it): it is not dropped, or it would vanish in one frame (a piece that
+    lasts a few frames between two transitions: hooves jumped 25-38 cm). Of those two, the one
+    showing more keeps fading out (OLD) under the one playing, which fades out in turn: the pose
+    fading out is their blend, as it was shown (see _frame_rows)."""
+    fading = s[HAS_PREV] == 1 and t - s[START] < margin
+    if fading and not (s[HAS_OLD] == 1 and _fade(t - s[PREV_START], margin) > 0.5):
+        s[OLD_KIND], s[OLD_FIRST], f[OLD_CLOCK0] = s[PREV_KIND], s[PREV_FIRST], f[PREV_CLOCK0]
+    s[HAS_OLD] = 1 if fading else 0
     s[PREV_KIND], s[PREV_FIRST], f[PREV_CLOCK0] = s[KIND], s[FIRST], f[CLOCK0]
-    s[HAS_PREV] = 1
+    s[HAS_PREV], s[PREV_START] = 1, s[START]
     s[KIND], s[FIRST], s[START] = kind, first, t
     f[CLOCK0], f[TRAV0] = clock0, travelled
 
@@ -189,7 +216,7 @@ def _change(s: Any, f: Any, new: int, frames_of: Any, tr_kind: Any, entry: Any, 
 
 @jit(inline="always")
 def _settle(s: Any, f: Any, t: int, travelled: float, cyclic: Any, curve_at: Any, curves: Any,
-            creep: float) -> None:
+            creep: float, margin: int) -> None:
     """A stopped character settles: the idle takes over at frame t, the piece playing (a gait, or
     a transition that does not leave standing) fading out from where it is -- a transition from
     the frame it shows, held. Stopped: slower than the slowest gait goes, or its path still for
@@ -201,7 +228,7 @@ def _settle(s: Any, f: Any, t: int, travelled: float, cyclic: Any, curve_at: Any
         at, n = curve_at[s[KIND], 0], curve_at[s[KIND], 1]
         walked = (travelled - f[TRAV0]) + creep * float(t - s[START])
         held = min(int(math.floor(_interp(walked, curves, at, n))), n - 1)
-    _start(s, f, STATIC, 0, t, f[CLOCKS + STATIC], travelled)
+    _start(s, f, STATIC, 0, t, f[CLOCKS + STATIC], travelled, margin)
     if held >= 0:
         s[PREV_FIRST] = held
     s[STAGE], s[CURRENT], s[ASKED] = FREE, STATIC, -1
@@ -253,27 +280,43 @@ def _tween(kind: int, d: float, local: int, speed: float, offset: Any, frames_of
     weights[o, 2] = abs(d)
 
 
-@jit(inline="always")
-def _frame_rows(kind: int, local: int, walked: float, since: int, p_kind: int, p_local: int, v: float,
-                offset: Any, frames_of: Any, clips: Any, cyclic: Any, source: Any, target: Any, curve_at: Any,
-                curves: Any, contacts_of: Any, margin: int, o: int, rows: Any, weights: Any,
-                contacts: Any) -> int:
+def _frame_rows(kind: int, local: int, walked: float, since: int, p_kind: int, p_local: int, o_kind: int,
+                o_local: int, o_keep: float, v: float, offset: Any, frames_of: Any, clips: Any, cyclic: Any,
+                source: Any, target: Any, curve_at: Any, curves: Any, contacts_of: Any, margin: int, o: int,
+                rows: Any, weights: Any, contacts: Any) -> int:
     """A frame's rows, weights and contacts (into row ``o`` of the outputs): the piece ``kind`` at
     clip frame ``local`` (``walked`` since it started ``since`` frames ago), and unless ``p_local``
-    is -1, the piece before it (``p_kind`` at ``p_local``) fading out; returns the frame's gait."""
+    is -1, the piece before it (``p_kind`` at ``p_local``) fading out -- itself over the one before
+    it (``o_kind`` at ``o_local``, share ``o_keep``) unless ``o_local`` is -1; returns the
+    frame's gait."""
     r0, r1, w = _row(kind, local, v, walked, True, offset, frames_of, clips, cyclic, curve_at, curves)
     rows[o, 0], rows[o, 1], weights[o, 0] = r0, r1, w
     rows[o, 2], rows[o, 3], weights[o, 1] = r0, r1, w
     weights[o, 2] = 0.0
     if p_local >= 0:
         p0, p1, pw = _row(p_kind, p_local, v, 0.0, False, offset, frames_of, clips, cyclic, curve_at, curves)
-        u = (since + 1) / (margin + 1)
+        if o_local >= 0:  # two pieces fading out, in the one pair of rows the render blends: each
+            # by its nearer row (neighbouring speed clips or frames: millimetres apart)
+            q0, q1, qw = _row(o_kind, o_local, v, 0.0, False, offset, frames_of, clips, cyclic, curve_at,
+                              curves)
+            p0 = p1 if pw >= 0.5 else p0
+            p1 = q1 if qw >= 0.5 else q0
+            pw = o_keep
         rows[o, 2], rows[o, 3], weights[o, 1] = p0, p1, pw
-        weights[o, 2] = 1 - u * u * (3 - 2 * u)  # smoothstep out
+        weights[o, 2] = _fade(since, margin)  # smoothstep out
     for foot in range(4):
         contacts[o, foot] = contacts_of[r0, foot]
     first_half = (r0 - offset[kind]) < frames_of[kind] // 2  # a transition: the hub it leaves, then
     return int(source[kind] if first_half else target[kind])  # the one it reaches
+
+
+@jit(inline="always")
+def _local(first: int, kind: int, clock: float, clock0: float, cyclic: Any) -> int:
+    """The clip frame a piece that started at clip frame ``first`` shows: a gait's runs on with
+    its stride clock (``clock0`` at its start), a transition fading out holds its frame."""
+    if not cyclic[kind]:
+        return first
+    return int(math.floor(first + clock - clock0 + 0.5))
 
 
 @jit()
@@ -299,13 +342,13 @@ def _character(t0: int, v: Any, pts: Any, h: float, tempo: float, asked_speed: A
         if s[STAGE] == MOVING and t > s[START] and (
                 (travelled - f[TRAV0]) + creep * float(t - s[START]) >= total[s[KIND]]):
             to = s[TO]
-            _start(s, f, to, s[RESUME], t, f[CLOCKS + min(to, n_hubs)], travelled)
+            _start(s, f, to, s[RESUME], t, f[CLOCKS + min(to, n_hubs)], travelled, margin)
             s[PREV_FIRST] = HELD  # the finished transition fades out from its last frame
             s[STAGE], started = FREE, True
             if s[ASKED] >= 0 and t < s[ASKED_UNTIL]:  # asked before, for as it ends
                 _change(s, f, s[ASKED], frames_of, tr_kind, entry, exit_)
         if (v[i] < low[slowest] or f[STILL] >= still_frames) and source[s[KIND]] != STATIC:
-            _settle(s, f, t, travelled, cyclic, curve_at, curves, creep)
+            _settle(s, f, t, travelled, cyclic, curve_at, curves, creep, margin)
             started = True
         if t == ask:
             if 0 <= k < asked_speed.shape[0]:
@@ -316,24 +359,29 @@ def _character(t0: int, v: Any, pts: Any, h: float, tempo: float, asked_speed: A
                 elif nxt != s[CURRENT]:
                     s[ASKED], s[ASKED_UNTIL] = nxt, t + step
             ask, k = ask + step, k + 1
-        if s[STAGE] == WAITING and f[CLOCKS + s[FROM]] >= f[DUE]:
-            _start(s, f, s[TRANSITION], 0, t, float(t), travelled)  # a transition's clock is time
+        # Leaving a stand waits for the path to move: chosen on the speed ahead, the static ->
+        # walk transition (which plays by distance) stepped in place with a hoof up for up to a
+        # second before (turn_on_spot: 32 cm, highest still foot).
+        if s[STAGE] == WAITING and f[CLOCKS + s[FROM]] >= f[DUE] and not (s[FROM] == STATIC and f[STILL] > 0):
+            _start(s, f, s[TRANSITION], 0, t, float(t), travelled, margin)  # a transition's clock is time
             s[STAGE], started = MOVING, True
         if t == sent:
             kind, pk, since = s[KIND], s[PREV_KIND], t - s[START]
             local = int(math.floor(s[FIRST] + f[CLOCKS + min(kind, n_hubs)] - f[CLOCK0] + 0.5))
-            p_local = -1  # the piece before, fading out over the margin after a start (-1: none)
+            p_local, o_local, o_keep = -1, -1, 0.0  # the pieces before, fading out (-1: none)
             if s[HAS_PREV] and since < margin:
-                p_local = s[PREV_FIRST] if not cyclic[pk] else int(
-                    math.floor(s[PREV_FIRST] + f[CLOCKS + min(pk, n_hubs)] - f[PREV_CLOCK0] + 0.5))
+                p_local = _local(s[PREV_FIRST], pk, f[CLOCKS + min(pk, n_hubs)], f[PREV_CLOCK0], cyclic)
+                o_keep = _fade(t - s[PREV_START], margin) if s[HAS_OLD] else 0.0
+                if o_keep > 0:
+                    ok = s[OLD_KIND]
+                    o_local = _local(s[OLD_FIRST], ok, f[CLOCKS + min(ok, n_hubs)], f[OLD_CLOCK0], cyclic)
             walked_since = (travelled - f[TRAV0]) + creep * local
-            gait[o] = _frame_rows(kind, local, walked_since, since, pk, p_local, v[i], offset,
-                                  frames_of, clips, cyclic, source, target, curve_at, curves, contacts_of,
-                                  margin, o, rows, weights, contacts)
-            if p_local < 0 and cyclic[kind]:
-                clock = s[FIRST] + f[CLOCKS + min(kind, n_hubs)] - f[CLOCK0]
-                _tween(kind, clock - local, local, v[i], offset, frames_of, clips, cyclic, curve_at, curves,
-                       contacts_of, o, rows, weights)
+            gait[o] = _frame_rows(kind, local, walked_since, since, pk, p_local, s[OLD_KIND], o_local, o_keep,
+                                  v[i], offset, frames_of, clips, cyclic, source, target, curve_at, curves,
+                                  contacts_of, margin, o, rows, weights, contacts)
+            if p_local < 0 and cyclic[kind]:  # the stride clock between two clip frames
+                _tween(kind, s[FIRST] + f[CLOCKS + min(kind, n_hubs)] - f[CLOCK0] - local, local, v[i],
+                       offset, frames_of, clips, cyclic, curve_at, curves, contacts_of, o, rows, weights)
             stitches[o] = started and t >= 1
             sent, o = sent + out_step, o + 1
         _tick(f, t, v[i], tempo, high, max_rate, slowest, slow, share)
@@ -412,6 +460,44 @@ def headings(g: Any, off: int, ends: bool, fps: float, min_speed: float, last_di
 
 
 @jit()
+def turn(yaw: Any, g: Any, off: int, fps: float, max_rate: float, max_lateral: float, max_lean: float,
+         lean_rate: float, gentle: float, last: Any, last_lean: Any, lean: Any) -> None:
+    """In place, each character's yaw ``(C, n)`` of frames ``[t0, t0 + n)`` turned toward the one
+    given by at most ``min(max_rate, max_lateral / v)`` radians a second, v its path's ground speed
+    there (``g (C, m, 2)`` holding frame t0 at ``off``, as for :func:`headings`): a body pivots
+    only so fast, and at speed turns no faster than its grip allows (v omega: the lateral
+    acceleration). ``lean (C, n)``: the body's roll into the turn, radians about its forward axis
+    (+Z turned by the yaw; positive: its top toward its right), atan(v omega / g) toward the
+    turn's centre (the centripetal acceleration over gravity) less ``gentle`` (a gentle curve
+    leans none), within ``max_lean``, reached at most ``lean_rate`` radians a second. ``last``,
+    ``last_lean`` ``(C,)``: each one's yaw (NaN: none) and lean the frame before, carried on."""
+    for c in range(yaw.shape[0]):
+        prev, tilt = last[c], last_lean[c]
+        for i in range(yaw.shape[1]):
+            want = yaw[c, i]
+            omega = 0.0
+            v = 0.0
+            if not math.isnan(prev):
+                dx, dz = _direction(g[c], off + i)
+                v = math.sqrt(dx * dx + dz * dz) * fps
+                cap = (max_rate if v * max_rate <= max_lateral else max_lateral / v) / fps
+                d = (want - prev + math.pi) % (2.0 * math.pi) - math.pi
+                d = min(max(d, -cap), cap)
+                want = (prev + d + math.pi) % (2.0 * math.pi) - math.pi
+                omega = d * fps
+            # Yaw grows turning from +Z toward +X, the left of a body facing +Z (Y up, right-handed),
+            # where the turn's centre then is; a roll of +a about +Z tips the top toward -X.
+            target = -math.atan(v * omega / 9.81)
+            target = min(max(target - gentle, 0.0), max_lean) + max(min(target + gentle, 0.0), -max_lean)
+            step = lean_rate / fps
+            tilt = tilt + min(max(target - tilt, -step), step)
+            yaw[c, i] = want
+            lean[c, i] = tilt
+            prev = want
+        last[c], last_lean[c] = prev, tilt
+
+
+@jit()
 def points_fine(last: Any, pts: Any, limit: float) -> bool:
     """Whether every point of ``pts (C, n, 3)`` is finite and within ``limit`` of the one before
     (``last (C, 3)``: each character's point before them; NaN: none)."""
@@ -436,10 +522,11 @@ class Kernels:
     name: str
     advance: Any  # see advance()
     headings: Any  # see headings()
+    turn: Any  # see turn()
     points_fine: Any  # see points_fine()
 
 
 _PLAIN = interpreted(globals())
-REFERENCE = Kernels("numpy", *(_PLAIN.get(name, globals()[name]) for name in ("advance", "headings",
+REFERENCE = Kernels("numpy", *(_PLAIN.get(name, globals()[name]) for name in ("advance", "headings", "turn",
                                                                               "points_fine")))
-COMPILED = Kernels("numba", advance, headings, points_fine) if AVAILABLE else REFERENCE
+COMPILED = Kernels("numba", advance, headings, turn, points_fine) if AVAILABLE else REFERENCE

@@ -386,13 +386,14 @@ class LiveSynth(LivePath):
         sent = slice(-t0 % k, t1 - t0, k)  # the block's frames sent (multiples of k)
         block = self.buffer.reserve_plan(-(-t1 // k) - -(-t0 // k))  # written in place
         self.planner.advance(t0, v, pts, decisions, block, k)
-        block.yaw[...] = self._headings(t0, t1)[:, sent]
+        yaw, lean = self._headings(t0, t1)
+        block.yaw[...], block.lean[...] = yaw[:, sent], lean[:, sent]
         block.path[...] = pts[:, sent]
         self.planned = t1
 
-    def _headings(self, t0: int, t1: int) -> Floats:
-        """(C, n) yaw of frames [t0, t1) (plan.Headings); a character standing until then faces
-        where it will first go if that is known yet, else ``heading``."""
+    def _headings(self, t0: int, t1: int) -> tuple[Floats, Floats]:
+        """(C, n) yaw and lean of frames [t0, t1) (plan.Headings); a character standing until then
+        faces where it will first go if that is known yet, else ``heading``."""
         lo = max(t0 - 1, 0)
         facing = np.full(len(self.scales), self.heading)
         ground = self._path(lo, t1 + 1)[..., GROUND]

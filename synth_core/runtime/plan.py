@@ -28,11 +28,19 @@ carries on across it. Within a gait every speed-map clip has the same frames and
 stride phase runs on (k clip frames per output frame, up to ``MAX_RATE`` faster above the fastest
 clip, down to ``STAND_SHARE`` below the slowest gait's slowest) and the speed only moves the pair
 of clips blended, ``M = (1 - a) M_i + a M_j``. Where a piece starts, the piece before it fades
-out over ``margin`` frames. A character whose path stops (slower than a standing one's, or still
-for ``STILL_S``) stands at once: the idle fades in over the margin, from whatever gait or
-transition played (issue 27: transitions play by distance, so the chain trot -> walk -> static
-on a stopped path took hundreds of frames, the animal frozen mid-stride); it leaves standing
-by the static -> walk transition, as from the start.
+out over ``margin`` frames; where it starts within the margin of the one before's start, what
+fades out is the blend shown (the one before over the one before that, each by its nearer row),
+so no piece vanishes in one frame (issue 27: 25-38 cm hoof jumps between two transitions). A
+character whose path stops (slower than a standing one's, or still for ``STILL_S``) stands at
+once: the idle fades in over the margin, from whatever gait or transition played (issue 27:
+transitions play by distance, so the chain trot -> walk -> static on a stopped path took hundreds
+of frames, the animal frozen mid-stride); it leaves standing by the static -> walk transition, as
+from the start, once its path moves (chosen on the speed ahead, the transition crept on the spot
+with a hoof up for as long as the path still stood).
+
+The heading follows the path's direction (:class:`Headings`), turning no faster than
+``MAX_YAW_RATE``, and at speed than ``MAX_LATERAL / v``: the root stays on the path, the body lags
+where the path turns faster.
 """
 
 from __future__ import annotations
@@ -66,6 +74,23 @@ STAND_SHARE = 0.08
 # or its held points would read as stops.
 STILL_S = 0.2
 MIN_TURN_SPEED = 0.05  # m/s: slower than this the heading holds (a standing animal does not spin)
+# The body turns toward the path's heading at most MAX_YAW_RATE (pivoting, and at a walk: a horse
+# turns on its haunches through 180 deg in about a second, quicker when hurried) and, faster,
+# no faster than MAX_LATERAL allows (v omega, the grip's lateral acceleration: 2.5 g, between a
+# horse's and a greyhound's hardest turns) -- 270 deg/s up to 5 m/s, 175 deg/s at 8 m/s. The
+# root stays on the path; where it turns faster the body lags (issue 27: it swung round at up to
+# 10,000 deg/s, the whole body in one frame as a standing animal moved off in a new direction).
+MAX_YAW_RATE = float(np.radians(270.0))  # rad/s
+MAX_LATERAL = 2.5 * 9.81  # m/s^2
+# Turning, the body leans into the turn: rolled by atan(v omega / g) (the centripetal acceleration
+# over gravity, as a runner or a bike leans), at most MAX_LEAN (a galloping horse's tightest turns
+# lean about 20 deg), reached at most LEAN_RATE (a body rolls over in a few strides, not a frame).
+# Gentle curves lean none: the lean is atan(v omega / g) less GENTLE_LEAN (so it grows from 0 as a
+# turn tightens; a herd's meandering paths leant a degree, which changed nothing a viewer sees
+# but the plants' IK).
+MAX_LEAN = float(np.radians(20.0))  # rad
+LEAN_RATE = float(np.radians(90.0))  # rad/s
+GENTLE_LEAN = float(np.radians(3.0))  # rad
 LOOKAHEAD = 2  # segments: gaits are chosen on the speed this far ahead, as transitions take time
 DECISION_SHARE = 4  # gait decisions this many times a segment
 MAX_RATE = 1.6  # a gait asked to go faster than its fastest clip plays its stride up to this fast
@@ -91,12 +116,13 @@ class Plan:
     contacts: NDArray[np.bool_]  # (C, T, 4)
     stitches: NDArray[np.bool_]  # (C, T)
     gait: NDArray[np.int8]  # (C, T)
+    lean: Floats  # (C, T) roll into the turn, radians about the body's forward axis (+: top to its right)
 
     def window(self, start: int, stop: int, step: int = 1) -> Plan:
         """Frames ``[start, stop)`` (every ``step``-th) of every character."""
         t = slice(start, stop, step)
         return Plan(self.rows[:, t], self.weights[:, t], self.yaw[:, t], self.path[:, t], self.scales,
-                    self.contacts[:, t], self.stitches[:, t], self.gait[:, t])
+                    self.contacts[:, t], self.stitches[:, t], self.gait[:, t], self.lean[:, t])
 
 
 def empty_plan(characters: int, frames: int, scales: Floats) -> Plan:
@@ -104,7 +130,7 @@ def empty_plan(characters: int, frames: int, scales: Floats) -> Plan:
     C, T = characters, frames
     return Plan(np.empty((C, T, 4), np.int32), np.empty((C, T, 3), np.float32), np.empty((C, T)),
                 np.empty((C, T, 3)), scales, np.empty((C, T, 4), bool), np.empty((C, T), bool),
-                np.empty((C, T), np.int8))
+                np.empty((C, T), np.int8), np.empty((C, T)))
 
 
 @dataclass(frozen=True)
@@ -229,12 +255,16 @@ class Headings:
         self.kernels = planner(backend)
         self.last_dir = np.zeros((characters, 2))  # the heading held, as a ground direction
         self.moved = np.zeros(characters, bool)  # moved yet (else it faces where it will first go)
+        self.last_yaw = np.full(characters, np.nan)  # the yaw of the frame before (NaN: none yet)
+        self.last_lean = np.zeros(characters)  # the lean of the frame before
 
     def advance(self, ground: Floats, off: int, n: int, fps: float, facing: Floats, ends: bool = False,
-                ahead: Callable[[NDArray[np.int64]], Floats] | None = None) -> Floats:
+                ahead: Callable[[NDArray[np.int64]], Floats] | None = None) -> tuple[Floats, Floats]:
         """(C, n) yaw (about +Y, 0 = +Z) of frames ``[t0, t0 + n)``: the tangent of the path's
         ground points ``ground (C, m, 2)`` (frame t0 at ``off``), held where the character moves
-        slower than MIN_TURN_SPEED (a standing animal does not spin with its trajectory's jitter);
+        slower than MIN_TURN_SPEED (a standing animal does not spin with its trajectory's jitter),
+        reached no faster than MAX_YAW_RATE and MAX_LATERAL allow, and (C, n) the lean into the
+        turn (:func:`plan_kernels.turn`);
         before it first moves, the way it first moves -- searched on in ``ground`` (to its end if
         ``ends``: the path's end), or in ``ahead(characters)``, their ground from the same point
         on as far as known -- else ``facing (C,)``."""
@@ -248,12 +278,25 @@ class Headings:
                                   self.moved[unknown], again)
             held[unknown] = again
         yaw = np.arctan2(held[..., 0], held[..., 1])
-        return np.asarray(np.where(np.isnan(yaw[:, :1]), facing[:, None], yaw)) if len(unknown) else yaw
+        if len(unknown):
+            yaw = np.asarray(np.where(np.isnan(yaw[:, :1]), facing[:, None], yaw))
+        yaw = np.ascontiguousarray(yaw)
+        lean = np.empty_like(yaw)
+        self.kernels.turn(yaw, ground, off, fps, MAX_YAW_RATE, MAX_LATERAL, MAX_LEAN, LEAN_RATE, GENTLE_LEAN,
+                          self.last_yaw, self.last_lean, lean)
+        return yaw, lean
 
 
 def headings(path: Floats, fps: float, frames: int | None = None, backend: str = "auto") -> Floats:
-    """(C, T) yaw of a whole path ``(C, T, 3)`` (:meth:`Headings.advance`); a character that never
-    moves faces its path's first step. ``frames``: the first ``frames`` only (the same numbers)."""
+    """(C, T) yaw of a whole path ``(C, T, 3)`` (:func:`turning`)."""
+    return turning(path, fps, frames, backend)[0]
+
+
+def turning(path: Floats, fps: float, frames: int | None = None, backend: str = "auto"
+            ) -> tuple[Floats, Floats]:
+    """(C, T) yaw and lean of a whole path ``(C, T, 3)`` (:meth:`Headings.advance`); a character
+    that never moves faces its path's first step. ``frames``: the first ``frames`` only (the same
+    numbers)."""
     ground = np.ascontiguousarray(path[..., GROUND])
     T = ground.shape[1]
     n = T if frames is None else min(frames, T)
@@ -313,6 +356,6 @@ def plan(bank: Bank, prep: Prepared, h: Floats, keys: NDArray[np.uint64], margin
     out = empty_plan(C, keep, h)
     planner = Planner(bank, h, tempo, margin, backend)
     planner.advance(0, np.ascontiguousarray(v[:, :keep]), path, decisions, out)
-    out.yaw[...] = headings(path, bank.fps, keep, backend)
+    out.yaw[...], out.lean[...] = turning(path, bank.fps, keep, backend)
     out.path[...] = path[:, :keep]
     return out
