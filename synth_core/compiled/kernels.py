@@ -4,21 +4,23 @@ and the foot lock beyond the paper: :mod:`synth_core.runtime.footlock`).
 Character by character in parallel (``prange``), frame by frame in registers, so nothing the size
 of (characters, frames, joints) is made more than once (the output). Numba compiles these
 functions (:func:`synth_core.compiled.jit.render_jit`); :data:`REFERENCE` is the same source --
-these and their helpers in :mod:`~synth_core.compiled.foot_kernels`,
-:mod:`~synth_core.compiled.limb_kernels`, :mod:`~synth_core.compiled.vec_kernels` and
-:mod:`~synth_core.compiled.ground_kernels` -- run by the interpreter, as the planner's is
-(slow: for tests and for a machine without numba). ``compiled=False`` asks the wrappers for it;
-:mod:`synth_core.compiled.backend` names the two.
+these and their helpers in :mod:`~synth_core.compiled.pose_kernels`,
+:mod:`~synth_core.compiled.foot_kernels`, :mod:`~synth_core.compiled.limb_kernels`,
+:mod:`~synth_core.compiled.vec_kernels` and :mod:`~synth_core.compiled.ground_kernels` -- run
+by the interpreter, as the planner's is (slow: for tests and for a machine without numba).
+``compiled=False`` asks the wrappers for it; :mod:`synth_core.compiled.backend` names the two.
 
 One character, in four passes over its frames:
 
-1. blend the plan's table rows (and the piece fading out), turn the root to the heading, put it
-   on the path; forward kinematics of the joints above the feet only, in the character's unit
-   (its world divided by its scale h: the library skeleton's geometry);
+1. blend the plan's table rows (and the piece fading out), turn the root to the heading, lean it
+   into the turn, put it on the path (:func:`~synth_core.compiled.pose_kernels.assemble`);
+   forward kinematics of the joints above the feet only, in the character's unit (its world
+   divided by its scale h: the library skeleton's geometry);
 2. plant targets per foot (:func:`~synth_core.compiled.foot_kernels.plant_targets`);
 3. the root's sink where a target needs a leg straighter than ``REACH`` (eased, bounded);
 4. limb IK (:func:`synth_core.build.ik.solve`, without the ground tipping) on the upper joint, hinge
-   and ankle of each leg -- 16 frames at a time in SIMD lanes (see :mod:`~synth_core.compiled.limb_kernels`).
+   and ankle of each leg -- 16 frames at a time in SIMD lanes
+   (:mod:`~synth_core.compiled.limb_kernels`).
 """
 
 from __future__ import annotations
@@ -33,7 +35,7 @@ from numpy.typing import NDArray
 
 from synth_core import UP_AXIS
 from synth_core.build.ik import limb_rigs
-from synth_core.compiled import foot_kernels, ground_kernels, limb_kernels, vec_kernels
+from synth_core.compiled import foot_kernels, ground_kernels, limb_kernels, pose_kernels, vec_kernels
 from synth_core.compiled.foot_kernels import (
     LEG_REACH,
     LEG_TOE,
@@ -48,10 +50,10 @@ from synth_core.compiled.foot_kernels import (
 from synth_core.compiled.jit import AVAILABLE as AVAILABLE  # callers ask kernels.AVAILABLE
 from synth_core.compiled.jit import interpreted, prange, render_jit, threads
 from synth_core.compiled.limb_kernels import LANES, fk, solve_legs, unit4, world_position
+from synth_core.compiled.pose_kernels import assemble, lean_tilt, root_only
 from synth_core.compiled.scratch import Scratch
 from synth_core.compiled.vec_kernels import (
     conj,
-    nlerp_into,
     norm3,
     put,
     q4,
@@ -79,75 +81,6 @@ WHOLE_PLANT = 1 << 62  # plant_frames: a plant's target averages all its frames
 
 
 # --- the four passes ---------------------------------------------------------------------------
-
-@_jit()
-def _assemble(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, yaw: Any, lean: Any, path: Any,
-              h: float, out_rot: Any, out_root: Any) -> None:
-    """Pass 1 without FK: blended, turned, warped pose of each frame of one character.
-    ``poses (K, 4, J)``: the pose table components first (see :func:`nlerp_into`); the frame is
-    blended that way and written out as xyzw rows (``out_rot (T, J, 4)``)."""
-    T, J = out_rot.shape[0], out_rot.shape[1]
-    before = np.empty((4, J), np.float32)
-    now = np.empty((4, J), np.float32)
-    pose = np.empty((4, J), np.float32)
-    for t in range(T):
-        r0, r1, p0, p1 = rows[t, 0], rows[t, 1], rows[t, 2], rows[t, 3]
-        w, pw, keep = weights[t, 0], weights[t, 1], weights[t, 2]
-        ht = height[r0] * (1 - w) + height[r1] * w
-        sg = surge[r0] * (1 - w) + surge[r1] * w
-        if keep > 0:
-            nlerp_into(poses[r0], poses[r1], w, now)
-            nlerp_into(poses[p0], poses[p1], pw, before)
-            nlerp_into(now, before, keep, pose)
-            ht = ht * (1 - keep) + (height[p0] * (1 - pw) + height[p1] * pw) * keep
-            sg = sg * (1 - keep) + (surge[p0] * (1 - pw) + surge[p1] * pw) * keep
-        else:
-            nlerp_into(poses[r0], poses[r1], w, pose)
-        frame = out_rot[t]
-        for j in range(J):
-            for k in range(4):
-                frame[j, k] = pose[k, j]
-        sh, ch = _put_root(ht, sg, yaw[t], path[t], h, out_root[t])
-        if lean[t] != 0.0:  # turned, then rolled about its forward axis: (yaw about Y) (lean about Z)
-            sr, cr = math.sin(0.5 * lean[t]), math.cos(0.5 * lean[t])
-            put(frame[0], qmul((sh * sr, sh * cr, ch * sr, ch * cr), q4(frame[0])))
-        else:
-            put(frame[0], qmul((0.0, sh, 0.0, ch), q4(frame[0])))
-
-
-@_jit()
-def _put_root(ht: float, sg: float, yaw: float, path: Any, h: float, out: Any) -> tuple[float, float]:
-    """A frame's root on the path (its height and surge blended already); the heading's
-    half-angle sine and cosine, which give the whole angle's too (two calls, not four)."""
-    sh, ch = math.sin(0.5 * yaw), math.cos(0.5 * yaw)
-    out[0] = path[0] + 2.0 * sh * ch * sg * h
-    out[1] = path[1] + ht * h
-    out[2] = path[2] + (ch * ch - sh * sh) * sg * h
-    return sh, ch
-
-
-@_jit()
-def _root_only(height: Any, surge: Any, rows: Any, weights: Any, yaw: Any, path: Any, h: float,
-               out_root: Any) -> None:
-    """Pass 1's root alone (:func:`_assemble` without the pose): a character at root_gait detail,
-    whose rotations nobody is sent -- the plan's root, before the foot lock's sink."""
-    for t in range(out_root.shape[0]):
-        r0, r1, p0, p1 = rows[t, 0], rows[t, 1], rows[t, 2], rows[t, 3]
-        w, pw, keep = weights[t, 0], weights[t, 1], weights[t, 2]
-        ht = height[r0] * (1 - w) + height[r1] * w
-        sg = surge[r0] * (1 - w) + surge[r1] * w
-        if keep > 0:
-            ht = ht * (1 - keep) + (height[p0] * (1 - pw) + height[p1] * pw) * keep
-            sg = sg * (1 - keep) + (surge[p0] * (1 - pw) + surge[p1] * pw) * keep
-        _put_root(ht, sg, yaw[t], path[t], h, out_root[t])
-
-
-@_jit()
-def lean_tilt(yaw: float, lean: float) -> Any:
-    """The world rotation of a lean: ``lean`` about the forward axis of heading ``yaw``."""
-    sr, cr = math.sin(0.5 * lean), math.cos(0.5 * lean)
-    return (math.sin(yaw) * sr, 0.0, math.cos(yaw) * sr, cr)
-
 
 @_jit()
 def _character(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, yaw: Any, lean: Any, path: Any,
@@ -188,7 +121,7 @@ def _character(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, yaw
         legs[s:a] = recent
     else:
         s = a = max(min(known, keep_from - PAD), 0)
-    _assemble(poses, height, surge, rows[a:], weights[a:], yaw[a:], lean[a:], path[a:], h, out_rot[a:],
+    assemble(poses, height, surge, rows[a:], weights[a:], yaw[a:], lean[a:], path[a:], h, out_rot[a:],
               out_root[a:])
     if terrain:
         for t in range(a, T):
@@ -306,7 +239,7 @@ def _render_windows(poses: Any, height: Any, surge: Any, rows: Any, weights: Any
         no_recent = np.empty((PAD, 4, LEG_WIDTH))
         for c in range(c0 + worker, c1, workers):
             if not pose[c]:
-                _root_only(height, surge, rows[c, start:start + n], weights[c, start:start + n],
+                root_only(height, surge, rows[c, start:start + n], weights[c, start:start + n],
                            yaw[c, start:start + n], path[c, start:start + n], scales[c], out_root[c])
                 if keep:
                     legs_at[c] = NOWHERE
@@ -546,7 +479,8 @@ class RenderKernels(NamedTuple):
 # The reference: this source (and its helpers' in the other kernel modules) run by the
 # interpreter, as the planner's (synth_core.compiled.plan_kernels.REFERENCE). Here at the end, so
 # every kernel of the module is in the scope it runs in.
-_HELPERS = (vars(foot_kernels), vars(limb_kernels), vars(vec_kernels), vars(ground_kernels))
+_HELPERS = (vars(foot_kernels), vars(pose_kernels), vars(limb_kernels), vars(vec_kernels),
+            vars(ground_kernels))
 _PLAIN = {**interpreted(vars(foot_kernels), *_HELPERS[1:]), **interpreted(globals(), *_HELPERS)}
 REFERENCE = RenderKernels("numpy", *(_PLAIN.get(name, globals()[name])
                                      for name in ("_render_all", "_render_windows", "lock_contexts")))

@@ -1,0 +1,84 @@
+"""Pass 1 of the render without its FK: a character's frames blended from the plan's table rows
+(and the piece fading out), turned to the heading, leant into the turn and put on the path --
+or its root alone, for a character nobody is sent the pose of."""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from synth_core.compiled.jit import render_jit
+from synth_core.compiled.vec_kernels import nlerp_into, put, q4, qmul
+
+_jit = render_jit
+
+
+@_jit()
+def assemble(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, yaw: Any, lean: Any, path: Any,
+              h: float, out_rot: Any, out_root: Any) -> None:
+    """Pass 1 without FK: blended, turned, warped pose of each frame of one character.
+    ``poses (K, 4, J)``: the pose table components first (see :func:`nlerp_into`); the frame is
+    blended that way and written out as xyzw rows (``out_rot (T, J, 4)``)."""
+    T, J = out_rot.shape[0], out_rot.shape[1]
+    before = np.empty((4, J), np.float32)
+    now = np.empty((4, J), np.float32)
+    pose = np.empty((4, J), np.float32)
+    for t in range(T):
+        r0, r1, p0, p1 = rows[t, 0], rows[t, 1], rows[t, 2], rows[t, 3]
+        w, pw, keep = weights[t, 0], weights[t, 1], weights[t, 2]
+        ht = height[r0] * (1 - w) + height[r1] * w
+        sg = surge[r0] * (1 - w) + surge[r1] * w
+        if keep > 0:
+            nlerp_into(poses[r0], poses[r1], w, now)
+            nlerp_into(poses[p0], poses[p1], pw, before)
+            nlerp_into(now, before, keep, pose)
+            ht = ht * (1 - keep) + (height[p0] * (1 - pw) + height[p1] * pw) * keep
+            sg = sg * (1 - keep) + (surge[p0] * (1 - pw) + surge[p1] * pw) * keep
+        else:
+            nlerp_into(poses[r0], poses[r1], w, pose)
+        frame = out_rot[t]
+        for j in range(J):
+            for k in range(4):
+                frame[j, k] = pose[k, j]
+        sh, ch = _put_root(ht, sg, yaw[t], path[t], h, out_root[t])
+        if lean[t] != 0.0:  # turned, then rolled about its forward axis: (yaw about Y) (lean about Z)
+            sr, cr = math.sin(0.5 * lean[t]), math.cos(0.5 * lean[t])
+            put(frame[0], qmul((sh * sr, sh * cr, ch * sr, ch * cr), q4(frame[0])))
+        else:
+            put(frame[0], qmul((0.0, sh, 0.0, ch), q4(frame[0])))
+
+
+@_jit()
+def _put_root(ht: float, sg: float, yaw: float, path: Any, h: float, out: Any) -> tuple[float, float]:
+    """A frame's root on the path (its height and surge blended already); the heading's
+    half-angle sine and cosine, which give the whole angle's too (two calls, not four)."""
+    sh, ch = math.sin(0.5 * yaw), math.cos(0.5 * yaw)
+    out[0] = path[0] + 2.0 * sh * ch * sg * h
+    out[1] = path[1] + ht * h
+    out[2] = path[2] + (ch * ch - sh * sh) * sg * h
+    return sh, ch
+
+
+@_jit()
+def root_only(height: Any, surge: Any, rows: Any, weights: Any, yaw: Any, path: Any, h: float,
+               out_root: Any) -> None:
+    """Pass 1's root alone (:func:`assemble` without the pose): a character at root_gait detail,
+    whose rotations nobody is sent -- the plan's root, before the foot lock's sink."""
+    for t in range(out_root.shape[0]):
+        r0, r1, p0, p1 = rows[t, 0], rows[t, 1], rows[t, 2], rows[t, 3]
+        w, pw, keep = weights[t, 0], weights[t, 1], weights[t, 2]
+        ht = height[r0] * (1 - w) + height[r1] * w
+        sg = surge[r0] * (1 - w) + surge[r1] * w
+        if keep > 0:
+            ht = ht * (1 - keep) + (height[p0] * (1 - pw) + height[p1] * pw) * keep
+            sg = sg * (1 - keep) + (surge[p0] * (1 - pw) + surge[p1] * pw) * keep
+        _put_root(ht, sg, yaw[t], path[t], h, out_root[t])
+
+
+@_jit()
+def lean_tilt(yaw: float, lean: float) -> Any:
+    """The world rotation of a lean: ``lean`` about the forward axis of heading ``yaw``."""
+    sr, cr = math.sin(0.5 * lean), math.cos(0.5 * lean)
+    return (math.sin(yaw) * sr, 0.0, math.cos(yaw) * sr, cr)
