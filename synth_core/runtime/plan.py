@@ -264,7 +264,7 @@ class Headings:
         ground points ``ground (C, m, 2)`` (frame t0 at ``off``), held where the character moves
         slower than MIN_TURN_SPEED (a standing animal does not spin with its trajectory's jitter),
         reached no faster than MAX_YAW_RATE and MAX_LATERAL allow, and (C, n) the lean into the
-        turn (:func:`plan_kernels.turn`);
+        turn (:func:`heading_kernels.turn`);
         before it first moves, the way it first moves -- searched on in ``ground`` (to its end if
         ``ends``: the path's end), or in ``ahead(characters)``, their ground from the same point
         on as far as known -- else ``facing (C,)``."""
