@@ -282,6 +282,7 @@ def _tween(kind: int, d: float, local: int, speed: float, offset: Any, frames_of
     weights[o, 2] = abs(d)
 
 
+@jit(inline="always")
 def _frame_rows(kind: int, local: int, walked: float, since: int, p_kind: int, p_local: int, o_kind: int,
                 o_local: int, o_keep: float, v: float, offset: Any, frames_of: Any, clips: Any, cyclic: Any,
                 source: Any, target: Any, curve_at: Any, curves: Any, contacts_of: Any, margin: int, o: int,
