@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from synth_core.build.library_store import builtin_library
-from synth_core.compiled import foot_kernels
+from synth_core.compiled import foot_kernels, kernels
 from synth_core.motion.skeleton import forward_kinematics
 from synth_core.quality import evaluate
 from synth_core.quality import herd_sim as crowd
@@ -106,7 +106,7 @@ def test_plant_targets_hold_each_plant_in_one_place() -> None:
     contacts[:, 10:25] = contacts[:, 40:55] = True
     targets = np.empty_like(feet)
     for c in range(2):
-        foot_kernels.plant_targets(feet[c], contacts[c], targets[c])
+        foot_kernels.plant_targets(feet[c], contacts[c], targets[c], kernels.WHOLE_PLANT)
     for a, b in ((10, 25), (40, 55)):
         assert np.allclose(targets[:, a:b], feet[:, a:b].mean(axis=1, keepdims=True))
     # Swings: no jump where a plant starts or ends (over the ground).
