@@ -1,7 +1,6 @@
 """Functions longer than a limit (default 60 lines, decorators and docstring included), as ruff
 has no such rule: `python scripts/function_lengths.py [--max N] [--exclude PATH]... PATH...`;
-exits 1 naming them. scripts/check runs it on every package (the compiled kernels excluded while
-they are still being cut)."""
+exits 1 naming them. scripts/check runs it on every package."""
 
 from __future__ import annotations
 

@@ -82,6 +82,59 @@ WHOLE_PLANT = 1 << 62  # plant_frames: a plant's target averages all its frames
 
 # --- the four passes ---------------------------------------------------------------------------
 
+@_jit(inline="always")
+def _measure(world: Any, out_root: Any, yaw: Any, lean: Any, path: Any, tilt: Any, tilt_at: int,
+             terrain: bool, rigs: Any, h: float, a: int, T: int, o: int, feet: Any, legs: Any) -> None:
+    """Pass 2's measure of frames ``[a, T)``: each foot (``feet``, unit space) and what the sink
+    reads of its leg (``legs``), from ``world`` (origin ``o``). On a terrain or leant into a
+    turn, a foot is measured with the tilt (and the lean) taken back off: its height as without
+    it (over the ground, the body's height is the clip's), its place over the ground turned back
+    by half the tilt -- legs hang between square to the body and plumb. Plumb (the whole tilt
+    taken off), a body pitched down a 30% slope swung its forelegs 17 degrees forward of where it
+    carries them and their shoulders flipped through straight; square, the hooves slid 35 cm
+    ahead of the root and the body leant back."""
+    for t in range(a, T):
+        for f in range(4):
+            up, hi, an, ef = rigs[f, 0], rigs[f, 1], rigs[f, 2], rigs[f, 3]
+            p_up, p_hi = world_position(world, up, t - o), world_position(world, hi, t - o)
+            p_an, p_ef = world_position(world, an, t - o), world_position(world, ef, t - o)
+            if terrain or lean[t] != 0.0:  # as the leg hangs untilted, unleaned (see the doc)
+                r = vscale(v3(out_root[t]), 1.0 / h)
+                q = lean_tilt(yaw[t], lean[t])
+                if terrain:
+                    q = qmul(q4(tilt[tilt_at + t]), q)
+                p = vadd(r, qrot(conj(unit4((q[0], q[1], q[2], q[3] + 1.0))), vsub(p_ef, r)))
+                y = r[1] + qrot(conj(q), vsub(p_ef, r))[1]
+                # On a terrain above the body's ground (ground_targets puts it on the terrain).
+                y = y - path[t, 1] / h if terrain else y
+                feet[t, f, 0], feet[t, f, 1], feet[t, f, 2] = p[0], y, p[2]
+            else:
+                feet[t, f, 0], feet[t, f, 1], feet[t, f, 2] = p_ef
+            leg = legs[t, f]
+            leg[LEG_TOE], leg[LEG_TOE + 1], leg[LEG_TOE + 2] = vsub(p_ef, p_an)
+            leg[LEG_UP], leg[LEG_UP + 1], leg[LEG_UP + 2] = p_up
+            leg[LEG_REACH] = norm3(vsub(p_hi, p_up)) + norm3(vsub(p_an, p_hi))
+
+
+@_jit(inline="always")
+def _sink(targets: Any, legs: Any, path: Any, h: float, terrain: bool, s: int, T: int, sink: Any) -> None:
+    """Pass 3's sink of frames ``[s, T)``: how far the root must come down for the leg furthest
+    from its target to reach it within ``REACH`` of its length (flat ground: targets no lower
+    than the path)."""
+    for t in range(s, T):
+        floor = path[t, 1] / h
+        worst = 0.0
+        for f in range(4):
+            if not terrain and targets[t, f, 1] < floor:
+                targets[t, f, 1] = floor
+            leg = legs[t, f]
+            to_ankle = vsub(vsub(v3(targets[t, f]), v3(leg[LEG_TOE:])), v3(leg[LEG_UP:]))
+            allowed = REACH * leg[LEG_REACH]
+            across2 = to_ankle[0] ** 2 + to_ankle[2] ** 2
+            worst = max(worst, -to_ankle[1] - math.sqrt(max(allowed * allowed - across2, 0.0)))
+        sink[t] = worst
+
+
 @_jit()
 def _character(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, yaw: Any, lean: Any, path: Any,
                     h: float, contacts: Any, parents: Any, offsets: Any, fk_joints: Any, rigs: Any,
@@ -90,9 +143,8 @@ def _character(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, yaw
                     keep_from: int, keep_to: int, known_feet: Any, known: int, recent: Any,
                     recent_known: bool, tilt: Any, tilt_at: int, heights: Any, ground_x0: float,
                     ground_z0: float, spacing: float, plant_frames: int) -> bool:
-    """All four passes for one character (scratch arrays given). Only frames ``[keep_from,
-    keep_to)`` are wanted (a window rendered over its foot lock's context): the legs' IK, which
-    reads nothing of other frames, is solved for those alone.
+    """All four passes for one character (scratch arrays given). Only frames ``[keep_from, keep_to)``
+    are wanted (a window over its foot lock's context): the legs' IK is solved for those alone.
 
     ``known_feet (T, 4, 3)``: the feet of frames ``[0, known)`` made already (a live session's
     earlier windows), read there, not posed again, and written for the frames posed (an empty
@@ -103,14 +155,8 @@ def _character(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, yaw
 
     ``heights (Nz, Nx)``: the terrain (``(0, 0)``: none), its grid's origin and spacing; the body
     then tilted by ``tilt[tilt_at + t]`` (``(T', 4)``) on frame t and its feet planted on the
-    terrain (:mod:`synth_core.runtime.terrain`). The feet are measured there with the tilt
-    taken back off: their height as without it (over the ground, the body's height is the
-    clip's), their place over the ground turned back by half the tilt -- legs hang between square
-    to the body and plumb. Plumb (the whole tilt taken off), a body pitched down a 30% slope swung
-    its forelegs 17 degrees forward of where it carries them and their shoulders flipped through
-    straight; square, the hooves slid 35 cm ahead of the root and the body leant back.
-    ``plant_frames``: a plant's target is its foot's average over its first so many frames
-    (foot_kernels.plant_targets' ``most``)."""
+    terrain (:mod:`synth_core.runtime.terrain`; measured as :func:`_measure` says).
+    ``plant_frames``: a plant's target averages its first so many frames (plant_targets' ``most``)."""
     terrain = heights.shape[0] > 0
     T = out_rot.shape[0]
     if not foot_lock:
@@ -133,44 +179,13 @@ def _character(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, yaw
     o = keep_from - LANES * ((keep_from - a + LANES - 1) // LANES)
     fk(out_rot, out_root, h, parents, offsets, fk_joints, world, a, T, o)
     feet[:a] = known_feet[:a]
-    for t in range(a, T):
-        for f in range(4):
-            up, hi, an, ef = rigs[f, 0], rigs[f, 1], rigs[f, 2], rigs[f, 3]
-            p_up, p_hi = world_position(world, up, t - o), world_position(world, hi, t - o)
-            p_an, p_ef = world_position(world, an, t - o), world_position(world, ef, t - o)
-            if terrain or lean[t] != 0.0:  # as the leg hangs untilted, unleaned (see the doc)
-                r = vscale(v3(out_root[t]), 1.0 / h)
-                q = lean_tilt(yaw[t], lean[t])
-                if terrain:
-                    q = qmul(q4(tilt[tilt_at + t]), q)
-                p = vadd(r, qrot(conj(unit4((q[0], q[1], q[2], q[3] + 1.0))), vsub(p_ef, r)))
-                y = r[1] + qrot(conj(q), vsub(p_ef, r))[1]
-                # On a terrain above the body's ground (ground_targets puts it on the terrain).
-                y = y - path[t, 1] / h if terrain else y
-                feet[t, f, 0], feet[t, f, 1], feet[t, f, 2] = p[0], y, p[2]
-            else:
-                feet[t, f, 0], feet[t, f, 1], feet[t, f, 2] = p_ef
-            leg = legs[t, f]
-            leg[LEG_TOE], leg[LEG_TOE + 1], leg[LEG_TOE + 2] = vsub(p_ef, p_an)
-            leg[LEG_UP], leg[LEG_UP + 1], leg[LEG_UP + 2] = p_up
-            leg[LEG_REACH] = norm3(vsub(p_hi, p_up)) + norm3(vsub(p_an, p_hi))
+    _measure(world, out_root, yaw, lean, path, tilt, tilt_at, terrain, rigs, h, a, T, o, feet, legs)
     if known_feet.shape[0] > 0:
         known_feet[a:] = feet[a:]
     plant_targets(feet, contacts, targets, plant_frames)
     if terrain:
         ground_targets(targets, contacts, heights, ground_x0, ground_z0, spacing, h, sink)
-    for t in range(s, T):
-        floor = path[t, 1] / h
-        worst = 0.0
-        for f in range(4):
-            if not terrain and targets[t, f, 1] < floor:
-                targets[t, f, 1] = floor
-            leg = legs[t, f]
-            to_ankle = vsub(vsub(v3(targets[t, f]), v3(leg[LEG_TOE:])), v3(leg[LEG_UP:]))
-            allowed = REACH * leg[LEG_REACH]
-            across2 = to_ankle[0] ** 2 + to_ankle[2] ** 2
-            worst = max(worst, -to_ankle[1] - math.sqrt(max(allowed * allowed - across2, 0.0)))
-        sink[t] = worst
+    _sink(targets, legs, path, h, terrain, s, T, sink)
     # Eased from frame s on: the wanted frames, PAD or more after it, read nothing before it.
     ease_sink(sink[s:], sink_limit, eased[s:])
     for t in range(a, T):
@@ -355,6 +370,31 @@ class Posed(NamedTuple):
         return cls(feet, np.zeros(C, np.int64), np.empty((C, PAD, 4, LEG_WIDTH)), np.full(C, NOWHERE))
 
 
+def _checked(known: Posed | None, plan: Plan) -> Posed:
+    """``known`` (see :func:`render_window`), its arrays checked; none known: an empty one."""
+    C = plan.yaw.shape[0]
+    if known is None:
+        return Posed(np.empty((0, C, 4, 3)), np.zeros(C, np.int64), np.empty((0, PAD, 4, LEG_WIDTH)),
+                     np.zeros(C, np.int64))
+    assert known.feet.shape == (*plan.yaw.shape[::-1], 4, 3) and known.feet.dtype == np.float64
+    assert known.feet.flags.c_contiguous
+    assert known.legs.shape == (C, PAD, 4, LEG_WIDTH) and known.legs.flags.c_contiguous
+    for frames in (known.frames, known.legs_at):
+        assert frames.dtype == np.int64 and frames.flags.c_contiguous
+    return known
+
+
+def _run_windows(kernels: RenderKernels, args: tuple[Any, ...], C: int,
+                 share: Callable[[list[Callable[[], None]]], None] | None) -> None:
+    """``kernels.render_windows`` of every character: at once, or in parts ``share`` runs."""
+    if share is None:
+        kernels.render_windows(*args, 0, C)
+        return
+    cuts = np.linspace(0, C, SHARED_PARTS + 1).round().astype(np.int64).tolist()
+    share([functools.partial(kernels.render_windows, *args, a, b)
+           for a, b in zip(cuts[:-1], cuts[1:], strict=True) if b > a])
+
+
 def render_window(bank: Bank, plan: Plan, start: int, stop: int, begin: NDArray[np.int64],
                   end: NDArray[np.int64], foot_lock: bool = True, known: Posed | None = None,
                   out: NDArray[np.float32] | None = None,
@@ -375,17 +415,14 @@ def render_window(bank: Bank, plan: Plan, start: int, stop: int, begin: NDArray[
 
     ``out``: the rotations are written there (C-contiguous ``(C, stop - start, J, 4)`` float32).
 
-    ``share``: the characters are cut into SHARED_PARTS parts, each a one-thread render, which
-    ``share`` runs (:func:`synth_core.compiled.render_pool.shared`: threads with nothing else to do take
-    some): renders side by side on the pool's threads -- a live session's shards, a stream's
-    first-window parts -- finish together though one has more to pose than the other.
+    ``share``: SHARED_PARTS one-thread parts, which ``share`` runs (render_pool.shared: idle threads
+    take some), so renders side by side finish together though one has more to pose.
 
     ``ground``: the plan stands on a terrain (:func:`synth_core.runtime.terrain.ground_plan`).
 
     ``pose (C,)``: the characters whose rotations are wanted (None: all). The others (a live
-    session's far characters, at root_gait detail) get the plan's root alone -- no pose, no foot
-    lock, so no sink: the root the full render would give but for its height where a leg could
-    not reach its plant -- and their rows of the rotations are not written.
+    session's far characters, at root_gait) get the plan's root alone (no foot lock, so no sink)
+    and their rows of the rotations are not written.
 
     ``plant_frames``: a plant's target averages its first so many frames only (None: all): what
     a live session sends of a plant before its end is planned then stays where it was sent.
@@ -395,24 +432,15 @@ def render_window(bank: Bank, plan: Plan, start: int, stop: int, begin: NDArray[
     C = plan.yaw.shape[0]
     pose = np.ones(C, np.bool_) if pose is None else np.ascontiguousarray(pose, np.bool_)
     assert pose.shape == (C,)
-    J = bank.skeleton.n_joints
     # Only the frames some context reads are made contiguous.
     cb, ce = int(np.min(begin)), int(np.max(end))
-    posed = Posed(np.empty((0, C, 4, 3)), np.zeros(C, np.int64), np.empty((0, PAD, 4, LEG_WIDTH)),
-                  np.zeros(C, np.int64)) if known is None else known
-    if known is not None:
-        feet = known.feet
-        assert feet.shape == (*plan.yaw.shape[::-1], 4, 3) and feet.dtype == np.float64
-        assert feet.flags.c_contiguous
-        assert known.legs.shape == (C, PAD, 4, LEG_WIDTH) and known.legs.flags.c_contiguous
-        for frames in (known.frames, known.legs_at):
-            assert frames.dtype == np.int64 and frames.flags.c_contiguous
+    posed = _checked(known, plan)
     # In the window's frames (moved back after).
     posed.frames[...] -= cb
     posed.legs_at[...] -= cb
     out_root = np.empty((C, stop - start, 3), np.float64)
-    out_rot = np.empty((C, stop - start, J, 4), np.float32) if out is None else out
-    assert out_rot.shape == (C, stop - start, J, 4) and out_rot.dtype == np.float32
+    out_rot = np.empty((C, stop - start, bank.skeleton.n_joints, 4), np.float32) if out is None else out
+    assert out_rot.shape == (C, stop - start, bank.skeleton.n_joints, 4) and out_rot.dtype == np.float32
     assert out_rot.flags.c_contiguous
     table, skeleton = _sink_limit(bank, ground)
     args = (*table, *_plan_arrays(plan.window(cb, ce)), *skeleton, foot_lock,
@@ -422,12 +450,7 @@ def render_window(bank: Bank, plan: Plan, start: int, stop: int, begin: NDArray[
             posed.feet[cb:ce] if known is not None else posed.feet, posed.frames, posed.legs, posed.legs_at,
             WHOLE_PLANT if plant_frames is None else max(int(plant_frames), 1))
     try:
-        if share is None:
-            kernels.render_windows(*args, 0, C)
-        else:
-            cuts = np.linspace(0, C, SHARED_PARTS + 1).round().astype(np.int64).tolist()
-            share([functools.partial(kernels.render_windows, *args, a, b)
-                   for a, b in zip(cuts[:-1], cuts[1:], strict=True) if b > a])
+        _run_windows(kernels, args, C, share)
     finally:
         posed.frames[...] += cb
         posed.legs_at[...] += cb

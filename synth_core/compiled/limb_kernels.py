@@ -61,6 +61,39 @@ def unit4(q: Any) -> Any:
     return (q[0] * k, q[1] * k, q[2] * k, q[3] * k)
 
 
+@_jit(inline="always")
+def _bend(axis: Any, thigh: Any, shin: Any, distance2: float, thigh2: float, shin2: float) -> Any:
+    """The hinge's bend (a quaternion, as a 4-tuple) about ``axis`` that makes the hip-to-ankle
+    distance squared ``distance2``."""
+    # The hinge's turn (ik._turn_to_distance without its trigonometry): a cos + b sin = want;
+    # both solutions' cosines and sines follow from a, b and want. The side the axis says
+    # first (positive bend about it), then the smaller turn (the larger cosine).
+    along = dot3(axis, shin)
+    c = dot3(thigh, axis) * along
+    a = dot3(thigh, shin) - c
+    k = cross(axis, shin)
+    b = dot3(thigh, k)
+    want = 0.5 * (distance2 - thigh2 - shin2) - c
+    amp = math.sqrt(a * a + b * b)
+    flat = amp <= _EPS
+    inv = 1.0 / max(amp, _EPS)
+    cb = 1.0 if flat else a * inv  # cos, sin of the base angle
+    sb = 0.0 if flat else b * inv
+    cs = min(max(want * inv, -1.0), 1.0)  # cos, sin of the spread either side
+    ss = math.sqrt(max(1.0 - cs * cs, 0.0))
+    cos1, sin1 = cb * cs + sb * ss, sb * cs - cb * ss
+    cos2, sin2 = cb * cs - sb * ss, sb * cs + cb * ss
+    turned1 = vadd(vadd(vscale(shin, cos1), vscale(k, sin1)), vscale(axis, along * (1.0 - cos1)))
+    turned2 = vadd(vadd(vscale(shin, cos2), vscale(k, sin2)), vscale(axis, along * (1.0 - cos2)))
+    rank1 = cos1 + (0.0 if dot3(axis, cross(thigh, turned1)) > 0 else -10.0)
+    rank2 = cos2 + (0.0 if dot3(axis, cross(thigh, turned2)) > 0 else -10.0)
+    second = rank2 > rank1
+    best_cos = cos2 if second else cos1
+    half_sin = math.copysign(math.sqrt(max(0.5 * (1.0 - best_cos), 0.0)), sin2 if second else sin1)
+    bend_q = vscale(axis, half_sin) + (math.sqrt(max(0.5 * (1.0 + best_cos), 0.0)),)
+    return bend_q
+
+
 @_jit(inline="always")  # into the function allocating B (see the section's comment)
 def _solve_block(B: Any, toe_offset: Any, bend: Any) -> None:
     """ik.solve (ground=None) for one leg over the block's LANES frames (rows: see above)."""
@@ -92,32 +125,7 @@ def _solve_block(B: Any, toe_offset: Any, bend: Any) -> None:
         axis = vscale(pick, math.copysign(1.0 / size, dot3(pick, dominant)))
         to_target = vsub(ankle_target, p_root)
         distance2 = dot3(to_target, to_target)
-        # The hinge's turn (ik._turn_to_distance without its trigonometry): a cos + b sin = want;
-        # both solutions' cosines and sines follow from a, b and want. The side the axis says
-        # first (positive bend about it), then the smaller turn (the larger cosine).
-        along = dot3(axis, shin)
-        c = dot3(thigh, axis) * along
-        a = dot3(thigh, shin) - c
-        k = cross(axis, shin)
-        b = dot3(thigh, k)
-        want = 0.5 * (distance2 - thigh2 - shin2) - c
-        amp = math.sqrt(a * a + b * b)
-        flat = amp <= _EPS
-        inv = 1.0 / max(amp, _EPS)
-        cb = 1.0 if flat else a * inv  # cos, sin of the base angle
-        sb = 0.0 if flat else b * inv
-        cs = min(max(want * inv, -1.0), 1.0)  # cos, sin of the spread either side
-        ss = math.sqrt(max(1.0 - cs * cs, 0.0))
-        cos1, sin1 = cb * cs + sb * ss, sb * cs - cb * ss
-        cos2, sin2 = cb * cs - sb * ss, sb * cs + cb * ss
-        turned1 = vadd(vadd(vscale(shin, cos1), vscale(k, sin1)), vscale(axis, along * (1.0 - cos1)))
-        turned2 = vadd(vadd(vscale(shin, cos2), vscale(k, sin2)), vscale(axis, along * (1.0 - cos2)))
-        rank1 = cos1 + (0.0 if dot3(axis, cross(thigh, turned1)) > 0 else -10.0)
-        rank2 = cos2 + (0.0 if dot3(axis, cross(thigh, turned2)) > 0 else -10.0)
-        second = rank2 > rank1
-        best_cos = cos2 if second else cos1
-        half_sin = math.copysign(math.sqrt(max(0.5 * (1.0 - best_cos), 0.0)), sin2 if second else sin1)
-        bend_q = vscale(axis, half_sin) + (math.sqrt(max(0.5 * (1.0 + best_cos), 0.0)),)
+        bend_q = _bend(axis, thigh, shin, distance2, thigh2, shin2)
         # The swing onto the target (quat.between; a half turn where the two are opposite).
         u = vadd(thigh, qrot(bend_q, shin))
         uu = dot3(u, u)

@@ -322,6 +322,36 @@ def _local(first: int, kind: int, clock: float, clock0: float, cyclic: Any) -> i
     return int(math.floor(first + clock - clock0 + 0.5))
 
 
+@jit(inline="always")
+def _arrive(s: Any, f: Any, t: int, travelled: float, total: Any, n_hubs: int, creep: float, margin: int,
+            frames_of: Any, tr_kind: Any, entry: Any, exit_: Any) -> bool:
+    """Rule 1: a transition under way ends at frame t if the character has covered its distance;
+    its gait starts there (and a change asked while it played is made). Whether it ended."""
+    if not (s[STAGE] == MOVING and t > s[START]
+            and (travelled - f[TRAV0]) + creep * float(t - s[START]) >= total[s[KIND]]):
+        return False
+    to = s[TO]
+    _start(s, f, to, s[RESUME], t, f[CLOCKS + min(to, n_hubs)], travelled, margin)
+    s[PREV_FIRST] = HELD  # the finished transition fades out from its last frame
+    s[STAGE] = FREE
+    if s[ASKED] >= 0 and t < s[ASKED_UNTIL]:  # asked before, for as it ends
+        _change(s, f, s[ASKED], frames_of, tr_kind, entry, exit_)
+    return True
+
+
+@jit(inline="always")
+def _decide(s: Any, f: Any, t: int, speed: float, draws: Any, low: Any, high: Any, slowest: int,
+            fastest: int, step: int, frames_of: Any, tr_kind: Any, entry: Any, exit_: Any) -> None:
+    """Rule 3: the gait chosen on ``speed`` at decision frame t; a change made at once by a free
+    character, asked of a busy one until the next decision."""
+    nxt = _choose(s[CURRENT], speed, draws, low, high, slowest, fastest)
+    s[ASKED] = -1
+    if nxt != s[CURRENT] and s[STAGE] == FREE:
+        _change(s, f, nxt, frames_of, tr_kind, entry, exit_)
+    elif nxt != s[CURRENT]:
+        s[ASKED], s[ASKED_UNTIL] = nxt, t + step
+
+
 @jit()
 def _character(t0: int, v: Any, pts: Any, h: float, tempo: float, asked_speed: Any, draws: Any, k0: int,
                step: int, s: Any, f: Any, offset: Any, frames_of: Any, clips: Any, cyclic: Any, source: Any,
@@ -341,26 +371,14 @@ def _character(t0: int, v: Any, pts: Any, h: float, tempo: float, asked_speed: A
         t = t0 + i
         walked = f[WALKED]
         travelled = walked / h  # in the library's unit
-        started = False
-        if s[STAGE] == MOVING and t > s[START] and (
-                (travelled - f[TRAV0]) + creep * float(t - s[START]) >= total[s[KIND]]):
-            to = s[TO]
-            _start(s, f, to, s[RESUME], t, f[CLOCKS + min(to, n_hubs)], travelled, margin)
-            s[PREV_FIRST] = HELD  # the finished transition fades out from its last frame
-            s[STAGE], started = FREE, True
-            if s[ASKED] >= 0 and t < s[ASKED_UNTIL]:  # asked before, for as it ends
-                _change(s, f, s[ASKED], frames_of, tr_kind, entry, exit_)
+        started = _arrive(s, f, t, travelled, total, n_hubs, creep, margin, frames_of, tr_kind, entry, exit_)
         if (v[i] < low[slowest] or f[STILL] >= still_frames) and source[s[KIND]] != STATIC:
             _settle(s, f, t, travelled, cyclic, curve_at, curves, creep, margin)
             started = True
         if t == ask:
             if 0 <= k < asked_speed.shape[0]:
-                nxt = _choose(s[CURRENT], asked_speed[k], draws[k], low, high, slowest, fastest)
-                s[ASKED] = -1
-                if nxt != s[CURRENT] and s[STAGE] == FREE:
-                    _change(s, f, nxt, frames_of, tr_kind, entry, exit_)
-                elif nxt != s[CURRENT]:
-                    s[ASKED], s[ASKED_UNTIL] = nxt, t + step
+                _decide(s, f, t, asked_speed[k], draws[k], low, high, slowest, fastest, step, frames_of,
+                        tr_kind, entry, exit_)
             ask, k = ask + step, k + 1
         # Leaving a stand waits for the path to move: chosen on the speed ahead, the static ->
         # walk transition (which plays by distance) stepped in place with a hoof up for up to a
