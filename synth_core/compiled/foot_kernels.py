@@ -1,8 +1,9 @@
-"""The render's foot targets: plant targets, the root's sink, targets on a terrain; the foot
-lock's context.
+"""The render's feet: the feet measured, plant targets, the root's sink, targets on a terrain;
+the foot lock's context.
 
 Passes 2 and 3 of ``synth_core.compiled.kernels._character`` for one character (the foot lock:
-:mod:`synth_core.runtime.footlock`): :func:`plant_targets`, :func:`ease_sink` and
+:mod:`synth_core.runtime.footlock`): :func:`measure_feet`, :func:`plant_targets`,
+:func:`reach_sink`, :func:`ease_sink` and
 :func:`ground_targets` (on a terrain: :mod:`synth_core.runtime.terrain`); :func:`lock_contexts`,
 the frames a window's foot lock reads.
 """
@@ -16,7 +17,10 @@ import numpy as np
 
 from synth_core.compiled.ground_kernels import ground_at
 from synth_core.compiled.jit import render_jit
-from synth_core.runtime.footlock import EASE_FRAMES
+from synth_core.compiled.limb_kernels import unit4, world_position
+from synth_core.compiled.pose_kernels import lean_tilt
+from synth_core.compiled.vec_kernels import conj, norm3, q4, qmul, qrot, v3, vadd, vscale, vsub
+from synth_core.runtime.footlock import EASE_FRAMES, REACH
 
 _jit = render_jit
 
@@ -238,3 +242,57 @@ def lock_contexts(contacts: Any, start: int, stop: int, pad: int, begin: Any, en
             after = _run_end(flags, hi - 1)  # the plant hi - 1 is in, or the plant after its swing
             e = max(e, after if flags[hi - 1] else (_run_end(flags, after) if after < T else T))
         begin[c], end[c] = b, e
+
+
+@_jit(inline="always")
+def measure_feet(world: Any, out_root: Any, yaw: Any, lean: Any, path: Any, tilt: Any, tilt_at: int,
+             terrain: bool, rigs: Any, h: float, a: int, T: int, o: int, feet: Any, legs: Any) -> None:
+    """Pass 2's measure of frames ``[a, T)``: each foot (``feet``, unit space) and what the sink
+    reads of its leg (``legs``), from ``world`` (origin ``o``). On a terrain or leant into a
+    turn, a foot is measured with the tilt (and the lean) taken back off: its height as without
+    it (over the ground, the body's height is the clip's), its place over the ground turned back
+    by half the tilt -- legs hang between square to the body and plumb. Plumb (the whole tilt
+    taken off), a body pitched down a 30% slope swung its forelegs 17 degrees forward of where it
+    carries them and their shoulders flipped through straight; square, the hooves slid 35 cm
+    ahead of the root and the body leant back."""
+    for t in range(a, T):
+        for f in range(4):
+            up, hi, an, ef = rigs[f, 0], rigs[f, 1], rigs[f, 2], rigs[f, 3]
+            p_up, p_hi = world_position(world, up, t - o), world_position(world, hi, t - o)
+            p_an, p_ef = world_position(world, an, t - o), world_position(world, ef, t - o)
+            if terrain or lean[t] != 0.0:  # as the leg hangs untilted, unleaned (see the doc)
+                r = vscale(v3(out_root[t]), 1.0 / h)
+                q = lean_tilt(yaw[t], lean[t])
+                if terrain:
+                    q = qmul(q4(tilt[tilt_at + t]), q)
+                p = vadd(r, qrot(conj(unit4((q[0], q[1], q[2], q[3] + 1.0))), vsub(p_ef, r)))
+                y = r[1] + qrot(conj(q), vsub(p_ef, r))[1]
+                # On a terrain above the body's ground (ground_targets puts it on the terrain).
+                y = y - path[t, 1] / h if terrain else y
+                feet[t, f, 0], feet[t, f, 1], feet[t, f, 2] = p[0], y, p[2]
+            else:
+                feet[t, f, 0], feet[t, f, 1], feet[t, f, 2] = p_ef
+            leg = legs[t, f]
+            leg[LEG_TOE], leg[LEG_TOE + 1], leg[LEG_TOE + 2] = vsub(p_ef, p_an)
+            leg[LEG_UP], leg[LEG_UP + 1], leg[LEG_UP + 2] = p_up
+            leg[LEG_REACH] = norm3(vsub(p_hi, p_up)) + norm3(vsub(p_an, p_hi))
+
+
+@_jit(inline="always")
+def reach_sink(targets: Any, legs: Any, path: Any, h: float, terrain: bool, s: int, T: int,
+               sink: Any) -> None:
+    """Pass 3's sink of frames ``[s, T)``: how far the root must come down for the leg furthest
+    from its target to reach it within ``REACH`` of its length (flat ground: targets no lower
+    than the path)."""
+    for t in range(s, T):
+        floor = path[t, 1] / h
+        worst = 0.0
+        for f in range(4):
+            if not terrain and targets[t, f, 1] < floor:
+                targets[t, f, 1] = floor
+            leg = legs[t, f]
+            to_ankle = vsub(vsub(v3(targets[t, f]), v3(leg[LEG_TOE:])), v3(leg[LEG_UP:]))
+            allowed = REACH * leg[LEG_REACH]
+            across2 = to_ankle[0] ** 2 + to_ankle[2] ** 2
+            worst = max(worst, -to_ankle[1] - math.sqrt(max(allowed * allowed - across2, 0.0)))
+        sink[t] = worst

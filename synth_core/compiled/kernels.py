@@ -26,7 +26,6 @@ One character, in four passes over its frames:
 from __future__ import annotations
 
 import functools
-import math
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any, NamedTuple, TypeVar
 
@@ -37,34 +36,26 @@ from synth_core import UP_AXIS
 from synth_core.build.ik import limb_rigs
 from synth_core.compiled import foot_kernels, ground_kernels, limb_kernels, pose_kernels, vec_kernels
 from synth_core.compiled.foot_kernels import (
-    LEG_REACH,
-    LEG_TOE,
-    LEG_UP,
     LEG_WIDTH,
     NOWHERE,
     ease_sink,
     ground_targets,
     lock_contexts,
+    measure_feet,
     plant_targets,
+    reach_sink,
 )
 from synth_core.compiled.jit import AVAILABLE as AVAILABLE  # callers ask kernels.AVAILABLE
 from synth_core.compiled.jit import interpreted, prange, render_jit, threads
-from synth_core.compiled.limb_kernels import LANES, fk, solve_legs, unit4, world_position
-from synth_core.compiled.pose_kernels import assemble, lean_tilt, root_only
+from synth_core.compiled.limb_kernels import LANES, fk, solve_legs
+from synth_core.compiled.pose_kernels import assemble, root_only
 from synth_core.compiled.scratch import Scratch
 from synth_core.compiled.vec_kernels import (
-    conj,
-    norm3,
     put,
     q4,
     qmul,
-    qrot,
-    v3,
-    vadd,
-    vscale,
-    vsub,
 )
-from synth_core.runtime.footlock import MAX_SINK, PAD, REACH, TERRAIN_MAX_SINK
+from synth_core.runtime.footlock import MAX_SINK, PAD, TERRAIN_MAX_SINK
 
 if TYPE_CHECKING:
     from synth_core.runtime.bank import Bank
@@ -81,59 +72,6 @@ WHOLE_PLANT = 1 << 62  # plant_frames: a plant's target averages all its frames
 
 
 # --- the four passes ---------------------------------------------------------------------------
-
-@_jit(inline="always")
-def _measure(world: Any, out_root: Any, yaw: Any, lean: Any, path: Any, tilt: Any, tilt_at: int,
-             terrain: bool, rigs: Any, h: float, a: int, T: int, o: int, feet: Any, legs: Any) -> None:
-    """Pass 2's measure of frames ``[a, T)``: each foot (``feet``, unit space) and what the sink
-    reads of its leg (``legs``), from ``world`` (origin ``o``). On a terrain or leant into a
-    turn, a foot is measured with the tilt (and the lean) taken back off: its height as without
-    it (over the ground, the body's height is the clip's), its place over the ground turned back
-    by half the tilt -- legs hang between square to the body and plumb. Plumb (the whole tilt
-    taken off), a body pitched down a 30% slope swung its forelegs 17 degrees forward of where it
-    carries them and their shoulders flipped through straight; square, the hooves slid 35 cm
-    ahead of the root and the body leant back."""
-    for t in range(a, T):
-        for f in range(4):
-            up, hi, an, ef = rigs[f, 0], rigs[f, 1], rigs[f, 2], rigs[f, 3]
-            p_up, p_hi = world_position(world, up, t - o), world_position(world, hi, t - o)
-            p_an, p_ef = world_position(world, an, t - o), world_position(world, ef, t - o)
-            if terrain or lean[t] != 0.0:  # as the leg hangs untilted, unleaned (see the doc)
-                r = vscale(v3(out_root[t]), 1.0 / h)
-                q = lean_tilt(yaw[t], lean[t])
-                if terrain:
-                    q = qmul(q4(tilt[tilt_at + t]), q)
-                p = vadd(r, qrot(conj(unit4((q[0], q[1], q[2], q[3] + 1.0))), vsub(p_ef, r)))
-                y = r[1] + qrot(conj(q), vsub(p_ef, r))[1]
-                # On a terrain above the body's ground (ground_targets puts it on the terrain).
-                y = y - path[t, 1] / h if terrain else y
-                feet[t, f, 0], feet[t, f, 1], feet[t, f, 2] = p[0], y, p[2]
-            else:
-                feet[t, f, 0], feet[t, f, 1], feet[t, f, 2] = p_ef
-            leg = legs[t, f]
-            leg[LEG_TOE], leg[LEG_TOE + 1], leg[LEG_TOE + 2] = vsub(p_ef, p_an)
-            leg[LEG_UP], leg[LEG_UP + 1], leg[LEG_UP + 2] = p_up
-            leg[LEG_REACH] = norm3(vsub(p_hi, p_up)) + norm3(vsub(p_an, p_hi))
-
-
-@_jit(inline="always")
-def _sink(targets: Any, legs: Any, path: Any, h: float, terrain: bool, s: int, T: int, sink: Any) -> None:
-    """Pass 3's sink of frames ``[s, T)``: how far the root must come down for the leg furthest
-    from its target to reach it within ``REACH`` of its length (flat ground: targets no lower
-    than the path)."""
-    for t in range(s, T):
-        floor = path[t, 1] / h
-        worst = 0.0
-        for f in range(4):
-            if not terrain and targets[t, f, 1] < floor:
-                targets[t, f, 1] = floor
-            leg = legs[t, f]
-            to_ankle = vsub(vsub(v3(targets[t, f]), v3(leg[LEG_TOE:])), v3(leg[LEG_UP:]))
-            allowed = REACH * leg[LEG_REACH]
-            across2 = to_ankle[0] ** 2 + to_ankle[2] ** 2
-            worst = max(worst, -to_ankle[1] - math.sqrt(max(allowed * allowed - across2, 0.0)))
-        sink[t] = worst
-
 
 @_jit()
 def _character(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, yaw: Any, lean: Any, path: Any,
@@ -153,9 +91,8 @@ def _character(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, yaw
     either. On return it holds the same of the PAD frames before ``keep_to``: True if it does
     (the first frames of a plan have fewer than PAD frames before them).
 
-    ``heights (Nz, Nx)``: the terrain (``(0, 0)``: none), its grid's origin and spacing; the body
-    then tilted by ``tilt[tilt_at + t]`` (``(T', 4)``) on frame t and its feet planted on the
-    terrain (:mod:`synth_core.runtime.terrain`; measured as :func:`_measure` says).
+    ``heights (Nz, Nx)``: the terrain (``(0, 0)``: none), grid origin, spacing; the body tilted by
+    ``tilt[tilt_at + t]`` (``(T', 4)``) on frame t, its feet planted on the terrain (measure_feet).
     ``plant_frames``: a plant's target averages its first so many frames (plant_targets' ``most``)."""
     terrain = heights.shape[0] > 0
     T = out_rot.shape[0]
@@ -179,13 +116,13 @@ def _character(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, yaw
     o = keep_from - LANES * ((keep_from - a + LANES - 1) // LANES)
     fk(out_rot, out_root, h, parents, offsets, fk_joints, world, a, T, o)
     feet[:a] = known_feet[:a]
-    _measure(world, out_root, yaw, lean, path, tilt, tilt_at, terrain, rigs, h, a, T, o, feet, legs)
+    measure_feet(world, out_root, yaw, lean, path, tilt, tilt_at, terrain, rigs, h, a, T, o, feet, legs)
     if known_feet.shape[0] > 0:
         known_feet[a:] = feet[a:]
     plant_targets(feet, contacts, targets, plant_frames)
     if terrain:
         ground_targets(targets, contacts, heights, ground_x0, ground_z0, spacing, h, sink)
-    _sink(targets, legs, path, h, terrain, s, T, sink)
+    reach_sink(targets, legs, path, h, terrain, s, T, sink)
     # Eased from frame s on: the wanted frames, PAD or more after it, read nothing before it.
     ease_sink(sink[s:], sink_limit, eased[s:])
     for t in range(a, T):
