@@ -10,7 +10,7 @@ from typing import Any
 
 import numpy as np
 
-from synth_core.compiled.jit import jit
+from synth_core.compiled.jit import jit, prange
 
 
 @jit()
@@ -26,7 +26,7 @@ def _direction(g: Any, j: int) -> Any:
     return (g[j + 1, 0] - g[j - 1, 0]) / 2.0, (g[j + 1, 1] - g[j - 1, 1]) / 2.0
 
 
-@jit()
+@jit(parallel=True)  # characters side by side: each writes its own rows
 def headings(g: Any, off: int, ends: bool, fps: float, min_speed: float, last_dir: Any, moved: Any,
              held: Any) -> None:
     """Each character's heading direction ``held (C, n, 2)`` over frames ``[t0, t0 + n)``, its path's
@@ -35,7 +35,7 @@ def headings(g: Any, off: int, ends: bool, fps: float, min_speed: float, last_di
     moves slower than ``min_speed``; before the first move, the first move's; NaN where none is
     known yet. ``last_dir (C, 2)`` and ``moved (C,)`` carried on."""
     n = held.shape[1]
-    for c in range(g.shape[0]):
+    for c in prange(g.shape[0]):
         hx, hz = last_dir[c, 0], last_dir[c, 1]
         first = -1
         for i in range(n):
@@ -63,7 +63,7 @@ def headings(g: Any, off: int, ends: bool, fps: float, min_speed: float, last_di
         moved[c] = first >= 0
 
 
-@jit()
+@jit(parallel=True)  # characters side by side: each writes its own rows
 def turn(yaw: Any, g: Any, off: int, fps: float, max_rate: float, max_lateral: float, max_lean: float,
          lean_rate: float, gentle: float, last: Any, last_lean: Any, lean: Any) -> None:
     """In place, each character's yaw ``(C, n)`` of frames ``[t0, t0 + n)`` turned toward the one
@@ -75,7 +75,7 @@ def turn(yaw: Any, g: Any, off: int, fps: float, max_rate: float, max_lateral: f
     turn's centre (the centripetal acceleration over gravity) less ``gentle`` (a gentle curve
     leans none), within ``max_lean``, reached at most ``lean_rate`` radians a second. ``last``,
     ``last_lean`` ``(C,)``: each one's yaw (NaN: none) and lean the frame before, carried on."""
-    for c in range(yaw.shape[0]):
+    for c in prange(yaw.shape[0]):
         prev, tilt = last[c], last_lean[c]
         for i in range(yaw.shape[1]):
             want = yaw[c, i]
