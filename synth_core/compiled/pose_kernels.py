@@ -28,14 +28,11 @@ def assemble(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, yaw: 
     for t in range(T):
         r0, r1, p0, p1 = rows[t, 0], rows[t, 1], rows[t, 2], rows[t, 3]
         w, pw, keep = weights[t, 0], weights[t, 1], weights[t, 2]
-        ht = height[r0] * (1 - w) + height[r1] * w
-        sg = surge[r0] * (1 - w) + surge[r1] * w
+        ht, sg = _height_surge(height, surge, rows[t], weights[t])
         if keep > 0:
             nlerp_into(poses[r0], poses[r1], w, now)
             nlerp_into(poses[p0], poses[p1], pw, before)
             nlerp_into(now, before, keep, pose)
-            ht = ht * (1 - keep) + (height[p0] * (1 - pw) + height[p1] * pw) * keep
-            sg = sg * (1 - keep) + (surge[p0] * (1 - pw) + surge[p1] * pw) * keep
         else:
             nlerp_into(poses[r0], poses[r1], w, pose)
         frame = out_rot[t]
@@ -48,6 +45,20 @@ def assemble(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, yaw: 
             put(frame[0], qmul((sh * sr, sh * cr, ch * sr, ch * cr), q4(frame[0])))
         else:
             put(frame[0], qmul((0.0, sh, 0.0, ch), q4(frame[0])))
+
+
+@_jit(inline="always")
+def _height_surge(height: Any, surge: Any, row: Any, weight: Any) -> tuple[float, float]:
+    """A frame's root height and surge blended from its table rows ``row`` (r0, r1, and the piece
+    fading out: p0, p1) by ``weight`` (w, pw, keep), as its pose is."""
+    r0, r1, p0, p1 = row[0], row[1], row[2], row[3]
+    w, pw, keep = weight[0], weight[1], weight[2]
+    ht = height[r0] * (1 - w) + height[r1] * w
+    sg = surge[r0] * (1 - w) + surge[r1] * w
+    if keep > 0:
+        ht = ht * (1 - keep) + (height[p0] * (1 - pw) + height[p1] * pw) * keep
+        sg = sg * (1 - keep) + (surge[p0] * (1 - pw) + surge[p1] * pw) * keep
+    return ht, sg
 
 
 @_jit()
@@ -67,13 +78,7 @@ def root_only(height: Any, surge: Any, rows: Any, weights: Any, yaw: Any, path: 
     """Pass 1's root alone (:func:`assemble` without the pose): a character at root_gait detail,
     whose rotations nobody is sent -- the plan's root, before the foot lock's sink."""
     for t in range(out_root.shape[0]):
-        r0, r1, p0, p1 = rows[t, 0], rows[t, 1], rows[t, 2], rows[t, 3]
-        w, pw, keep = weights[t, 0], weights[t, 1], weights[t, 2]
-        ht = height[r0] * (1 - w) + height[r1] * w
-        sg = surge[r0] * (1 - w) + surge[r1] * w
-        if keep > 0:
-            ht = ht * (1 - keep) + (height[p0] * (1 - pw) + height[p1] * pw) * keep
-            sg = sg * (1 - keep) + (surge[p0] * (1 - pw) + surge[p1] * pw) * keep
+        ht, sg = _height_surge(height, surge, rows[t], weights[t])
         _put_root(ht, sg, yaw[t], path[t], h, out_root[t])
 
 
