@@ -22,7 +22,8 @@ from synth_core.runtime.synthesis import Result
 SHORT = {"glide_ratio": "glide", "strict_skate_mm_p95": "skate p95 mm", "jump_cm_max": "jump cm",
          "limb_flips": "flips", "walk_support_share": "walk >=2 down",
          "single_support_ratio_max": "alone / stance",
-         "stretch_pct_max": "stretch %", "floating_cm_max": "float cm", "path_cm_max": "path cm",
+         "stretch_pct_max": "stretch %", "floating_cm_max": "float cm", "stand_drift_cm_max": "drift cm",
+         "path_cm_max": "path cm",
          "clock_kept": "clock"}
 
 

@@ -197,6 +197,9 @@ EDGE_TARGETS: dict[str, tuple[str, float]] = {
     "single_support_ratio_max": ("<=", 1.0),
     "stretch_pct_max": ("<=", 3.0),
     "floating_cm_max": ("<=", 1.0),
+    # "never a root that slides over pinned feet": over four feet down while the body is slow,
+    # the root moves over them no more than a standing animal shifts its weight (a few cm)
+    "stand_drift_cm_max": ("<=", 5.0),
     "path_cm_max": ("<=", 1.0),
     "clock_kept": ("==", 1),
 }
@@ -339,6 +342,8 @@ def edge_figures(bank: Bank, result: Result, reference_path: NDArray[np.floating
         "floating_cm_max": _round(max(0.0, M.floating_m(heights, speed, SLOW_BODY)) * 100, 2),
         "still_four_down_share": _round(float(np.mean(feet_down[still] == 4)) if still.any() else nan),
         "still_highest_foot_cm": _round(float(heights.max(axis=-1)[still].max(initial=0.0)) * 100, 2),
+        "stand_drift_cm_max": _round(float((M.stand_drift_m(root, feet, down, speed < SLOW_BODY)
+                                            / result.scales[:, None]).max(initial=0.0)) * 100, 2),
         "penetration_mm": _round(max(0.0, -float(above_ground.min())) * 1000, 2),
         "yaw_deg_s_max": _round(float(yaw.max()) if yaw.size else 0.0, 1),
         "yaw_deg_s_p95": _round(float(np.percentile(yaw, 95)) if yaw.size else 0.0, 1),
