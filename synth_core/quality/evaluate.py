@@ -24,6 +24,7 @@ from synth_core import UP_AXIS
 from synth_core.build.animals import sync_frames
 from synth_core.build.motion_graph import HUBS
 from synth_core.motion.contacts import touchdowns
+from synth_core.motion.mirror import FOOT_SWAP
 from synth_core.motion.skeleton import Skeleton, forward_kinematics
 from synth_core.quality import edge, live_run
 from synth_core.quality import herd_sim as crowd
@@ -52,6 +53,15 @@ def world_positions(bank: Bank, result: Result) -> NDArray[np.float32]:
     return np.asarray(pos, np.float32)
 
 
+def own_lead(result: Result, feet: NDArray[np.generic]) -> NDArray[np.generic]:
+    """``feet (C, T, 4)``, a figure per foot, for the library's lead: LF and RF, LH and RH
+    swapped for the characters on the other (Result.mirrored) -- a canter or gallop on the other
+    lead has the mirrored footfall order, a mocap paw standing higher stands so on the other side."""
+    if result.mirrored is None or not result.mirrored.any():
+        return feet
+    return np.asarray(np.where(result.mirrored[:, None, None], feet[..., FOOT_SWAP], feet))
+
+
 def footfall_preserved(bank: Bank, result: Result, contacts: NDArray[np.bool_] | None = None,
                        clip_contacts: NDArray[np.bool_] | None = None) -> tuple[float, float]:
     """Share of strides (LH touchdown to LH touchdown) played in one gait whose touchdown order
@@ -75,7 +85,7 @@ def footfall_preserved(bank: Bank, result: Result, contacts: NDArray[np.bool_] |
     ``contacts (C, T, 4)``: the feet planted in the output (default: the plan's, ``result``'s);
     ``clip_contacts (K, 4)``: the same kind of contacts of the library's pose rows (default:
     its annotation), to take the templates from."""
-    contacts = result.contacts if contacts is None else contacts
+    contacts = own_lead(result, result.contacts if contacts is None else contacts)  # either lead's order
     clip_contacts = bank.contacts if clip_contacts is None else clip_contacts
     counts = np.zeros((2, 2), np.int64)  # (within one piece, across a piece start) x (total, matched)
     for hub, piece in bank.gaits.items():
@@ -235,14 +245,14 @@ def feet_after_fk(bank: Bank, result: Result, ref: LibraryReference,
         above_ground = np.asarray(M.foot_heights(feet, result.path[..., UP_AXIS]), np.float64)
     else:
         above_ground = feet[..., UP_AXIS] - ground.sample(feet[..., 0], feet[..., 2])
-    heights = above_ground - ref.soles[result.gait] * result.scales[:, None, None]
+    heights = above_ground - own_lead(result, ref.soles[result.gait]) * result.scales[:, None, None]
     return Feet(pos, feet, above_ground, heights, M.strict_plants(heights))
 
 
 def rest_pitch(bank: Bank) -> float:
     """The library's median body pitch (degrees, hips to shoulders) on flat ground."""
     sk = bank.skeleton
-    pos = np.asarray(forward_kinematics(sk, np.zeros((len(bank.poses), 3)), bank.poses)[0], np.float64)
+    pos = np.asarray(forward_kinematics(sk, np.zeros((bank.own, 3)), bank.poses[:bank.own])[0], np.float64)
     return float(np.median(body_pitch(pos, sk)))
 
 
@@ -313,7 +323,7 @@ def edge_figures(bank: Bank, result: Result, reference_path: NDArray[np.floating
     walk = result.gait == HUBS.index("walk")
     feet_down = down.sum(axis=-1)
     alone = M.single_support_frames(down)
-    stretch = (M.limb_reach(pos, sk) / (ref.reach * result.scales[:, None, None])).max()
+    stretch = (own_lead(result, M.limb_reach(pos, sk)) / (ref.reach * result.scales[:, None, None])).max()
     root = result.root_pos.astype(np.float64)
     speed, still = _body_speed(root, fps)
     nan = float("nan")

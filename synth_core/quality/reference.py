@@ -10,6 +10,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from synth_core import UP_AXIS
+from synth_core.motion.mirror import FOOT_SWAP
 from synth_core.motion.skeleton import forward_kinematics
 from synth_core.quality import metrics as M
 from synth_core.runtime.bank import STATIC, Bank, Piece
@@ -28,6 +29,7 @@ class LibraryReference:
     reach: Floats  # (4,) each limb's longest hip-to-foot reach in the clips, m
     stance: Floats  # (N_HUBS,) per hub its clips' longest strict plant, frames (static: the slowest gait's)
     clip_plants: NDArray[np.bool_]  # (K, 4) strict plants of every pose row (cyclic clips wrapped)
+    # The figures per foot are the library's own clips' (its lead: evaluate.own_lead).
 
 
 def _rows(piece: Piece) -> slice:
@@ -54,13 +56,14 @@ def _soles(raw: M.Floats, planted: NDArray[np.bool_], fallback: Floats) -> Float
 
 def library_reference(bank: Bank) -> LibraryReference:
     sk = bank.skeleton
-    root = np.zeros((len(bank.poses), 3))
-    root[:, UP_AXIS] = bank.height
-    pos = np.asarray(forward_kinematics(sk, root, bank.poses)[0], np.float64)
+    own = bank.own  # the library's own rows (their mirror images follow)
+    root = np.zeros((own, 3))
+    root[:, UP_AXIS] = bank.height[:own]
+    pos = np.asarray(forward_kinematics(sk, root, bank.poses[:own])[0], np.float64)
     raw = M.foot_heights(pos[:, sk.foot_joints], bank.ground)
-    overall = _soles(raw, bank.contacts, np.zeros(4))
+    overall = _soles(raw, bank.contacts[:own], np.zeros(4))
     soles = np.tile(overall, (N_HUBS, 1))
-    plants = np.zeros(bank.contacts.shape, bool)
+    plants = np.zeros((own, 4), bool)
     stance = np.zeros(N_HUBS)
     # Per piece: a mocap paw's end site stands higher in one take than in another (the real
     # dog's right hind: 0.9 cm over all its clips, 2 cm in its walk).
@@ -75,4 +78,6 @@ def library_reference(bank: Bank) -> LibraryReference:
                                     cyclic=False)[0]
     stance[[h for h in range(N_HUBS) if h not in bank.speeds]] = stance.max()
     stance[STATIC] = stance[min(bank.speeds)]
+    if bank.mirror:  # a mirror row's feet plant as the original's partners
+        plants = np.concatenate([plants, plants[:, FOOT_SWAP]])
     return LibraryReference(soles, M.limb_reach(pos, sk).max(axis=0), stance, plants)
