@@ -25,6 +25,7 @@ from synth_core.runtime.plan import (
     Headings,
     Plan,
     Planner,
+    character_leads,
     decision_step,
     empty_plan,
     frame_speeds,
@@ -184,7 +185,8 @@ def test_planner_blocks_and_state_are_the_references(bank: Bank) -> None:
     assert prep.tempo is not None
     v = frame_speeds(prep.segment_speeds / (h * prep.tempo)[:, None], m, T)
     step = decision_step(m)
-    planners = {name: Planner(bank, h, prep.tempo, backend=name) for name in ("numba", "numpy")}
+    leads = character_leads(bank, keys)  # both leads among the ten
+    planners = {name: Planner(bank, h, prep.tempo, leads, backend=name) for name in ("numba", "numpy")}
     headings = {name: Headings(C, name) for name in ("numba", "numpy")}
     ground = prep.positions[..., [0, 2]]
     t0 = 0

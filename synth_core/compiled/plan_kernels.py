@@ -362,15 +362,16 @@ def _decide(s: Any, f: Any, t: int, speed: float, draws: Any, low: Any, high: An
 
 @jit()
 def _character(t0: int, v: Any, pts: Any, h: float, tempo: float, lead: int, asked_speed: Any, draws: Any,
-               k0: int, step: int, s: Any, f: Any, offset: Any, frames_of: Any, clips: Any, cyclic: Any, source: Any,
-               target: Any, tr_kind: Any, entry: Any, exit_: Any, total: Any, low: Any, high: Any,
-               curve_at: Any, curves: Any, contacts_of: Any, slowest: int, fastest: int, max_rate: float,
-               slow: float, share: float, still_step: float, still_frames: float, margin: int, creep: float,
-               out_step: int, rows: Any, weights: Any, gait: Any, contacts: Any, stitches: Any) -> None:
+               k0: int, step: int, s: Any, f: Any, offset: Any, frames_of: Any, clips: Any, cyclic: Any,
+               source: Any, target: Any, tr_kind: Any, entry: Any, exit_: Any, total: Any, low: Any,
+               high: Any, curve_at: Any, curves: Any, contacts_of: Any, slowest: int, fastest: int,
+               max_rate: float, slow: float, share: float, still_step: float, still_frames: float,
+               margin: int, creep: float, out_step: int, rows: Any, weights: Any, gait: Any, contacts: Any,
+               stitches: Any) -> None:
     """Frames ``[t0, t0 + len(v))`` of one character (speeds ``v``, path ``pts`` from frame t0 on,
-    its rows ``lead`` on: see _on_lead): its state ``s``, ``f`` carried on; the outputs' row i is frame ``t`` = the i-th multiple of
-    ``out_step`` from t0 on. Decision ``k0 + k`` (at frame ``(k0 + k) step``) reads
-    ``asked_speed[k]`` and ``draws[k]``."""
+    its rows ``lead`` on: see _on_lead): its state ``s``, ``f`` carried on; the outputs' row i is
+    frame ``t`` = the i-th multiple of ``out_step`` from t0 on. Decision ``k0 + k`` (at frame
+    ``(k0 + k) step``) reads ``asked_speed[k]`` and ``draws[k]``."""
     n_hubs = len(low)
     ask = -(-t0 // step) * step  # the next decision's frame (counted on: no division a frame)
     k = ask // step - k0
@@ -421,11 +422,12 @@ def _character(t0: int, v: Any, pts: Any, h: float, tempo: float, lead: int, ask
 
 @jit(parallel=True)
 def advance(t0: int, v: Any, pts: Any, h: Any, tempo: Any, lead: Any, asked_speed: Any, draws: Any, k0: int,
-            step: int, ints: Any, floats: Any, offset: Any, frames_of: Any, clips: Any, cyclic: Any, source: Any,
-            target: Any, tr_kind: Any, entry: Any, exit_: Any, total: Any, low: Any, high: Any, curve_at: Any,
-            curves: Any, contacts_of: Any, slowest: int, fastest: int, max_rate: float, slow: float,
-            share: float, still_step: float, still_frames: float, margin: int, creep: float, out_step: int,
-            workers: int, rows: Any, weights: Any, gait: Any, contacts: Any, stitches: Any) -> None:
+            step: int, ints: Any, floats: Any, offset: Any, frames_of: Any, clips: Any, cyclic: Any,
+            source: Any, target: Any, tr_kind: Any, entry: Any, exit_: Any, total: Any, low: Any, high: Any,
+            curve_at: Any, curves: Any, contacts_of: Any, slowest: int, fastest: int, max_rate: float,
+            slow: float, share: float, still_step: float, still_frames: float, margin: int, creep: float,
+            out_step: int, workers: int, rows: Any, weights: Any, gait: Any, contacts: Any,
+            stitches: Any) -> None:
     """:func:`_character` for every character ``c`` (row c of every array but the tables),
     characters in parallel on ``workers`` threads."""
     C = v.shape[0]

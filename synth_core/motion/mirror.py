@@ -100,11 +100,14 @@ def reflect(q: NDArray[np.floating], normal: Floats) -> Floats:
     return np.concatenate([v, np.asarray(q[..., 3:], np.float64)], axis=-1)
 
 
+CANONICAL_SIDE = np.array([1.0, 0.0, 0.0])  # the bank's clips travel along +Z, Y up: their side is X
+
+
 def mirror_poses(mirror: Mirror, poses: NDArray[np.floating],
-                 world_normal: Floats = np.array([1.0, 0.0, 0.0])) -> Floats:
+                 world_normal: Floats = CANONICAL_SIDE) -> Floats:
     """The mirror images of local rotations ``poses (K, J, 4)``: each joint takes its partner's
     rotation reflected; the root's is reflected between the body's plane and the world's
-    (``world_normal``: the canonical clips travel along +Z, so +X)."""
+    (``world_normal``: the plane the clips travel in)."""
     out = reflect(np.asarray(poses)[:, mirror.partner], mirror.normal)
     m_world = np.eye(3) - 2.0 * np.outer(world_normal, world_normal)
     m_body = np.eye(3) - 2.0 * np.outer(mirror.normal, mirror.normal)

@@ -14,7 +14,7 @@ output after FK from foot heights alone (:func:`edge_figures`), against issue 27
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, TypeVar
 
 import numpy as np
 from numpy.typing import NDArray
@@ -53,7 +53,10 @@ def world_positions(bank: Bank, result: Result) -> NDArray[np.float32]:
     return np.asarray(pos, np.float32)
 
 
-def own_lead(result: Result, feet: NDArray[np.generic]) -> NDArray[np.generic]:
+G = TypeVar("G", bound=np.generic)
+
+
+def own_lead(result: Result, feet: NDArray[G]) -> NDArray[G]:
     """``feet (C, T, 4)``, a figure per foot, for the library's lead: LF and RF, LH and RH
     swapped for the characters on the other (Result.mirrored) -- a canter or gallop on the other
     lead has the mirrored footfall order, a mocap paw standing higher stands so on the other side."""
@@ -85,7 +88,7 @@ def footfall_preserved(bank: Bank, result: Result, contacts: NDArray[np.bool_] |
     ``contacts (C, T, 4)``: the feet planted in the output (default: the plan's, ``result``'s);
     ``clip_contacts (K, 4)``: the same kind of contacts of the library's pose rows (default:
     its annotation), to take the templates from."""
-    contacts = own_lead(result, result.contacts if contacts is None else contacts)  # either lead's order
+    planted = own_lead(result, result.contacts if contacts is None else contacts)  # either lead's order
     clip_contacts = bank.contacts if clip_contacts is None else clip_contacts
     counts = np.zeros((2, 2), np.int64)  # (within one piece, across a piece start) x (total, matched)
     for hub, piece in bank.gaits.items():
@@ -97,8 +100,8 @@ def footfall_preserved(bank: Bank, result: Result, contacts: NDArray[np.bool_] |
         except ValueError:
             phases = None
         for c in range(len(result.gait)):  # per character: strides are ragged; not a hot path
-            down = touchdowns(contacts[c])
-            groups = M.touchdown_groups(contacts[c], sync)
+            down = touchdowns(planted[c])
+            groups = M.touchdown_groups(planted[c], sync)
             starts = [i for i, (_, g) in enumerate(groups) if "LH" in g]
             for a, b in zip(starts[:-1], starts[1:], strict=False):
                 t0, t1 = groups[a][0], groups[b][0]

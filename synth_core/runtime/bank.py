@@ -147,8 +147,11 @@ def nearest_pose(poses: NDArray[np.floating], contacts: NDArray[np.bool_], pose:
     return int(np.lexsort((distance, disagree))[0])
 
 
+Table = tuple[NDArray[np.float32], Floats, Floats, NDArray[np.bool_]]  # poses, height, surge, contacts
+
+
 def _mirrored(skeleton: Skeleton, poses: NDArray[np.float32], height: Floats, surge: Floats,
-              contacts: NDArray[np.bool_]) -> tuple[NDArray[np.float32], Floats, Floats, NDArray[np.bool_], int]:
+              contacts: NDArray[np.bool_]) -> tuple[*Table, int]:
     """The table's rows followed by their mirror images (root height and surge are the same,
     each foot's contact is its partner's), and where the mirror rows start (0: none, the rows
     as they were: no left/right pairing)."""

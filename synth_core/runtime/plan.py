@@ -332,10 +332,10 @@ class Planner:
         distance walked on), with ``decisions`` made there; the rows, weights, gait, contacts and
         stitches of frames a multiple of ``out_step`` into ``out``'s arrays (one per frame)."""
         tb = self.tables
-        self.kernels.advance(t0, v, pts, self.scales, self.tempo, self.leads, decisions.speed, decisions.draws,
-                             decisions.first, self.step, self.ints, self.floats, *tb.args(), self.margin,
-                             tb.creep, out_step, threads(), out.rows, out.weights, out.gait, out.contacts,
-                             out.stitches)
+        self.kernels.advance(t0, v, pts, self.scales, self.tempo, self.leads, decisions.speed,
+                             decisions.draws, decisions.first, self.step, self.ints, self.floats, *tb.args(),
+                             self.margin, tb.creep, out_step, threads(), out.rows, out.weights, out.gait,
+                             out.contacts, out.stitches)
 
 
 def plan(bank: Bank, prep: Prepared, h: Floats, keys: NDArray[np.uint64], margin: int = MARGIN,

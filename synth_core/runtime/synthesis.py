@@ -260,5 +260,5 @@ def synthesize(bank: Bank, positions: ArrayLike, fps: float | None = None,
         gait[sl], contacts[sl], stitches[sl] = p.gait, p.contacts, p.stitches
         if progress:
             progress(sl.stop, C)
-    return Result(out[0], out[1], gait, contacts, stitches, h, prep.positions,
-                  prep.resample_rate, prep.kept, prep.rejected, prep.warnings, character_leads(bank, keys) > 0)
+    return Result(out[0], out[1], gait, contacts, stitches, h, prep.positions, prep.resample_rate,
+                  prep.kept, prep.rejected, prep.warnings, character_leads(bank, keys) > 0)
