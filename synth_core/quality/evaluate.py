@@ -57,12 +57,21 @@ G = TypeVar("G", bound=np.generic)
 
 
 def own_lead(result: Result, feet: NDArray[G]) -> NDArray[G]:
-    """``feet (C, T, 4)``, a figure per foot, for the library's lead: LF and RF, LH and RH
-    swapped for the characters on the other (Result.mirrored) -- a canter or gallop on the other
-    lead has the mirrored footfall order, a mocap paw standing higher stands so on the other side."""
+    """``feet (C, T, 4)``, a figure per foot, as on the library's lead: LF and RF, LH and RH
+    swapped for the characters on the other (Result.mirrored), whose canter or gallop has the
+    mirrored footfall order."""
     if result.mirrored is None or not result.mirrored.any():
         return feet
     return np.asarray(np.where(result.mirrored[:, None, None], feet[..., FOOT_SWAP], feet))
+
+
+def on_lead(result: Result, own: Floats, mirror: Floats) -> Floats:
+    """Per character, ``own`` (a library figure, per foot last) or for those on the other lead
+    (Result.mirrored) ``mirror``, the mirror rows' own: ``(C, ...)``."""
+    if result.mirrored is None:
+        return np.broadcast_to(own, (len(result.scales), *own.shape))
+    lead = result.mirrored.reshape(-1, *([1] * own.ndim))
+    return np.asarray(np.where(lead, mirror[None], own[None]))
 
 
 def footfall_preserved(bank: Bank, result: Result, contacts: NDArray[np.bool_] | None = None,
@@ -248,7 +257,9 @@ def feet_after_fk(bank: Bank, result: Result, ref: LibraryReference,
         above_ground = np.asarray(M.foot_heights(feet, result.path[..., UP_AXIS]), np.float64)
     else:
         above_ground = feet[..., UP_AXIS] - ground.sample(feet[..., 0], feet[..., 2])
-    heights = above_ground - own_lead(result, ref.soles[result.gait]) * result.scales[:, None, None]
+    soles = on_lead(result, ref.soles, ref.mirror_soles)  # (C, hubs, 4)
+    standing = soles[np.arange(len(soles))[:, None], result.gait]  # (C, T, 4)
+    heights = above_ground - standing * result.scales[:, None, None]
     return Feet(pos, feet, above_ground, heights, M.strict_plants(heights))
 
 
@@ -326,7 +337,8 @@ def edge_figures(bank: Bank, result: Result, reference_path: NDArray[np.floating
     walk = result.gait == HUBS.index("walk")
     feet_down = down.sum(axis=-1)
     alone = M.single_support_frames(down)
-    stretch = (own_lead(result, M.limb_reach(pos, sk)) / (ref.reach * result.scales[:, None, None])).max()
+    reach = on_lead(result, ref.reach, ref.mirror_reach)  # (C, 4)
+    stretch = (M.limb_reach(pos, sk) / (reach[:, None] * result.scales[:, None, None])).max()
     root = result.root_pos.astype(np.float64)
     speed, still = _body_speed(root, fps)
     nan = float("nan")
