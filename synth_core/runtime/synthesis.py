@@ -33,7 +33,7 @@ from synth_core.compiled import backend, kernels
 from synth_core.compiled.scratch import Scratch
 from synth_core.runtime.bank import Bank
 from synth_core.runtime.draws import SCALE_STREAM, TEMPO_STREAM, character_keys, uniform
-from synth_core.runtime.plan import MARGIN, MAX_RATE, N_HUBS, Plan, headings, plan
+from synth_core.runtime.plan import MARGIN, MAX_RATE, N_HUBS, Plan, character_leads, headings, plan
 from synth_core.runtime.terrain import HeightField, along_ground, ground_plan
 from synth_core.runtime.trajectory import DEFAULT_SIGMA, Prepared, TrajectoryError, prepare
 
@@ -88,6 +88,8 @@ class Result:
     kept: NDArray[np.int64]  # input characters synthesized
     rejected: dict[int, str] = field(default_factory=dict)
     warnings: dict[int, str] = field(default_factory=dict)  # input index -> what its motion could not keep
+    mirrored: NDArray[np.bool_] | None = None  # (C,) on the other lead: the clips' mirror images
+    # (plan.character_leads; its feet's contacts are the library's with left and right swapped)
 
 
 def character_tempo(keys: NDArray[np.uint64], h: Floats, matching: str = "froude",
@@ -268,5 +270,5 @@ def synthesize(bank: Bank, positions: ArrayLike, fps: float | None = None,
         gait[sl], contacts[sl], stitches[sl] = p.gait, p.contacts, p.stitches
         if progress:
             progress(sl.stop, C)
-    return Result(out[0], out[1], gait, contacts, stitches, h, prep.positions,
-                  prep.resample_rate, prep.kept, prep.rejected, prep.warnings)
+    return Result(out[0], out[1], gait, contacts, stitches, h, prep.positions, prep.resample_rate,
+                  prep.kept, prep.rejected, prep.warnings, character_leads(bank, keys) > 0)
