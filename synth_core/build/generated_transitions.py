@@ -11,6 +11,7 @@ from numpy.typing import NDArray
 from synth_core import UP_AXIS
 from synth_core.build import ik
 from synth_core.build.speed_map import SpeedMap, cycle_displacement, foot_targets, reach_limit, sink_for_reach
+from synth_core.build.straight_crossings import solve_eased
 from synth_core.motion import contacts as C
 from synth_core.motion import quat
 from synth_core.motion.clip import Motion
@@ -150,8 +151,7 @@ def hold_plants(motion: Motion) -> Motion:
     targets = ik.within_reach(motion.skeleton, root, motion.rotations, targets,
                               reach_limit(motion, rigs), rigs)
     axes = ik.hinge_axes_over_time(motion.skeleton, motion.rotations, rigs)
-    solved = ik.solve(motion.skeleton, root, motion.rotations, targets, rigs,
-                      ground=float(feet[..., UP_AXIS].min()), axes=axes)
-    rotations = ik.mend_flips(solved.rotations, solved.wrong_side, rigs)
+    rotations, _ = solve_eased(motion.skeleton, root, motion.rotations, targets, rigs,
+                               float(feet[..., UP_AXIS].min()), axes, cyclic=False)
     return Motion(motion.skeleton, root.astype(np.float32), rotations, motion.fps, motion.contacts,
                   motion.name, motion.gait)
