@@ -9,7 +9,8 @@ at the clip's rate, one frame is then bent one way and the next the other way; p
 straight while both are clearly bent -- the joint reads as flipping its bend side in one frame
 (``metrics.limb_flips``: turned by more than 90 deg while bent 15 deg or more in both).
 
-So each crossing faster than :data:`CROSS_STEP_DEG` a frame is slowed down in time, the joint
+So each crossing faster than :data:`CROSS_STEP_DEG` a frame is slowed down in time to that pace
+at its centre (faster again a frame or two either side, where the joint is bent), the joint
 following its own path (its local rotations resampled along the clip), spending longer near
 straight and catching up on either side, over :data:`EASE_FRAMES` frames each way. Only the
 joint's timing changes; the speed maps then re-solve the limb so the foot stays on its target.
