@@ -57,7 +57,11 @@ def library_reference(bank: Bank) -> LibraryReference:
     root = np.zeros((len(bank.poses), 3))
     root[:, UP_AXIS] = bank.height
     pos = np.asarray(forward_kinematics(sk, root, bank.poses)[0], np.float64)
-    raw = M.foot_heights(pos[:, sk.foot_joints], bank.ground)
+    # The root stands at bank.height, already over the clips' ground (build_bank subtracts it):
+    # taking bank.ground off again put every sole that much low (the real dog's 2.7 mm), and
+    # every paw the synthesis plants on its sole read 2.7 mm up -- lifting off and landing a frame
+    # sooner and later against the strict plants' 1 cm.
+    raw = M.foot_heights(pos[:, sk.foot_joints])
     overall = _soles(raw, bank.contacts, np.zeros(4))
     soles = np.tile(overall, (N_HUBS, 1))
     plants = np.zeros(bank.contacts.shape, bool)
