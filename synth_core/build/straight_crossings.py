@@ -18,7 +18,7 @@ joint's timing changes; the speed maps then re-solve the limb so the foot stays 
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 import numpy as np
 from numpy.typing import NDArray
@@ -126,15 +126,24 @@ def ease_crossings(skeleton: Skeleton, rotations: NDArray[np.floating],
     return flat.reshape(out.shape)
 
 
-def solve_eased(skeleton: Skeleton, root_pos: NDArray[np.floating], rotations: NDArray[np.floating],
-                targets: NDArray[np.floating], rigs: tuple[ik.LimbRig, ...], ground: float,
-                axes: NDArray[np.floating], cyclic: bool) -> tuple[NDArray[np.float32], ik.IKResult]:
+# A pose -> the root and the toe targets to solve it for.
+Placing = Callable[[NDArray[np.floating]], tuple[NDArray[np.floating], NDArray[np.floating]]]
+
+
+def solve_eased(skeleton: Skeleton, rotations: NDArray[np.floating], place: Placing,
+                rigs: tuple[ik.LimbRig, ...], ground: float, axes: NDArray[np.floating],
+                cyclic: bool) -> tuple[NDArray[np.float32], ik.IKResult, NDArray[np.floating]]:
     """:func:`ik.solve` with flips mended (:func:`ik.mend_flips`), then each paw's ankle (the
     wrist, hock or toe the IK keeps the world orientation of) eased through straight
     (:func:`ease_crossings`) and the legs solved again around the paws' new orientation, so the
-    feet stay on their targets. Returns the rotations and the last solve's result."""
-    result = ik.solve(skeleton, root_pos, rotations, targets, rigs, ground=ground, axes=axes)
+    feet stay on their targets. ``place``: the root (lowered where a leg would lock straight)
+    and the toe targets for a pose -- asked again for the eased one, whose ankles sit elsewhere
+    (kept from the first solve, a real dog's gallop locked a fore leg straight). Returns the
+    rotations, the last solve's result and its root."""
+    root, targets = place(rotations)
+    result = ik.solve(skeleton, root, rotations, targets, rigs, ground=ground, axes=axes)
     solved = ik.mend_flips(result.rotations, result.wrong_side, rigs, cyclic=cyclic)
     eased = ease_crossings(skeleton, solved, [(r.ankle, r.effector) for r in rigs], cyclic)
-    result = ik.solve(skeleton, root_pos, eased, targets, rigs, ground=ground, axes=axes)
-    return ik.mend_flips(result.rotations, result.wrong_side, rigs, cyclic=cyclic), result
+    root, targets = place(eased)
+    result = ik.solve(skeleton, root, eased, targets, rigs, ground=ground, axes=axes)
+    return ik.mend_flips(result.rotations, result.wrong_side, rigs, cyclic=cyclic), result, root
