@@ -62,7 +62,11 @@ def _lead(bank: Bank, first: int) -> tuple[Floats, Floats, Floats, NDArray[np.bo
     root = np.zeros((bank.own, 3))
     root[:, UP_AXIS] = bank.height[own]
     pos = np.asarray(forward_kinematics(sk, root, bank.poses[own])[0], np.float64)
-    raw = M.foot_heights(pos[:, sk.foot_joints], bank.ground)
+    # The root stands at bank.height, already over the clips' ground (build_bank subtracts it):
+    # taking bank.ground off again put every sole that much low (the real dog's 2.7 mm), and
+    # every paw the synthesis plants on its sole read 2.7 mm up -- lifting off and landing a frame
+    # sooner and later against the strict plants' 1 cm.
+    raw = M.foot_heights(pos[:, sk.foot_joints])
     contacts = bank.contacts[own]
     overall = _soles(raw, contacts, np.zeros(4))
     soles = np.tile(overall, (N_HUBS, 1))
