@@ -117,7 +117,7 @@ def bend_axes(skeleton: Skeleton, rotations: NDArray[np.floating],
                                pos[..., r.ankle, :] - pos[..., r.hinge, :], root_rot) for r in rigs])
 
 
-def fold_cosines(skeleton: Skeleton, rotations: NDArray[np.floating],
+def leg_ranges(skeleton: Skeleton, rotations: NDArray[np.floating],
                  rigs: tuple[LimbRig, ...] | None = None) -> Floats:
     """Each leg's range over poses ``(..., J, 4)``, ``(4, 2)``: its furthest fold, the least cosine
     of the angle between thigh and shin (1: straight, -1: the shin folded back onto the thigh),

@@ -33,7 +33,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from synth_core import UP_AXIS
-from synth_core.build.ik import fold_cosines, limb_rigs
+from synth_core.build.ik import leg_ranges, limb_rigs
 from synth_core.compiled import foot_kernels, ground_kernels, limb_kernels, pose_kernels, vec_kernels
 from synth_core.compiled.foot_kernels import (
     LEG_WIDTH,
@@ -260,7 +260,7 @@ def _bank_tables(bank: Bank) -> tuple[tuple[Any, Any, Any], tuple[Any, Any, Any,
     would otherwise spend a third of its time here): (pose table, heights, surges) and (parents,
     offsets, the joints above the feet (FK needs no others), the legs' rig table, bend axes and
     ranges (``(4, 5)``: the axis for limb_kernels.solve_legs, the furthest fold's cosine and the
-    longest reach (ik.fold_cosines) for the sink), the sink limit)."""
+    longest reach (ik.leg_ranges) for the sink), the sink limit)."""
     sk = bank.skeleton
     rigs = limb_rigs(sk)
     rig_table = np.array([[r.upper, r.hinge, r.ankle, r.effector] for r in rigs], np.int64)
@@ -274,7 +274,7 @@ def _bank_tables(bank: Bank) -> tuple[tuple[Any, Any, Any], tuple[Any, Any, Any,
     return ((poses, bank.height.astype(np.float64), bank.surge.astype(np.float64)),
             (sk.parents.astype(np.int64), sk.offsets.astype(np.float64),
              np.flatnonzero(needed).astype(np.int64), rig_table,
-             np.concatenate([bank.bends, fold_cosines(sk, bank.poses, rigs)], axis=1),
+             np.concatenate([bank.bends, leg_ranges(sk, bank.poses, rigs)], axis=1),
              MAX_SINK * sk.leg_length()))
 
 
