@@ -33,12 +33,13 @@ import numpy as np
 from numpy.typing import NDArray
 
 from synth_core import UP_AXIS
-from synth_core.build.ik import limb_rigs
+from synth_core.build.ik import leg_ranges, limb_rigs
 from synth_core.compiled import foot_kernels, ground_kernels, limb_kernels, pose_kernels, vec_kernels
 from synth_core.compiled.foot_kernels import (
     LEG_WIDTH,
     NOWHERE,
     ease_sink,
+    fold_room,
     ground_targets,
     lock_contexts,
     measure_feet,
@@ -125,6 +126,7 @@ def _character(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, yaw
     reach_sink(targets, legs, path, h, terrain, s, T, sink)
     # Eased from frame s on: the wanted frames, PAD or more after it, read nothing before it.
     ease_sink(sink[s:], sink_limit, eased[s:])
+    fold_room(targets, legs, bends, sink_limit, s, T, eased)
     for t in range(a, T):
         out_root[t, 1] = (out_root[t, 1] / h - eased[t]) * h
     solve_legs(world, targets, eased, rigs, parents, offsets, bends, out_rot, keep_from, keep_to, o)
@@ -262,8 +264,9 @@ def _plan_arrays(plan: Plan) -> tuple[Any, Any, Any, Any, Any, Any, Any]:
 def _bank_tables(bank: Bank) -> tuple[tuple[Any, Any, Any], tuple[Any, Any, Any, Any, Any, float]]:
     """The bank's arrays as the kernels take them (made once per bank: a small batch's call
     would otherwise spend a third of its time here): (pose table, heights, surges) and (parents,
-    offsets, the joints above the feet (FK needs no others), the legs' rig table, bend axes,
-    the sink limit)."""
+    offsets, the joints above the feet (FK needs no others), the legs' rig table, bend axes and
+    ranges (``(4, 5)``: the axis for limb_kernels.solve_legs, the furthest fold's cosine and the
+    longest reach (ik.leg_ranges) for the sink), the sink limit)."""
     sk = bank.skeleton
     rigs = limb_rigs(sk)
     rig_table = np.array([[r.upper, r.hinge, r.ankle, r.effector] for r in rigs], np.int64)
@@ -276,7 +279,8 @@ def _bank_tables(bank: Bank) -> tuple[tuple[Any, Any, Any], tuple[Any, Any, Any,
     poses = np.ascontiguousarray(bank.poses.transpose(0, 2, 1))  # components first: see nlerp_into
     return ((poses, bank.height.astype(np.float64), bank.surge.astype(np.float64)),
             (sk.parents.astype(np.int64), sk.offsets.astype(np.float64),
-             np.flatnonzero(needed).astype(np.int64), rig_table, np.asarray(bank.bends, np.float64),
+             np.flatnonzero(needed).astype(np.int64), rig_table,
+             np.concatenate([bank.bends, leg_ranges(sk, bank.poses, rigs)], axis=1),
              MAX_SINK * sk.leg_length()))
 
 
