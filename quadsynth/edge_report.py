@@ -78,7 +78,8 @@ def render_worst(bank: Bank, scenario: Scenario, result: Result, entry: dict[str
     from quadsynth.preview import render
 
     misses = entry.get("beyond_target", {})
-    figure = max(misses, key=lambda f: misses[f] / (abs(evaluate.EDGE_TARGETS[f][1]) or 1.0),
+    targets = evaluate.EDGE_TARGETS | evaluate.TERRAIN_TARGETS  # a terrain scenario misses either
+    figure = max(misses, key=lambda f: misses[f] / (abs(targets[f][1]) or 1.0),
                  default="jump_cm_max")
     c, f = worst_moment(bank, scenario, result, figure)
     fk = evaluate.feet_after_fk(bank, result, library_reference(bank))
