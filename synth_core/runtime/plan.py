@@ -356,6 +356,7 @@ def plan(bank: Bank, prep: Prepared, h: Floats, keys: NDArray[np.uint64], margin
     out = empty_plan(C, keep, h)
     planner = Planner(bank, h, tempo, margin, backend)
     planner.advance(0, np.ascontiguousarray(v[:, :keep]), path, decisions, out)
-    out.yaw[...], out.lean[...] = turning(path, bank.fps, keep, backend)
+    # The body faces the way of the smoothed positions (a simulator's jitter does not swing it).
+    out.yaw[...], out.lean[...] = turning(prep.heading_path, bank.fps, keep, backend)
     out.path[...] = path[:, :keep]
     return out
