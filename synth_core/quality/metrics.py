@@ -381,7 +381,8 @@ def path_distance_cm(root_pos: Floats, target: Floats, window: int = 30) -> Floa
     behind along its path (a stride's surge) is on it, while a cut corner is not. The target goes
     on ``window`` frames past each end at its end's own pace (its first and last step): a surge
     ahead at the last frame is the same lead as anywhere else (the real dog's 2.5 cm surge read
-    1.7 cm off a path ending at a canter), while a root past a path that stops is off it. ``root_pos (..., T, 3)``, ``target (..., F, 3)``."""
+    1.7 cm off a path ending at a canter), while a root past a path that stops is off it.
+    ``root_pos (..., T, 3)``, ``target (..., F, 3)``."""
     root, path = _horizontal(root_pos), _horizontal(target)
     T, F = root.shape[-2], path.shape[-2]
     if F < 2:
