@@ -400,7 +400,8 @@ class LiveSynth(LivePath):
         facing = np.full(len(self.scales), self.heading)
         ground = self._facing(lo, t1 + 1)[..., GROUND]
         return self.heading_state.advance(ground, t0 - lo, t1 - t0, self.bank.fps, facing,
-                                          ahead=lambda who: self._facing(lo, self.n_path)[who][..., GROUND])
+                                          ahead=lambda who: self._facing(lo, self.n_path)[who][..., GROUND],
+                                          moving=self._path(lo, t1 + 1)[..., GROUND])
 
     def _fade(self, start: int, stop: int) -> Floats | None:
         """``(n,)`` how far the new ground has faded in on each frame sent of [start, stop), or

@@ -106,11 +106,6 @@ class Prepared:
                        tempo=None if self.tempo is None else self.tempo[rows],
                        facing=None if self.facing is None else self.facing[rows])
 
-    @property
-    def heading_path(self) -> Floats:
-        """The path whose way the body faces."""
-        return self.positions if self.facing is None else self.facing
-
 
 def check(positions: ArrayLike, fps: float, ids: list[str] | None = None) -> NDArray[np.floating]:
     """The batch as a ``(C, F, 3)`` float array (float32 stays float32: it is converted a few
