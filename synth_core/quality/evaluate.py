@@ -295,11 +295,14 @@ def stance_frames(ref: LibraryReference, result: Result) -> Floats:
 
 
 def edge_figures(bank: Bank, result: Result, reference_path: NDArray[np.floating], frames_in: int,
-                 ref: LibraryReference, ground: HeightField | None = None) -> dict[str, Any]:
+                 ref: LibraryReference, ground: HeightField | None = None,
+                 sent: NDArray[np.floating] | None = None) -> dict[str, Any]:
     """Every edge figure of one synthesized scenario, from world positions after FK.
 
     ``reference_path (C, F, 3)``: the path the characters were meant to follow, ``frames_in``
-    its frame count (the output's time is mapped onto it); ``ground``: the terrain walked on."""
+    its frame count (the output's time is mapped onto it); ``ground``: the terrain walked on;
+    ``sent (C, F, 3)``: the positions the simulator sent, where they are not the path meant (a
+    jittery simulator's): ``path_sent_cm_max`` is the root's distance from them."""
     sk, fps = bank.skeleton, bank.fps
     fk = feet_after_fk(bank, result, ref, ground)
     pos, feet, above_ground, heights, down = fk.positions, fk.feet, fk.above_ground, fk.heights, fk.down
@@ -321,6 +324,7 @@ def edge_figures(bank: Bank, result: Result, reference_path: NDArray[np.floating
     footfall = footfall_preserved(bank, result, down, ref.clip_plants)
     kept = np.asarray(reference_path)[result.kept]
     path = M.path_distance_cm(root, kept)
+    from_sent = path if sent is None else M.path_distance_cm(root, np.asarray(sent, np.float64)[result.kept])
     T = result.root_pos.shape[1]
     return {
         "glide_ratio": _round(glide.ratio),
@@ -346,6 +350,7 @@ def edge_figures(bank: Bank, result: Result, reference_path: NDArray[np.floating
         "footfall_across_transitions": _share(footfall[1]),
         "path_cm_max": _round(float(path.max()), 3),
         "path_cm_mean": _round(float(path.mean()), 3),
+        "path_sent_cm_max": _round(float(from_sent.max()), 3),
         "clock_kept": int(T == frames_in),
         "resample_rate": round(result.resample_rate, 4),
         "gait_frames": {name: int(n) for name, n in
@@ -409,7 +414,8 @@ def edge_suite(bank: Bank, seed: int = 0, names: list[str] | None = None, backen
         except ValueError as exc:  # a refusal is a figure too: the scenario could not be played
             scenarios[sc.name] = entry | {"error": str(exc), "failed": ["error"]}
             continue
-        figures = edge_figures(bank, result, sc.reference, sc.positions.shape[1], ref, sc.ground)
+        figures = edge_figures(bank, result, sc.reference, sc.positions.shape[1], ref, sc.ground,
+                               sent=sc.positions)
         targets = EDGE_TARGETS | (TERRAIN_TARGETS if sc.ground is not None else {})
         failed = [f for f in targets if passes(f, figures.get(f)) is False]
         # By how much, in the figure's unit (a share: how much of it is missing).
