@@ -7,6 +7,8 @@ from __future__ import annotations
 import math
 from typing import Any
 
+import numpy as np
+
 from synth_core.compiled.jit import jit, prange
 
 
@@ -17,17 +19,17 @@ def _step(x: Any, a: int, b: int) -> Any:
 
 
 @jit(inline="always")
-def _shift(xc: Any, w: Any, t: int) -> Any:
+def _shift(steps: Any, w: Any, t: int) -> Any:
     """The Gaussian (weights ``w``, centre first) average of the distance along the path from
-    frame t's point: the steps either side summed outwards, in a fixed order (frames beyond an
-    end repeat it: steps of 0)."""
-    T = xc.shape[0]
+    frame t's point (``steps (T - 1,)``: from each point to the next): the steps either side
+    summed outwards, in a fixed order (frames beyond an end repeat it: steps of 0)."""
+    T = steps.shape[0] + 1
     d, ahead, behind = 0.0, 0.0, 0.0
     for j in range(1, len(w)):
         if t + j < T:
-            ahead += _step(xc, t + j - 1, t + j)
+            ahead += steps[t + j - 1]
         if t - j >= 0:
-            behind += _step(xc, t - j, t - j + 1)
+            behind += steps[t - j]
         d += w[j] * (ahead - behind)
     return d
 
@@ -35,22 +37,27 @@ def _shift(xc: Any, w: Any, t: int) -> Any:
 @jit(parallel=True)  # characters side by side: each writes its own rows
 def along(x: Any, w: Any, first: int, out: Any) -> None:
     """``out (C, n, 3)``: frames ``[first, first + n)`` of the paths ``x (C, T, 3)``, each frame's
-    point moved along its path by :func:`_shift` (forward where the path ahead is longer)."""
+    point moved along its path by :func:`_shift` (forward where the path ahead is longer). Each
+    step's length is one number whatever the window (a live one gives the batch's bits)."""
     T = x.shape[1]
     for c in prange(x.shape[0]):
         xc = x[c]
+        lo, hi = max(first - len(w) + 1, 0), min(first + out.shape[1] + len(w) - 1, T)
+        steps = np.zeros(max(T - 1, 0))  # only [lo, hi - 1) is read
+        for k in range(lo, hi - 1):
+            steps[k] = _step(xc, k, k + 1)
         for i in range(out.shape[1]):
             t = first + i
-            d = _shift(xc, w, t)
+            d = _shift(steps, w, t)
             way = 1 if d >= 0.0 else -1
             k, left = t, abs(d)
             while 0 <= k + way < T:
-                seg = _step(xc, k, k + way)
+                seg = steps[min(k, k + way)]
                 if left <= seg:
                     break
                 left -= seg
                 k += way
-            seg = _step(xc, k, k + way) if 0 <= k + way < T else 0.0
+            seg = steps[min(k, k + way)] if 0 <= k + way < T else 0.0
             for a in range(3):
                 out[c, i, a] = xc[k, a]
                 if seg > 0.0:
