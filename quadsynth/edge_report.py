@@ -22,7 +22,8 @@ from synth_core.runtime.synthesis import Result
 SHORT = {"glide_ratio": "glide", "strict_skate_mm_p95": "skate p95 mm", "jump_cm_max": "jump cm",
          "limb_flips": "flips", "walk_support_share": "walk >=2 down",
          "single_support_ratio_max": "alone / stance",
-         "stretch_pct_max": "stretch %", "floating_cm_max": "float cm", "path_cm_max": "path cm",
+         "stretch_pct_max": "stretch %", "floating_cm_max": "float cm", "stand_drift_cm_max": "drift cm",
+         "path_cm_max": "path cm",
          "clock_kept": "clock"}
 
 
@@ -77,7 +78,8 @@ def render_worst(bank: Bank, scenario: Scenario, result: Result, entry: dict[str
     from quadsynth.preview import render
 
     misses = entry.get("beyond_target", {})
-    figure = max(misses, key=lambda f: misses[f] / (abs(evaluate.EDGE_TARGETS[f][1]) or 1.0),
+    targets = evaluate.EDGE_TARGETS | evaluate.TERRAIN_TARGETS  # a terrain scenario misses either
+    figure = max(misses, key=lambda f: misses[f] / (abs(targets[f][1]) or 1.0),
                  default="jump_cm_max")
     c, f = worst_moment(bank, scenario, result, figure)
     fk = evaluate.feet_after_fk(bank, result, library_reference(bank))

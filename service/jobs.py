@@ -187,7 +187,13 @@ def options(req: SynthesizeRequest, max_character_frames: int | None = None,
                    skip_invalid=req.skip_invalid, foot_lock=req.foot_lock, first_index=req.first_index,
                    min_resample_rate=req.min_resample_rate, resample=req.resample,
                    size_matching=req.size_matching, tempo_spread=req.tempo_spread,
-                   max_character_frames=max_character_frames, ground=ground)
+                   max_character_frames=max_character_frames, ground=ground, posed=posed(req))
+
+
+def posed(req: SynthesizeRequest) -> NDArray[np.bool_]:
+    """Each character's rotations are wanted, but a far one's (root_gait detail: its own, or the
+    request's): the core makes those characters' root, gait and contacts alone."""
+    return np.array([(c.detail or req.lod.detail) != "root_gait" for c in req.characters], np.bool_)
 
 
 def trajectory_error(exc: TrajectoryError, job: Job) -> ApiError:

@@ -37,7 +37,7 @@ def starts_within_margin(stitches: np.ndarray) -> np.ndarray:
 
 
 @pytest.mark.parametrize(("animal", "scenario"), [("horse", "cruise_straight"), ("horse", "corner_canter"),
-                                                  ("horse", "stop_go"), ("dog", "stop_go")])
+                                                  ("horse", "stop_go"), ("dog", "mixed_sizes")])
 def test_a_piece_fading_out_does_not_vanish_when_the_next_starts(animal: str, scenario: str) -> None:
     bank = animal_bank(animal)
     gaits = {HUBS[h]: (float(s[0]), float(s[-1])) for h, s in bank.speeds.items()}

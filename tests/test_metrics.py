@@ -288,3 +288,19 @@ def test_same_pattern_share_is_one_in_lock_step_and_chance_level_out_of_it() -> 
     assert M.same_pattern_share(shifted) == pytest.approx(looped)
     with pytest.raises(ValueError, match="2 characters"):
         M.same_pattern_share(lock[:1])
+
+
+def test_a_body_sliding_over_four_planted_feet_drifts_and_one_carrying_them_does_not() -> None:
+    F = 30
+    feet = np.zeros((F, 4, 3))
+    feet[:, :, 0] = [0.5, 0.5, -0.5, -0.5]
+    root = np.zeros((F, 3))
+    root[:, 2] = np.linspace(0.0, 0.29, F)  # 1 cm a frame over feet that stay
+    down = np.ones((F, 4), bool)
+    slow = np.ones(F, bool)
+    np.testing.assert_allclose(M.stand_drift_m(root, feet, down, slow)[-1], 0.29)
+    carried = feet + root[:, None, :]  # the feet go along (a glide, measured apart): no drift
+    assert M.stand_drift_m(root, carried, down, slow).max() < 1e-12
+    slow[:10] = False  # the run starts where the body is first slow
+    np.testing.assert_allclose(M.stand_drift_m(root, feet, down, slow)[-1], 0.29 - 0.1)
+    assert M.stand_drift_m(root, feet, down & (np.arange(F) % 2 == 0)[:, None], slow).max() == 0.0

@@ -148,3 +148,20 @@ def test_a_pause_stands_and_starting_again_goes_through_static_to_walk(animal: s
     for c, stop, again in stops(sc.positions):
         if again - stop > 2 * stride_before(bank, result, c, stop):
             assert (result.gait[c, stop:again] == STATIC).any(), (c, stop)
+
+
+@pytest.mark.parametrize("animal", ANIMALS)
+def test_a_creeping_path_is_walked_not_slid_over_standing_feet(animal: str) -> None:
+    """Creeping at 0.05-0.4 m/s, below the slowest walk: the animal walks slowly (the walk's
+    stride played slower, its feet keeping pace), never standing while its body slides on over
+    pinned feet (before: the horse at 0.05 m/s stood for 12 s while its root slid 57 cm over its
+    hooves). Judged after FK: over four feet down while the body is slow, the root moves over
+    them no more than the edge suite's limit (a standing animal's weight shift), and the
+    hooves are still planted where they are down."""
+    bank = animal_bank(animal)
+    sc = stop_scenario(bank, "creep")
+    result = synthesize(bank, sc.positions, bank.fps, scales=sc.scales, options=Options(seed=0))
+    figures = evaluate.edge_figures(bank, result, sc.reference, sc.positions.shape[1],
+                                    library_reference(bank))
+    for name in ("stand_drift_cm_max", "strict_skate_mm_p95", "glide_ratio", "stretch_pct_max"):
+        assert evaluate.passes(name, figures[name]), (name, figures[name])

@@ -5,11 +5,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from synth_core.build.animals import build_builtin
 from synth_core.compiled import foot_kernels, kernels
 from synth_core.motion.skeleton import forward_kinematics
 from synth_core.quality import metrics as M
 from synth_core.quality.evaluate import TERRAIN_TARGETS, edge_suite, passes, world_positions
-from synth_core.runtime.bank import Bank
+from synth_core.runtime.bank import Bank, build_bank
 from synth_core.runtime.live import LiveSynth
 from synth_core.runtime.streaming import BatchStream
 from synth_core.runtime.synthesis import Options, synthesize
@@ -242,3 +243,41 @@ def test_a_swing_rises_over_a_step_or_a_bump_no_higher_than_it_in_both_backends(
         assert np.all(y >= under - 1e-9) and y.max() <= 0.2 + 1e-9
         for other in ys[1:]:  # compiled and interpreted alike
             np.testing.assert_allclose(other, y, atol=1e-12)
+
+
+@pytest.fixture(scope="module")
+def dog_bank() -> Bank:
+    return build_bank(build_builtin("dog"))
+
+
+def test_the_dog_climbs_the_20cm_step_with_no_limb_flip(dog_bank: Bank) -> None:
+    """Issue 33: the hind leg stretching back to its plant below the step sank the body while
+    the other hind paw swung up onto it, and the IK folded that knee through its thigh (a knee
+    flip, two frames). The sink now leaves every leg room to reach folded no further than the
+    clips fold it (foot_kernels.fold_room), with no other figure of the scenario given up."""
+    figures = edge_suite(dog_bank, names=["step_20cm"])["scenarios"]["step_20cm"]["figures"]
+    assert figures["limb_flips"] == 0, figures["limb_flips_at"]
+    for figure in TERRAIN_TARGETS:
+        assert passes(figure, figures[figure]), (figure, figures[figure])
+    assert figures["stretch_pct_max"] <= 3.0 and figures["jump_cm_max"] <= 6.0
+
+
+def test_the_sink_leaves_a_folded_leg_room_and_a_stretched_one_its_reach() -> None:
+    """fold_room on one frame: a swing target 0.1 below the hip with the leg folding to 0.25 at
+    most lifts an eased sink of 0.3 to the room the fold leaves (0.1 - 0.25: the body up 0.15),
+    but a planted leg whose target is 0.5 below the hip with a 0.55 reach holds it at -0.05."""
+    legs = np.zeros((1, 4, foot_kernels.LEG_WIDTH))
+    legs[0, :, foot_kernels.LEG_REACH] = 1.0
+    legs[0, :, foot_kernels.LEG_THIGH] = 0.5
+    bends = np.zeros((4, 5))
+    bends[:, 3] = (0.25 ** 2 - 0.5) / 0.5  # folded to 0.25: 0.5^2 + 0.5^2 + 2 (0.5) (0.5) cos
+    bends[:, 4] = 0.55  # the longest reach in the poses (below reach_sink's share of the leg's 1.0)
+    targets = np.zeros((1, 4, 3))
+    targets[0, :, 1] = -0.1  # every hip at the origin, its target right below it
+    eased = np.array([0.3])
+    foot_kernels.fold_room(targets, legs, bends, 1.0, 0, 1, eased)
+    assert eased[0] == pytest.approx(0.1 - 0.25)
+    targets[0, 0, 1] = -0.5  # one leg planted far below
+    eased[0] = 0.3
+    foot_kernels.fold_room(targets, legs, bends, 1.0, 0, 1, eased)
+    assert eased[0] == pytest.approx(0.5 - 0.55)

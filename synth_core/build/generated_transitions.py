@@ -11,6 +11,7 @@ from numpy.typing import NDArray
 from synth_core import UP_AXIS
 from synth_core.build import ik
 from synth_core.build.speed_map import SpeedMap, cycle_displacement, foot_targets, reach_limit, sink_for_reach
+from synth_core.build.straight_crossings import solve_eased
 from synth_core.motion import contacts as C
 from synth_core.motion import quat
 from synth_core.motion.clip import Motion
@@ -142,16 +143,18 @@ def hold_plants(motion: Motion) -> Motion:
     root = np.asarray(motion.root_pos, np.float64)
     targets = foot_targets(feet, root, root[None], motion.contacts, cyclic=False)[0]
     rigs = ik.limb_rigs(motion.skeleton)
-    # As in the speed maps, the root sinks where a plant would lock a leg straight (a straight
-    # leg has no bend side; the synthesis's foot lock would then pick one frame by frame).
-    root = sink_for_reach(motion, root, motion.rotations, targets, rigs, ease=REACH_EASE_FRAMES,
-                          most=MAX_SINK * motion.skeleton.leg_length())
-    # Deeper than that, the foot falls short of its plant (slides a little) instead.
-    targets = ik.within_reach(motion.skeleton, root, motion.rotations, targets,
-                              reach_limit(motion, rigs), rigs)
+    limit = reach_limit(motion, rigs)
+
+    def place(pose: NDArray[np.floating]) -> tuple[NDArray[np.floating], NDArray[np.floating]]:
+        # As in the speed maps, the root sinks where a plant would lock a leg straight (a straight
+        # leg has no bend side; the synthesis's foot lock would then pick one frame by frame).
+        sunk = sink_for_reach(motion, root, pose, targets, rigs, ease=REACH_EASE_FRAMES,
+                              most=MAX_SINK * motion.skeleton.leg_length())
+        # Deeper than that, the foot falls short of its plant (slides a little) instead.
+        return sunk, ik.within_reach(motion.skeleton, sunk, pose, targets, limit, rigs)
+
     axes = ik.hinge_axes_over_time(motion.skeleton, motion.rotations, rigs)
-    solved = ik.solve(motion.skeleton, root, motion.rotations, targets, rigs,
-                      ground=float(feet[..., UP_AXIS].min()), axes=axes)
-    rotations = ik.mend_flips(solved.rotations, solved.wrong_side, rigs)
-    return Motion(motion.skeleton, root.astype(np.float32), rotations, motion.fps, motion.contacts,
+    rotations, _, sunk = solve_eased(motion.skeleton, motion.rotations, place, rigs,
+                                     float(feet[..., UP_AXIS].min()), axes, cyclic=False)
+    return Motion(motion.skeleton, sunk.astype(np.float32), rotations, motion.fps, motion.contacts,
                   motion.name, motion.gait)

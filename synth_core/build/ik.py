@@ -117,6 +117,24 @@ def bend_axes(skeleton: Skeleton, rotations: NDArray[np.floating],
                                pos[..., r.ankle, :] - pos[..., r.hinge, :], root_rot) for r in rigs])
 
 
+def leg_ranges(skeleton: Skeleton, rotations: NDArray[np.floating],
+                 rigs: tuple[LimbRig, ...] | None = None) -> Floats:
+    """Each leg's range over poses ``(..., J, 4)``, ``(4, 2)``: its furthest fold, the least cosine
+    of the angle between thigh and shin (1: straight, -1: the shin folded back onto the thigh),
+    and its longest reach, upper joint to ankle (the poses' unit). The render's sink lowers the
+    body no further than lets every leg reach its target folded no more than this, nor raises it
+    for that further than every leg reaches its own within the longest (foot_kernels.fold_room)."""
+    rigs = limb_rigs(skeleton) if rigs is None else rigs
+    rotations = np.asarray(rotations, np.float64)
+    pos = np.asarray(forward_kinematics(skeleton, np.zeros((*rotations.shape[:-2], 3)), rotations)[0],
+                     np.float64)
+    out = np.empty((len(rigs), 2))
+    for k, r in enumerate(rigs):
+        thigh, shin = pos[..., r.hinge, :] - pos[..., r.upper, :], pos[..., r.ankle, :] - pos[..., r.hinge, :]
+        out[k] = _dot(_unit(thigh), _unit(shin)).min(), np.linalg.norm(thigh + shin, axis=-1).max()
+    return out
+
+
 def _hinge_axes(thigh: Floats, shin: Floats, toe: Floats, root_rot: Floats,
                 bend: Floats | None = None) -> Floats:
     """Step 1's axis, (..., 3) world, unit (see the module docstring). ``bend (3,)``: the limb's

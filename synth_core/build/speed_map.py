@@ -42,6 +42,7 @@ from scipy.ndimage import gaussian_filter1d, maximum_filter1d
 
 from synth_core import UP_AXIS
 from synth_core.build import ik
+from synth_core.build.straight_crossings import solve_eased
 from synth_core.motion.clip import Motion
 from synth_core.motion.contacts import runs
 from synth_core.motion.skeleton import Skeleton
@@ -347,12 +348,15 @@ def build_speed_map(source: Motion, speeds: Sequence[float] | Floats,
     targets = foot_targets(source.foot_positions(), source.root_pos, new_root, source.contacts)
     ground = float(source.foot_positions()[..., UP_AXIS].min())
     rotations = np.broadcast_to(source.rotations, (len(speeds), *source.rotations.shape))
-    new_root = sink_for_reach(source, new_root, rotations, targets, rigs)
     # Each frame's hinge side from the source's own pose, kept continuous around the loop.
     rigs = ik.limb_rigs(source.skeleton) if rigs is None else rigs
     axes = ik.hinge_axes_over_time(source.skeleton, source.rotations, rigs, cyclic=True)
-    result = ik.solve(source.skeleton, new_root, rotations, targets, rigs, ground=ground, axes=axes)
-    solved = ik.mend_flips(result.rotations, result.wrong_side, rigs, cyclic=True)
+
+    def place(pose: NDArray[np.floating]) -> tuple[NDArray[np.floating], NDArray[np.floating]]:
+        return sink_for_reach(source, new_root, pose, targets, rigs), targets
+
+    # The paws' ankles through straight no faster than a stride rate can play them (issue 28).
+    solved, result, sunk = solve_eased(source.skeleton, rotations, place, rigs, ground, axes, cyclic=True)
     return SpeedMap(source.gait or source.name, source.skeleton, source.fps, speeds,
-                    new_root.astype(np.float32), solved, source.contacts.copy(),
+                    sunk.astype(np.float32), solved, source.contacts.copy(),
                     result.stretch.astype(np.float32), source.speed_mps())

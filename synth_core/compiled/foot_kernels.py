@@ -141,10 +141,11 @@ def ease_sink(sink: Any, limit: float, out: Any) -> None:
 
 
 # What the sink of a frame reads of its pose, per foot (see ``kernels._character``): the ankle-to-toe
-# vector, the upper joint's position and the leg's reach. A live window keeps them for its last
-# PAD frames, whose sink the next window's first frames read: those are then not posed again.
-LEG_TOE, LEG_UP, LEG_REACH = 0, 3, 6
-LEG_WIDTH = 7
+# vector, the upper joint's position, the leg's reach (thigh and shin) and its thigh (fold_room). A
+# live window keeps them for its last PAD frames, whose sink the next window's first frames read:
+# those are then not posed again.
+LEG_TOE, LEG_UP, LEG_REACH, LEG_THIGH = 0, 3, 6, 7
+LEG_WIDTH = 8
 NOWHERE = -(1 << 62)  # Posed.legs_at of a character whose last window kept no legs
 
 
@@ -275,7 +276,8 @@ def measure_feet(world: Any, out_root: Any, yaw: Any, lean: Any, path: Any, tilt
             leg = legs[t, f]
             leg[LEG_TOE], leg[LEG_TOE + 1], leg[LEG_TOE + 2] = vsub(p_ef, p_an)
             leg[LEG_UP], leg[LEG_UP + 1], leg[LEG_UP + 2] = p_up
-            leg[LEG_REACH] = norm3(vsub(p_hi, p_up)) + norm3(vsub(p_an, p_hi))
+            thigh, shin = norm3(vsub(p_hi, p_up)), norm3(vsub(p_an, p_hi))
+            leg[LEG_REACH], leg[LEG_THIGH] = thigh + shin, thigh
 
 
 @_jit(inline="always")
@@ -296,3 +298,30 @@ def reach_sink(targets: Any, legs: Any, path: Any, h: float, terrain: bool, s: i
             across2 = to_ankle[0] ** 2 + to_ankle[2] ** 2
             worst = max(worst, -to_ankle[1] - math.sqrt(max(allowed * allowed - across2, 0.0)))
         sink[t] = worst
+
+
+@_jit(inline="always")
+def fold_room(targets: Any, legs: Any, bends: Any, limit: float, s: int, T: int, eased: Any) -> None:
+    """The eased sink of frames ``[s, T)`` lowered no further than lets every leg reach its
+    target with its hinge folded no more than the animal's own poses fold it (``bends[:, 3]``) --
+    raised for that where it must, by ``limit`` at most, and no further than every leg still
+    reaches its own within reach_sink's rule and its longest reach in the poses (``bends[:, 4]``:
+    a leg straighter than the animal holds it reads stretched; a stretched leg lifts a planted
+    foot). The easing spreads a sink over the frames around the one that needs it: a dog's hind
+    leg stretching back to its plant below a 20 cm step sank the body 9 cm while the other hind
+    paw swung up onto the step, and the IK folded that knee through its thigh to reach it (185
+    deg; the clips' furthest, 128): a limb flip, the bend's side reversing in one frame."""
+    for t in range(s, T):
+        room, need = np.inf, -np.inf
+        for f in range(4):
+            leg = legs[t, f]
+            to_ankle = vsub(vsub(v3(targets[t, f]), v3(leg[LEG_TOE:])), v3(leg[LEG_UP:]))
+            across2 = to_ankle[0] ** 2 + to_ankle[2] ** 2
+            allowed = min(REACH * leg[LEG_REACH], bends[f, 4])
+            need = max(need, -to_ankle[1] - math.sqrt(max(allowed * allowed - across2, 0.0)))
+            thigh, shin = leg[LEG_THIGH], leg[LEG_REACH] - leg[LEG_THIGH]
+            gap2 = thigh * thigh + shin * shin + 2.0 * thigh * shin * bends[f, 3] - across2
+            if gap2 > 0.0:  # folded that far, the hip is sqrt(gap2) above the target; sunk by s,
+                # it is -(to_ankle[1] + s) above it
+                room = min(room, -to_ankle[1] - math.sqrt(gap2))
+        eased[t] = max(min(eased[t], max(room, need)), -limit)

@@ -33,12 +33,13 @@ import numpy as np
 from numpy.typing import NDArray
 
 from synth_core import UP_AXIS
-from synth_core.build.ik import limb_rigs
+from synth_core.build.ik import leg_ranges, limb_rigs
 from synth_core.compiled import foot_kernels, ground_kernels, limb_kernels, pose_kernels, vec_kernels
 from synth_core.compiled.foot_kernels import (
     LEG_WIDTH,
     NOWHERE,
     ease_sink,
+    fold_room,
     ground_targets,
     lock_contexts,
     measure_feet,
@@ -125,6 +126,7 @@ def _character(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, yaw
     reach_sink(targets, legs, path, h, terrain, s, T, sink)
     # Eased from frame s on: the wanted frames, PAD or more after it, read nothing before it.
     ease_sink(sink[s:], sink_limit, eased[s:])
+    fold_room(targets, legs, bends, sink_limit, s, T, eased)
     for t in range(a, T):
         out_root[t, 1] = (out_root[t, 1] / h - eased[t]) * h
     solve_legs(world, targets, eased, rigs, parents, offsets, bends, out_rot, keep_from, keep_to, o)
@@ -139,9 +141,12 @@ def _render_all(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, ya
                 scales: Any, contacts: Any, parents: Any, offsets: Any, fk_joints: Any, rigs: Any,
                 bends: Any, sink_limit: float, foot_lock: bool, out_rot: Any, out_root: Any,
                 w_world: Any, w_feet: Any, w_legs: Any, w_targets: Any, w_sink: Any, w_eased: Any,
-                tilt: Any, heights: Any, ground_x0: float, ground_z0: float, spacing: float) -> None:
+                tilt: Any, heights: Any, ground_x0: float, ground_z0: float, spacing: float,
+                pose: Any) -> None:
     """``w_*``: one working set per worker (first axis), reused for its characters: a fresh
-    megabyte per character would cost more in page faults than the lock's arithmetic."""
+    megabyte per character would cost more in page faults than the lock's arithmetic.
+    ``pose (C,)``: the characters posed; the others get their root alone (:func:`root_only`)
+    and their rotations are left as they were in ``out_rot``."""
     C = out_rot.shape[0]
     workers = min(C, w_world.shape[0])
     none_known = np.empty((0, 4, 3))
@@ -150,6 +155,9 @@ def _render_all(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, ya
         sink, eased = w_sink[worker], w_eased[worker]
         recent = np.empty((PAD, 4, LEG_WIDTH))
         for c in range(worker, C, workers):
+            if not pose[c]:
+                root_only(height, surge, rows[c], weights[c], yaw[c], path[c], scales[c], out_root[c])
+                continue
             own_tilt = tilt[c] if heights.shape[0] > 0 else tilt[0]
             _character(poses, height, surge, rows[c], weights[c], yaw[c], lean[c], path[c], scales[c],
                        contacts[c], parents, offsets, fk_joints, rigs, bends, sink_limit, foot_lock,
@@ -256,8 +264,9 @@ def _plan_arrays(plan: Plan) -> tuple[Any, Any, Any, Any, Any, Any, Any]:
 def _bank_tables(bank: Bank) -> tuple[tuple[Any, Any, Any], tuple[Any, Any, Any, Any, Any, float]]:
     """The bank's arrays as the kernels take them (made once per bank: a small batch's call
     would otherwise spend a third of its time here): (pose table, heights, surges) and (parents,
-    offsets, the joints above the feet (FK needs no others), the legs' rig table, bend axes,
-    the sink limit)."""
+    offsets, the joints above the feet (FK needs no others), the legs' rig table, bend axes and
+    ranges (``(4, 5)``: the axis for limb_kernels.solve_legs, the furthest fold's cosine and the
+    longest reach (ik.leg_ranges) for the sink), the sink limit)."""
     sk = bank.skeleton
     rigs = limb_rigs(sk)
     rig_table = np.array([[r.upper, r.hinge, r.ankle, r.effector] for r in rigs], np.int64)
@@ -270,7 +279,8 @@ def _bank_tables(bank: Bank) -> tuple[tuple[Any, Any, Any], tuple[Any, Any, Any,
     poses = np.ascontiguousarray(bank.poses.transpose(0, 2, 1))  # components first: see nlerp_into
     return ((poses, bank.height.astype(np.float64), bank.surge.astype(np.float64)),
             (sk.parents.astype(np.int64), sk.offsets.astype(np.float64),
-             np.flatnonzero(needed).astype(np.int64), rig_table, np.asarray(bank.bends, np.float64),
+             np.flatnonzero(needed).astype(np.int64), rig_table,
+             np.concatenate([bank.bends, leg_ranges(sk, bank.poses, rigs)], axis=1),
              MAX_SINK * sk.leg_length()))
 
 
@@ -396,15 +406,19 @@ def render_window(bank: Bank, plan: Plan, start: int, stop: int, begin: NDArray[
 
 def render(bank: Bank, plan: Plan, foot_lock: bool = True,
            out: tuple[NDArray[np.float32], NDArray[np.float32]] | None = None,
-           scratch: Scratch | None = None, ground: Grounding | None = None, compiled: bool = True
-           ) -> tuple[NDArray[np.float32], NDArray[np.float32]]:
+           scratch: Scratch | None = None, ground: Grounding | None = None, compiled: bool = True,
+           pose: NDArray[np.bool_] | None = None) -> tuple[NDArray[np.float32], NDArray[np.float32]]:
     """Root ``(C, T, 3)`` and local rotations ``(C, T, J, 4)`` of a plan (the four passes of the
     module doc); into ``out`` (root, rotations) if given.
     ``scratch``: where the workers' working sets are kept between calls (a small chunk's call
     would otherwise spend a fifth of its time faulting them in). ``ground``: the plan stands on
     a terrain (:func:`synth_core.runtime.terrain.ground_plan`). ``compiled``: else the reference
-    (:data:`REFERENCE`, one thread)."""
+    (:data:`REFERENCE`, one thread). ``pose (C,)``: the characters whose rotations are wanted
+    (None: all); the others (far characters, at root_gait) get the plan's root alone, as in
+    :func:`render_window`, and their rows of the rotations are not written."""
     C, T = plan.yaw.shape
+    pose = np.ones(C, np.bool_) if pose is None else np.ascontiguousarray(pose, np.bool_)
+    assert pose.shape == (C,)
     J = bank.skeleton.n_joints
     W = min(C, threads() if compiled else 1)
     scratch = Scratch() if scratch is None else scratch
@@ -419,7 +433,7 @@ def render(bank: Bank, plan: Plan, foot_lock: bool = True,
     w_world, w_feet, w_legs, w_targets, w_sink, w_eased = work
     kernels = COMPILED if compiled else REFERENCE
     kernels.render_all(*table, *_plan_arrays(plan), *skeleton, foot_lock, out_rot, out_root, w_world, w_feet,
-                       w_legs, w_targets, w_sink, w_eased, *_terrain_arrays(ground))
+                       w_legs, w_targets, w_sink, w_eased, *_terrain_arrays(ground), pose)
     assert UP_AXIS == 1  # the kernels index Y directly
     if out is None:
         return out_root.astype(np.float32), out_rot

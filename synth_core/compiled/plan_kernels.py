@@ -285,9 +285,9 @@ def _tween(kind: int, d: float, local: int, speed: float, offset: Any, frames_of
 @jit(inline="always")
 def _frame_rows(kind: int, local: int, walked: float, since: int, p_kind: int, p_local: int, o_kind: int,
                 o_local: int, o_keep: float, v: float, offset: Any, frames_of: Any, clips: Any, cyclic: Any,
-                source: Any, target: Any, curve_at: Any, curves: Any, contacts_of: Any, margin: int, o: int,
-                rows: Any, weights: Any, contacts: Any) -> int:
-    """A frame's rows, weights and contacts (into row ``o`` of the outputs): the piece ``kind`` at
+                source: Any, target: Any, curve_at: Any, curves: Any, margin: int, o: int, rows: Any,
+                weights: Any) -> int:
+    """A frame's rows and weights (into row ``o`` of the outputs): the piece ``kind`` at
     clip frame ``local`` (``walked`` since it started ``since`` frames ago), and unless ``p_local``
     is -1, the piece before it (``p_kind`` at ``p_local``) fading out -- itself over the one before
     it (``o_kind`` at ``o_local``, share ``o_keep``) unless ``o_local`` is -1; returns the
@@ -307,10 +307,18 @@ def _frame_rows(kind: int, local: int, walked: float, since: int, p_kind: int, p
             pw = o_keep
         rows[o, 2], rows[o, 3], weights[o, 1] = p0, p1, pw
         weights[o, 2] = _fade(since, margin)  # smoothstep out
-    for foot in range(4):
-        contacts[o, foot] = contacts_of[r0, foot]
     first_half = (r0 - offset[kind]) < frames_of[kind] // 2  # a transition: the hub it leaves, then
     return int(source[kind] if first_half else target[kind])  # the one it reaches
+
+
+@jit(inline="always")
+def _on_lead(lead: int, contacts_of: Any, o: int, rows: Any, contacts: Any) -> None:
+    """Output row ``o`` on the character's lead: its table rows ``lead`` on (0, or the bank's
+    mirror: their mirror images, left and right swapped), and the contacts of the row shown."""
+    for j in range(4):
+        rows[o, j] += lead
+    for foot in range(4):
+        contacts[o, foot] = contacts_of[rows[o, 0], foot]
 
 
 @jit(inline="always")
@@ -353,16 +361,17 @@ def _decide(s: Any, f: Any, t: int, speed: float, draws: Any, low: Any, high: An
 
 
 @jit()
-def _character(t0: int, v: Any, pts: Any, h: float, tempo: float, asked_speed: Any, draws: Any, k0: int,
-               step: int, s: Any, f: Any, offset: Any, frames_of: Any, clips: Any, cyclic: Any, source: Any,
-               target: Any, tr_kind: Any, entry: Any, exit_: Any, total: Any, low: Any, high: Any,
-               curve_at: Any, curves: Any, contacts_of: Any, slowest: int, fastest: int, max_rate: float,
-               slow: float, share: float, still_step: float, still_frames: float, margin: int, creep: float,
-               out_step: int, rows: Any, weights: Any, gait: Any, contacts: Any, stitches: Any) -> None:
-    """Frames ``[t0, t0 + len(v))`` of one character (speeds ``v``, path ``pts`` from frame t0 on):
-    its state ``s``, ``f`` carried on; the outputs' row i is frame ``t`` = the i-th multiple of
-    ``out_step`` from t0 on. Decision ``k0 + k`` (at frame ``(k0 + k) step``) reads
-    ``asked_speed[k]`` and ``draws[k]``."""
+def _character(t0: int, v: Any, pts: Any, h: float, tempo: float, lead: int, asked_speed: Any, draws: Any,
+               k0: int, step: int, s: Any, f: Any, offset: Any, frames_of: Any, clips: Any, cyclic: Any,
+               source: Any, target: Any, tr_kind: Any, entry: Any, exit_: Any, total: Any, low: Any,
+               high: Any, curve_at: Any, curves: Any, contacts_of: Any, slowest: int, fastest: int,
+               max_rate: float, slow: float, share: float, still_step: float, still_frames: float,
+               margin: int, creep: float, out_step: int, rows: Any, weights: Any, gait: Any, contacts: Any,
+               stitches: Any) -> None:
+    """Frames ``[t0, t0 + len(v))`` of one character (speeds ``v``, path ``pts`` from frame t0 on,
+    its rows ``lead`` on: see _on_lead): its state ``s``, ``f`` carried on; the outputs' row i is
+    frame ``t`` = the i-th multiple of ``out_step`` from t0 on. Decision ``k0 + k`` (at frame
+    ``(k0 + k) step``) reads ``asked_speed[k]`` and ``draws[k]``."""
     n_hubs = len(low)
     ask = -(-t0 // step) * step  # the next decision's frame (counted on: no division a frame)
     k = ask // step - k0
@@ -399,10 +408,11 @@ def _character(t0: int, v: Any, pts: Any, h: float, tempo: float, asked_speed: A
             walked_since = (travelled - f[TRAV0]) + creep * local
             gait[o] = _frame_rows(kind, local, walked_since, since, pk, p_local, s[OLD_KIND], o_local, o_keep,
                                   v[i], offset, frames_of, clips, cyclic, source, target, curve_at, curves,
-                                  contacts_of, margin, o, rows, weights, contacts)
+                                  margin, o, rows, weights)
             if p_local < 0 and cyclic[kind]:  # the stride clock between two clip frames
                 _tween(kind, s[FIRST] + f[CLOCKS + min(kind, n_hubs)] - f[CLOCK0] - local, local, v[i],
                        offset, frames_of, clips, cyclic, curve_at, curves, contacts_of, o, rows, weights)
+            _on_lead(lead, contacts_of, o, rows, contacts)
             stitches[o] = started and t >= 1
             sent, o = sent + out_step, o + 1
         _tick(f, t, v[i], tempo, high, max_rate, slowest, slow, share)
@@ -411,19 +421,20 @@ def _character(t0: int, v: Any, pts: Any, h: float, tempo: float, asked_speed: A
 
 
 @jit(parallel=True)
-def advance(t0: int, v: Any, pts: Any, h: Any, tempo: Any, asked_speed: Any, draws: Any, k0: int, step: int,
-            ints: Any, floats: Any, offset: Any, frames_of: Any, clips: Any, cyclic: Any, source: Any,
-            target: Any, tr_kind: Any, entry: Any, exit_: Any, total: Any, low: Any, high: Any, curve_at: Any,
-            curves: Any, contacts_of: Any, slowest: int, fastest: int, max_rate: float, slow: float,
-            share: float, still_step: float, still_frames: float, margin: int, creep: float, out_step: int,
-            workers: int, rows: Any, weights: Any, gait: Any, contacts: Any, stitches: Any) -> None:
+def advance(t0: int, v: Any, pts: Any, h: Any, tempo: Any, lead: Any, asked_speed: Any, draws: Any, k0: int,
+            step: int, ints: Any, floats: Any, offset: Any, frames_of: Any, clips: Any, cyclic: Any,
+            source: Any, target: Any, tr_kind: Any, entry: Any, exit_: Any, total: Any, low: Any, high: Any,
+            curve_at: Any, curves: Any, contacts_of: Any, slowest: int, fastest: int, max_rate: float,
+            slow: float, share: float, still_step: float, still_frames: float, margin: int, creep: float,
+            out_step: int, workers: int, rows: Any, weights: Any, gait: Any, contacts: Any,
+            stitches: Any) -> None:
     """:func:`_character` for every character ``c`` (row c of every array but the tables),
     characters in parallel on ``workers`` threads."""
     C = v.shape[0]
     workers = min(C, workers)
     for worker in prange(workers):
         for c in range(worker, C, workers):
-            _character(t0, v[c], pts[c], h[c], tempo[c], asked_speed[c], draws[c], k0, step, ints[c],
+            _character(t0, v[c], pts[c], h[c], tempo[c], lead[c], asked_speed[c], draws[c], k0, step, ints[c],
                        floats[c], offset, frames_of, clips, cyclic, source, target, tr_kind, entry, exit_,
                        total, low, high, curve_at, curves, contacts_of, slowest, fastest, max_rate, slow,
                        share, still_step, still_frames, margin, creep, out_step, rows[c], weights[c], gait[c],

@@ -14,7 +14,7 @@ output after FK from foot heights alone (:func:`edge_figures`), against issue 27
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, TypeVar
 
 import numpy as np
 from numpy.typing import NDArray
@@ -24,6 +24,7 @@ from synth_core import UP_AXIS
 from synth_core.build.animals import sync_frames
 from synth_core.build.motion_graph import HUBS
 from synth_core.motion.contacts import touchdowns
+from synth_core.motion.mirror import FOOT_SWAP
 from synth_core.motion.skeleton import Skeleton, forward_kinematics
 from synth_core.quality import edge, live_run
 from synth_core.quality import herd_sim as crowd
@@ -52,6 +53,27 @@ def world_positions(bank: Bank, result: Result) -> NDArray[np.float32]:
     return np.asarray(pos, np.float32)
 
 
+G = TypeVar("G", bound=np.generic)
+
+
+def own_lead(result: Result, feet: NDArray[G]) -> NDArray[G]:
+    """``feet (C, T, 4)``, a figure per foot, as on the library's lead: LF and RF, LH and RH
+    swapped for the characters on the other (Result.mirrored), whose canter or gallop has the
+    mirrored footfall order."""
+    if result.mirrored is None or not result.mirrored.any():
+        return feet
+    return np.asarray(np.where(result.mirrored[:, None, None], feet[..., FOOT_SWAP], feet))
+
+
+def on_lead(result: Result, own: Floats, mirror: Floats) -> Floats:
+    """Per character, ``own`` (a library figure, per foot last) or for those on the other lead
+    (Result.mirrored) ``mirror``, the mirror rows' own: ``(C, ...)``."""
+    if result.mirrored is None:
+        return np.broadcast_to(own, (len(result.scales), *own.shape))
+    lead = result.mirrored.reshape(-1, *([1] * own.ndim))
+    return np.asarray(np.where(lead, mirror[None], own[None]))
+
+
 def footfall_preserved(bank: Bank, result: Result, contacts: NDArray[np.bool_] | None = None,
                        clip_contacts: NDArray[np.bool_] | None = None) -> tuple[float, float]:
     """Share of strides (LH touchdown to LH touchdown) played in one gait whose touchdown order
@@ -75,7 +97,7 @@ def footfall_preserved(bank: Bank, result: Result, contacts: NDArray[np.bool_] |
     ``contacts (C, T, 4)``: the feet planted in the output (default: the plan's, ``result``'s);
     ``clip_contacts (K, 4)``: the same kind of contacts of the library's pose rows (default:
     its annotation), to take the templates from."""
-    contacts = result.contacts if contacts is None else contacts
+    planted = own_lead(result, result.contacts if contacts is None else contacts)  # either lead's order
     clip_contacts = bank.contacts if clip_contacts is None else clip_contacts
     counts = np.zeros((2, 2), np.int64)  # (within one piece, across a piece start) x (total, matched)
     for hub, piece in bank.gaits.items():
@@ -87,8 +109,8 @@ def footfall_preserved(bank: Bank, result: Result, contacts: NDArray[np.bool_] |
         except ValueError:
             phases = None
         for c in range(len(result.gait)):  # per character: strides are ragged; not a hot path
-            down = touchdowns(contacts[c])
-            groups = M.touchdown_groups(contacts[c], sync)
+            down = touchdowns(planted[c])
+            groups = M.touchdown_groups(planted[c], sync)
             starts = [i for i, (_, g) in enumerate(groups) if "LH" in g]
             for a, b in zip(starts[:-1], starts[1:], strict=False):
                 t0, t1 = groups[a][0], groups[b][0]
@@ -197,6 +219,9 @@ EDGE_TARGETS: dict[str, tuple[str, float]] = {
     "single_support_ratio_max": ("<=", 1.0),
     "stretch_pct_max": ("<=", 3.0),
     "floating_cm_max": ("<=", 1.0),
+    # "never a root that slides over pinned feet": over four feet down while the body is slow,
+    # the root moves over them no more than a standing animal shifts its weight (a few cm)
+    "stand_drift_cm_max": ("<=", 5.0),
     "path_cm_max": ("<=", 1.0),
     "clock_kept": ("==", 1),
 }
@@ -235,14 +260,16 @@ def feet_after_fk(bank: Bank, result: Result, ref: LibraryReference,
         above_ground = np.asarray(M.foot_heights(feet, result.path[..., UP_AXIS]), np.float64)
     else:
         above_ground = feet[..., UP_AXIS] - ground.sample(feet[..., 0], feet[..., 2])
-    heights = above_ground - ref.soles[result.gait] * result.scales[:, None, None]
+    soles = on_lead(result, ref.soles, ref.mirror_soles)  # (C, hubs, 4)
+    standing = soles[np.arange(len(soles))[:, None], result.gait]  # (C, T, 4)
+    heights = above_ground - standing * result.scales[:, None, None]
     return Feet(pos, feet, above_ground, heights, M.strict_plants(heights))
 
 
 def rest_pitch(bank: Bank) -> float:
     """The library's median body pitch (degrees, hips to shoulders) on flat ground."""
     sk = bank.skeleton
-    pos = np.asarray(forward_kinematics(sk, np.zeros((len(bank.poses), 3)), bank.poses)[0], np.float64)
+    pos = np.asarray(forward_kinematics(sk, np.zeros((bank.own, 3)), bank.poses[:bank.own])[0], np.float64)
     return float(np.median(body_pitch(pos, sk)))
 
 
@@ -316,7 +343,8 @@ def edge_figures(bank: Bank, result: Result, reference_path: NDArray[np.floating
     walk = result.gait == HUBS.index("walk")
     feet_down = down.sum(axis=-1)
     alone = M.single_support_frames(down)
-    stretch = (M.limb_reach(pos, sk) / (ref.reach * result.scales[:, None, None])).max()
+    reach = on_lead(result, ref.reach, ref.mirror_reach)  # (C, 4)
+    stretch = (M.limb_reach(pos, sk) / (reach[:, None] * result.scales[:, None, None])).max()
     root = result.root_pos.astype(np.float64)
     speed, still = _body_speed(root, fps)
     nan = float("nan")
@@ -343,6 +371,8 @@ def edge_figures(bank: Bank, result: Result, reference_path: NDArray[np.floating
         "floating_cm_max": _round(max(0.0, M.floating_m(heights, speed, SLOW_BODY)) * 100, 2),
         "still_four_down_share": _round(float(np.mean(feet_down[still] == 4)) if still.any() else nan),
         "still_highest_foot_cm": _round(float(heights.max(axis=-1)[still].max(initial=0.0)) * 100, 2),
+        "stand_drift_cm_max": _round(float((M.stand_drift_m(root, feet, down, speed < SLOW_BODY)
+                                            / result.scales[:, None]).max(initial=0.0)) * 100, 2),
         "penetration_mm": _round(max(0.0, -float(above_ground.min())) * 1000, 2),
         "yaw_deg_s_max": _round(float(yaw.max()) if yaw.size else 0.0, 1),
         "yaw_deg_s_p95": _round(float(np.percentile(yaw, 95)) if yaw.size else 0.0, 1),

@@ -58,5 +58,5 @@ def play(bank: Bank, positions: NDArray[np.floating], scales: NDArray[np.floatin
     path = np.asarray(positions[:, :n], np.float64)
     result = Result(root.astype(np.float32), cat("rotations").astype(np.float32),
                     cat("gait").astype(np.int8), cat("contacts").astype(bool), np.zeros((C, n), bool),
-                    live.scales, path, 1.0, np.arange(C))
+                    live.scales, path, 1.0, np.arange(C), mirrored=live.leads > 0)
     return LiveRun(result, lags, live.latency_frames)

@@ -360,6 +360,25 @@ def floating_m(heights: Floats, body_speed: Floats, slow: float = 0.1) -> float:
     return float(lowest[still].max()) if still.any() else 0.0
 
 
+def stand_drift_m(root: Floats, feet: Floats, down: NDArray[np.bool_], slow: NDArray[np.bool_]) -> Floats:
+    """``(..., F)``: over each run of frames with all four feet down while the body is slow
+    (``slow (..., F)``), how far the root has moved over its feet (horizontally) since the run
+    began -- its offset from the four feet's centre against that offset on the run's first
+    frame; 0 elsewhere. ``root (..., F, 3)``, ``feet (..., F, 4, 3)``, ``down (..., F, 4)``. A
+    standing animal shifts its weight a few cm; a body sliding on over pinned feet (a path
+    creeping on below the slowest walk) reads as its whole slide."""
+    offset = (np.asarray(root, np.float64) - np.asarray(feet, np.float64).mean(axis=-2))[..., [0, 2]]
+    standing = np.asarray(down, bool).all(axis=-1) & np.asarray(slow, bool)
+    F = standing.shape[-1]
+    runs = standing.reshape(-1, F)
+    before = np.zeros_like(runs)
+    before[:, 1:] = runs[:, :-1]
+    first = np.maximum.accumulate(np.where(runs & ~before, np.arange(F), 0), axis=1)
+    off = offset.reshape(-1, F, 2)
+    drift = np.linalg.norm(off - np.take_along_axis(off, first[..., None], axis=1), axis=-1) * runs
+    return np.asarray(drift.reshape(standing.shape))
+
+
 def yaw_rates_deg(root_rotations: Floats, fps: float) -> Floats:
     """``(..., F-1)``: the body's turning rate about the vertical (deg/s) from root rotations
     ``(..., F, 4)``: the heading of its forward axis (+Z) frame to frame."""

@@ -20,6 +20,7 @@ from synth_core.build.motion_graph import HUBS
 from synth_core.build.speed_map import build_speed_map
 from synth_core.compiled import kernels
 from synth_core.motion import quat
+from synth_core.motion.mirror import FOOT_SWAP, mirror_poses, skeleton_mirror
 from synth_core.runtime.bank import Bank, canonical_cycle
 from synth_core.runtime.synthesis import Options, Plan, Result, compiled_backend, plan, prepare_batch
 
@@ -37,8 +38,9 @@ def _remap(bank: Bank, p: Plan, segment: NDArray[np.int64], speeds: NDArray[np.f
     offset = len(bank.poses)
     C = rows.shape[0]
     character = np.broadcast_to(np.arange(C)[:, None], segment.shape)
+    lead = (rows >= bank.own) * bank.mirror  # a character on the other lead: the mirror rows
     for hub, piece in bank.gaits.items():
-        gait_rows = (rows >= piece.offset) & (rows < piece.offset + piece.clips * piece.frames)
+        gait_rows = (rows - lead >= piece.offset) & (rows - lead < piece.offset + piece.clips * piece.frames)
         if not gait_rows.any():
             continue
         # Every (character, segment) showing this gait gets one clip at its segment's speed.
@@ -59,13 +61,19 @@ def _remap(bank: Bank, p: Plan, segment: NDArray[np.int64], speeds: NDArray[np.f
                 made_surge.append(sg)
         rank = np.empty(len(order), np.int64)
         rank[order] = np.arange(len(order))
-        frame = (rows[gait_rows] - piece.offset) % piece.frames
-        rows[gait_rows] = offset + rank[slot] * piece.frames + frame
-        poses.append(quat.normalize(np.concatenate(made_rot)).astype(np.float32))
-        height.append(np.concatenate(made_height).astype(np.float32))
-        surge.append(np.concatenate(made_surge).astype(np.float32))
-        contacts.append(np.tile(source.contacts, (len(order), 1)))
-        offset += len(order) * piece.frames
+        frame = (rows[gait_rows] - lead[gait_rows] - piece.offset) % piece.frames
+        # The clips made, then their mirror images (bank.mirror) for the characters on the other lead.
+        block = len(order) * piece.frames
+        rows[gait_rows] = offset + (lead[gait_rows] > 0) * block + rank[slot] * piece.frames + frame
+        made = quat.normalize(np.concatenate(made_rot))
+        mirror = skeleton_mirror(bank.skeleton) if bank.mirror else None
+        flipped = [] if mirror is None else [quat.normalize(mirror_poses(mirror, made))]
+        poses += [r.astype(np.float32) for r in (made, *flipped)]
+        height += [np.concatenate(made_height).astype(np.float32)] * (1 + len(flipped))
+        surge += [np.concatenate(made_surge).astype(np.float32)] * (1 + len(flipped))
+        tiled = np.tile(source.contacts, (len(order), 1))
+        contacts += [tiled, *([tiled[:, FOOT_SWAP]] if flipped else [])]
+        offset += block * (1 + len(flipped))
     # Exact speed: the pair blended is one clip (both rows the same, weight 0).
     exact = rows[..., 0] >= len(bank.poses)
     rows[..., 1] = np.where(exact, rows[..., 0], rows[..., 1])

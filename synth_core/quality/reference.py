@@ -28,6 +28,8 @@ class LibraryReference:
     reach: Floats  # (4,) each limb's longest hip-to-foot reach in the clips, m
     stance: Floats  # (N_HUBS,) per hub its clips' longest strict plant, frames (static: the slowest gait's)
     clip_plants: NDArray[np.bool_]  # (K, 4) strict plants of every pose row (cyclic clips wrapped)
+    mirror_soles: Floats  # soles and reach of the mirror rows (bank.mirror; else the same): a
+    mirror_reach: Floats  # character on the other lead is measured against these
 
 
 def _rows(piece: Piece) -> slice:
@@ -52,27 +54,48 @@ def _soles(raw: M.Floats, planted: NDArray[np.bool_], fallback: Floats) -> Float
                      else fallback[k] for k in range(4)])
 
 
-def library_reference(bank: Bank) -> LibraryReference:
+def _lead(bank: Bank, first: int) -> tuple[Floats, Floats, Floats, NDArray[np.bool_]]:
+    """Soles, reach, stance and clip plants (:class:`LibraryReference`) of the table's rows
+    ``[first, first + bank.own)``: the library's own clips, or their mirror images."""
     sk = bank.skeleton
-    root = np.zeros((len(bank.poses), 3))
-    root[:, UP_AXIS] = bank.height
-    pos = np.asarray(forward_kinematics(sk, root, bank.poses)[0], np.float64)
-    raw = M.foot_heights(pos[:, sk.foot_joints], bank.ground)
-    overall = _soles(raw, bank.contacts, np.zeros(4))
+    own = slice(first, first + bank.own)
+    root = np.zeros((bank.own, 3))
+    root[:, UP_AXIS] = bank.height[own]
+    pos = np.asarray(forward_kinematics(sk, root, bank.poses[own])[0], np.float64)
+    # The root stands at bank.height, already over the clips' ground (build_bank subtracts it):
+    # taking bank.ground off again put every sole that much low (the real dog's 2.7 mm), and
+    # every paw the synthesis plants on its sole read 2.7 mm up -- lifting off and landing a frame
+    # sooner and later against the strict plants' 1 cm.
+    raw = M.foot_heights(pos[:, sk.foot_joints])
+    contacts = bank.contacts[own]
+    overall = _soles(raw, contacts, np.zeros(4))
     soles = np.tile(overall, (N_HUBS, 1))
-    plants = np.zeros(bank.contacts.shape, bool)
+    plants = np.zeros((bank.own, 4), bool)
     stance = np.zeros(N_HUBS)
     # Per piece: a mocap paw's end site stands higher in one take than in another (the real
     # dog's right hind: 0.9 cm over all its clips, 2 cm in its walk).
     for hub, piece in [(STATIC, bank.idle), *bank.gaits.items()]:
         rows = _rows(piece)
-        soles[hub] = _soles(raw[rows], bank.contacts[rows], overall)
+        soles[hub] = _soles(raw[rows], contacts[rows], overall)
         plants[rows], longest = _clip_plants(raw[rows] - soles[hub], piece, cyclic=hub != STATIC)
         stance[hub] = longest
     for piece in bank.transitions.values():
         rows = _rows(piece)
-        plants[rows] = _clip_plants(raw[rows] - _soles(raw[rows], bank.contacts[rows], overall), piece,
+        plants[rows] = _clip_plants(raw[rows] - _soles(raw[rows], contacts[rows], overall), piece,
                                     cyclic=False)[0]
     stance[[h for h in range(N_HUBS) if h not in bank.speeds]] = stance.max()
     stance[STATIC] = stance[min(bank.speeds)]
-    return LibraryReference(soles, M.limb_reach(pos, sk).max(axis=0), stance, plants)
+    return soles, M.limb_reach(pos, sk).max(axis=0), stance, plants
+
+
+def library_reference(bank: Bank) -> LibraryReference:
+    soles, reach, stance, plants = _lead(bank, 0)
+    if not bank.mirror:
+        return LibraryReference(soles, reach, stance, plants, soles, reach)
+    # The mirror rows measured as themselves: a captured skeleton's sides differ by a millimetre
+    # or two (the real dog's), so a mirrored paw's standing height is not quite its partner's.
+    mirror_soles, mirror_reach, _, mirror_plants = _lead(bank, bank.mirror)
+    return LibraryReference(soles, reach, stance, np.concatenate([plants, mirror_plants]), mirror_soles,
+                            mirror_reach)
+
+

@@ -5,7 +5,9 @@ every clip is put into one canonical frame first -- facing and travelling along 
 mean heading removed, the sideways sway dropped -- and its root split into what the warp needs:
 height, and the forward *surge* (the root's lead or lag on steady progress within a stride).
 
-Rows: the gait maps (clip by clip, frame by frame), then the idle, then each transition. For
+Rows: the gait maps (clip by clip, frame by frame), then the idle, then each transition -- and
+then all of them again, mirrored left for right (:mod:`synth_core.motion.mirror`: a character on
+the other lead, issue 28), where the skeleton's sides pair up. For
 every transition we also find where it joins its gaits: ``entry`` (the source gait's frame its
 first pose matches) and ``exit`` (the target gait's frame its last pose matches), so a character
 enters it at that phase of its stride and leaves it without a step doubled or skipped.
@@ -31,6 +33,7 @@ from synth_core.build.motion_graph import HUBS
 from synth_core.build.speed_map import cycle_displacement
 from synth_core.motion import quat
 from synth_core.motion.clip import Motion
+from synth_core.motion.mirror import FOOT_SWAP, mirror_poses, skeleton_mirror
 from synth_core.motion.skeleton import Skeleton
 
 Floats = NDArray[np.float64]
@@ -66,10 +69,19 @@ class Bank:
     creep: float  # m/frame added to distance on both sides so standing clip frames still play
     bends: Floats  # (4, 3) each leg's dominant bend axis in the root's frame (foot lock's IK)
     ground: float = 0.0  # the library clips' ground height (heights above are ``height``)
+    # Row r + mirror is row r's mirror image (left and right swapped: the other lead), for
+    # r < mirror; 0: no mirror rows (a skeleton without a sound left/right pairing). The pieces'
+    # offsets are the first half's; a character on the other lead plays its rows + mirror.
+    mirror: int = 0
 
     @property
     def top_speed(self) -> float:
         return float(max(s[-1] for s in self.speeds.values()))
+
+    @property
+    def own(self) -> int:
+        """Rows of the library's own clips (their mirror images follow, if any)."""
+        return self.mirror or len(self.poses)
 
     @property
     def mean_cycle(self) -> int:
@@ -135,7 +147,24 @@ def nearest_pose(poses: NDArray[np.floating], contacts: NDArray[np.bool_], pose:
     return int(np.lexsort((distance, disagree))[0])
 
 
-def build_bank(library: Library) -> Bank:
+Table = tuple[NDArray[np.float32], Floats, Floats, NDArray[np.bool_]]  # poses, height, surge, contacts
+
+
+def _mirrored(skeleton: Skeleton, poses: NDArray[np.float32], height: Floats, surge: Floats,
+              contacts: NDArray[np.bool_]) -> tuple[*Table, int]:
+    """The table's rows followed by their mirror images (root height and surge are the same,
+    each foot's contact is its partner's), and where the mirror rows start (0: none, the rows
+    as they were: no left/right pairing)."""
+    mirror = skeleton_mirror(skeleton)
+    if mirror is None:
+        return poses, height, surge, contacts, 0
+    flipped = quat.normalize(mirror_poses(mirror, poses)).astype(np.float32)
+    return (np.concatenate([poses, flipped]), np.concatenate([height, height]),
+            np.concatenate([surge, surge]), np.concatenate([contacts, contacts[:, FOOT_SWAP]]), len(poses))
+
+
+def build_bank(library: Library, mirror: bool = True) -> Bank:
+    """The library's table; ``mirror``: with the mirror rows (where the skeleton pairs up)."""
     forward = _forward_local(library)
     rows: list[tuple[Floats, Floats, Floats, NDArray[np.bool_]]] = []
     offset = 0
@@ -186,10 +215,10 @@ def build_bank(library: Library) -> Bank:
     poses = quat.normalize(np.concatenate([r[0] for r in rows])).astype(np.float32)
     gait_rows = sum(p.clips * p.frames for p in gaits.values())
     ground = library_ground(library)
-    return Bank(library.skeleton, library.fps, poses,
-                (np.concatenate([r[1] for r in rows]) - ground).astype(np.float32),
-                np.concatenate([r[2] for r in rows]).astype(np.float32),
-                np.concatenate([r[3] for r in rows]).astype(bool),
-                tuple(h for h in HUBS if h == "static" or h in library.maps),
-                gaits, speeds, idle, transitions, distance, creep,
-                np.asarray(ik.bend_axes(library.skeleton, poses[:gait_rows]), np.float64), ground)
+    bends = np.asarray(ik.bend_axes(library.skeleton, poses[:gait_rows]), np.float64)
+    table = (poses, np.concatenate([r[1] for r in rows]) - ground, np.concatenate([r[2] for r in rows]),
+             np.concatenate([r[3] for r in rows]).astype(bool))
+    poses, height, surge, contacts, half = _mirrored(library.skeleton, *table) if mirror else (*table, 0)
+    return Bank(library.skeleton, library.fps, poses, height.astype(np.float32), surge.astype(np.float32),
+                contacts, tuple(h for h in HUBS if h == "static" or h in library.maps),
+                gaits, speeds, idle, transitions, distance, creep, bends, ground, half)

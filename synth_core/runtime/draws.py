@@ -20,6 +20,7 @@ _M2 = np.uint64(0x94D049BB133111EB)
 SCALE_STREAM = 0  # the scale drawn for a character given none
 SCHEDULE_STREAM = 1  # + the decision step: the gait picked where several cover the speed
 TEMPO_STREAM = 1 << 40  # a character's own stride tempo (far past any decision step's stream)
+LEAD_STREAM = TEMPO_STREAM + 1  # its lead: the library's clips or their mirror images
 LANES = 8  # draws per stream and character, at most
 
 

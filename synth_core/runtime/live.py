@@ -67,6 +67,7 @@ from synth_core.runtime.plan import (
     Headings,
     Plan,
     Planner,
+    character_leads,
     decision_step,
     lookahead,
     tables,
@@ -161,6 +162,7 @@ class LiveSynth(LivePath):
             bad = int(np.flatnonzero(~(np.isfinite(self.scales) & (self.scales > 0)))[0])
             raise TrajectoryError(f"scale: must be a positive number, got {self.scales[bad]}", bad)
         self.tempo = character_tempo(self.keys, self.scales, size_matching, tempo_spread)
+        self.leads = character_leads(self.bank, self.keys)  # rows on from the table's (plan.character_leads)
         self.pace = self.scales * self.tempo  # path speed over this: the library's (plan.plan)
 
     def _set_timing(self, sigma: float, latency_ms: float | None) -> None:
@@ -198,7 +200,7 @@ class LiveSynth(LivePath):
         self.seg_start = 0
         self.n_seg = 0
         # The plan and the heading, carried from block to block.
-        self.planner = Planner(self.bank, self.scales, self.tempo, margin, backend)
+        self.planner = Planner(self.bank, self.scales, self.tempo, self.leads, margin, backend)
         self.heading_state = Headings(C, backend)
         self.decisions = 0
         self.no_decision = Decisions(0, np.zeros((C, 0)), np.zeros((C, 0, N_HUBS)))  # a block without one

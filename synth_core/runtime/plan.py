@@ -57,7 +57,7 @@ from synth_core.compiled import plan_kernels as pk
 from synth_core.compiled.backend import planner
 from synth_core.compiled.jit import threads
 from synth_core.runtime.bank import Bank
-from synth_core.runtime.draws import SCHEDULE_STREAM, uniform_streams
+from synth_core.runtime.draws import LEAD_STREAM, SCHEDULE_STREAM, uniform, uniform_streams
 from synth_core.runtime.trajectory import GROUND, Prepared
 
 Floats = NDArray[np.float64]
@@ -66,8 +66,10 @@ N_HUBS = 5  # static, walk, trot, canter, gallop
 # Below its slowest clip's speed the slowest gait plays that clip's stride slower (its feet keep
 # pace with a slow path, as an animal creeping walks with long stances), down to this share of
 # its pace; slower still, a character stands. (At 0.5, with the stride at full pace, creeping
-# horses stood while their root crept on over the pinned hooves, which lifted 25 cm.)
-STAND_SHARE = 0.08
+# horses stood while their root crept on over the pinned hooves, which lifted 25 cm; at 0.08 a
+# horse at 0.05 m/s stood for 12 s while its root slid 57 cm on over its hooves: the edge suite's
+# stand_drift. The root stays on the path, so only a stride kept in pace with it keeps the feet.)
+STAND_SHARE = 0.03
 # A path whose every step for this long is slower than a standing character's (STAND_SHARE of the
 # slowest clip) has stopped: the character settles into the idle at once (see plan_kernels). The
 # segment speeds alone see a stop a segment late; longer than a 10 Hz simulator's tick (0.1 s),
@@ -310,15 +312,23 @@ def turning(path: Floats, fps: float, frames: int | None = None, backend: str = 
     return Headings(len(ground), backend).advance(ground, 0, n, fps, facing, ends=True, moving=moving)
 
 
+def character_leads(bank: Bank, keys: NDArray[np.uint64]) -> NDArray[np.int64]:
+    """(C,) each character's lead, as the rows its plan adds to the table's: 0 (the library's
+    clips) or, for half the characters (drawn from each one's key), the bank's mirror (their mirror
+    images, left and right swapped). A herd leaving standing by the one start transition stepped as
+    one, every horse the same foot first (issue 28); real herds lead on either side."""
+    return np.where(uniform(keys, LEAD_STREAM)[:, 0] < 0.5, bank.mirror, 0).astype(np.int64)
+
+
 class Planner:
     """The plans of ``len(scales)`` characters, advanced frame block by frame block (the state of
     :mod:`synth_core.compiled.plan_kernels`' machine carried between blocks). ``tempo (C,)``: clip
-    frames per output frame (synthesis.character_tempo)."""
+    frames per output frame (synthesis.character_tempo); ``leads (C,)``: :func:`character_leads`."""
 
-    def __init__(self, bank: Bank, scales: Floats, tempo: Floats, margin: int = MARGIN,
-                 backend: str = "auto") -> None:
+    def __init__(self, bank: Bank, scales: Floats, tempo: Floats, leads: NDArray[np.int64],
+                 margin: int = MARGIN, backend: str = "auto") -> None:
         self.tables, self.kernels = tables(bank), planner(backend)
-        self.scales, self.tempo, self.margin = scales, tempo, margin
+        self.scales, self.tempo, self.leads, self.margin = scales, tempo, leads, margin
         self.step = decision_step(bank.mean_cycle)
         self.ints, self.floats = pk.initial_state(len(scales), N_HUBS)
 
@@ -329,10 +339,10 @@ class Planner:
         distance walked on), with ``decisions`` made there; the rows, weights, gait, contacts and
         stitches of frames a multiple of ``out_step`` into ``out``'s arrays (one per frame)."""
         tb = self.tables
-        self.kernels.advance(t0, v, pts, self.scales, self.tempo, decisions.speed, decisions.draws,
-                             decisions.first, self.step, self.ints, self.floats, *tb.args(), self.margin,
-                             tb.creep, out_step, threads(), out.rows, out.weights, out.gait, out.contacts,
-                             out.stitches)
+        self.kernels.advance(t0, v, pts, self.scales, self.tempo, self.leads, decisions.speed,
+                             decisions.draws, decisions.first, self.step, self.ints, self.floats, *tb.args(),
+                             self.margin, tb.creep, out_step, threads(), out.rows, out.weights, out.gait,
+                             out.contacts, out.stitches)
 
 
 def plan(bank: Bank, prep: Prepared, h: Floats, keys: NDArray[np.uint64], margin: int = MARGIN,
@@ -359,7 +369,7 @@ def plan(bank: Bank, prep: Prepared, h: Floats, keys: NDArray[np.uint64], margin
                           uniform_streams(keys, SCHEDULE_STREAM, len(at), N_HUBS))
     backend = "numba" if compiled else "numpy"
     out = empty_plan(C, keep, h)
-    planner = Planner(bank, h, tempo, margin, backend)
+    planner = Planner(bank, h, tempo, character_leads(bank, keys), margin, backend)
     planner.advance(0, np.ascontiguousarray(v[:, :keep]), path, decisions, out)
     # The body faces the way of the smoothed positions (a simulator's jitter does not swing it).
     out.yaw[...], out.lean[...] = turning(path, bank.fps, keep, backend, prep.facing)

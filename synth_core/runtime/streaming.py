@@ -113,9 +113,10 @@ class BatchStream:
 
     def _render(self, p: Plan, start: int, stop: int,
                 context: tuple[NDArray[np.int64], NDArray[np.int64]] | None = None,
-                shared: bool = False) -> Window:
+                shared: bool = False, rows: slice = slice(None)) -> Window:
         """Frames ``[start, stop)`` of plan ``p`` (``context``: their lock contexts, if known;
-        ``shared``: in parts the pool's idle threads may take, see kernels.render_window)."""
+        ``shared``: in parts the pool's idle threads may take, see kernels.render_window;
+        ``rows``: the characters ``p`` plans, of the prepared batch's)."""
         lock = self.options.foot_lock
         C = p.yaw.shape[0]
         if not lock:
@@ -130,6 +131,7 @@ class BatchStream:
             start, stop, begin, end = start - o, stop - o, begin - o, end - o
         root, rot = kernels.render_window(self.bank, p, start, stop, begin, end, lock,
                                           share=render_pool.shared if shared else None, ground=ground,
+                                          pose=self.options.posed_rows(self.prep.kept[rows]),
                                           compiled=compiled_backend(self.options))
         return Window(at, root, rot, gait, contacts)
 
@@ -146,12 +148,12 @@ class BatchStream:
             reach = stop + PAD + int(strides * self.bank.mean_cycle)
             early = plan(self.bank, prep, h, keys, margin, frames=reach, compiled=compiled)
             if early.yaw.shape[1] == T:  # that was all of it
-                return self._render(early, 0, stop, shared=shared), early
+                return self._render(early, 0, stop, shared=shared, rows=rows), early
             context = self._context(early, 0, stop) if lock else None
             if context is None or context[1].max() < early.yaw.shape[1]:
-                return self._render(early, 0, stop, context, shared), None
+                return self._render(early, 0, stop, context, shared, rows), None
         whole = plan(self.bank, prep, h, keys, margin, compiled=compiled)  # a plant runs past them all
-        return self._render(whole, 0, stop, shared=shared), whole
+        return self._render(whole, 0, stop, shared=shared, rows=rows), whole
 
     def _first_window(self, stop: int) -> list[Window]:
         """Frames ``[0, stop)``: the characters in parts side by side (see the module doc), a

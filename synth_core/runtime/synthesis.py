@@ -33,7 +33,7 @@ from synth_core.compiled import backend, kernels
 from synth_core.compiled.scratch import Scratch
 from synth_core.runtime.bank import Bank
 from synth_core.runtime.draws import SCALE_STREAM, TEMPO_STREAM, character_keys, uniform
-from synth_core.runtime.plan import MARGIN, MAX_RATE, N_HUBS, Plan, headings, plan
+from synth_core.runtime.plan import MARGIN, MAX_RATE, N_HUBS, Plan, character_leads, headings, plan
 from synth_core.runtime.terrain import HeightField, along_ground, ground_plan
 from synth_core.runtime.trajectory import DEFAULT_SIGMA, Prepared, TrajectoryError, prepare
 
@@ -65,6 +65,13 @@ class Options:
     tempo_spread: float = TEMPO_SPREAD  # each character's own stride tempo, +- this share
     max_character_frames: int | None = None  # refuse (FrameLimitError) a batch that would make more
     ground: HeightField | None = None  # the terrain the herd walks on (None: the paths' y is the ground)
+    posed: NDArray[np.bool_] | None = field(default=None, compare=False)  # (C,) per input character:
+    # its rotations are wanted (None: all's). The others (far characters, at root_gait detail) get
+    # the plan's root, gait and contacts alone: no pose, no foot lock, their rotations left unwritten
+
+    def posed_rows(self, kept: NDArray[np.int64]) -> NDArray[np.bool_] | None:
+        """:attr:`posed` of the characters ``kept`` (a prepared batch's rows: input indices)."""
+        return None if self.posed is None else np.asarray(self.posed, np.bool_)[kept]
 
 
 @dataclass(frozen=True, eq=False)
@@ -81,6 +88,8 @@ class Result:
     kept: NDArray[np.int64]  # input characters synthesized
     rejected: dict[int, str] = field(default_factory=dict)
     warnings: dict[int, str] = field(default_factory=dict)  # input index -> what its motion could not keep
+    mirrored: NDArray[np.bool_] | None = None  # (C,) on the other lead: the clips' mirror images
+    # (plan.character_leads; its feet's contacts are the library's with left and right swapped)
 
 
 def character_tempo(keys: NDArray[np.uint64], h: Floats, matching: str = "froude",
@@ -141,6 +150,9 @@ def prepare_batch(bank: Bank, positions: ArrayLike, fps: float | None, scales: A
         raise TrajectoryError(f"margin: must be an integer within [0, 60] frames, got {options.margin}")
     if options.backend not in BACKENDS:
         raise TrajectoryError(f"backend: must be one of {BACKENDS}, got {options.backend!r}")
+    if options.posed is not None and np.shape(options.posed) != (n,):
+        raise TrajectoryError(f"posed: expected {n} flags (one per character), "
+                              f"got shape {np.shape(options.posed)}")
     tempo = character_tempo(keys, all_scales, options.size_matching, options.tempo_spread)
     prep = prepare(positions, fps, bank.fps, bank.top_speed, bank.mean_cycle, all_scales,
                    options.sigma, options.skip_invalid, ids, options.min_resample_rate, options.resample,
@@ -185,7 +197,7 @@ def render_chunk(bank: Bank, prep: Prepared, h: Floats, keys: NDArray[np.uint64]
                scratch.array("rotations", (n, T, bank.skeleton.n_joints, 4), np.float32))
     root, rotations = out
     kernels.render(bank, p, options.foot_lock, out=(root, rotations), scratch=scratch, ground=ground,
-                   compiled=compiled)
+                   compiled=compiled, pose=options.posed_rows(prep.kept[sl]))
     return Rendered(sl, root, rotations, p)
 
 
@@ -258,5 +270,5 @@ def synthesize(bank: Bank, positions: ArrayLike, fps: float | None = None,
         gait[sl], contacts[sl], stitches[sl] = p.gait, p.contacts, p.stitches
         if progress:
             progress(sl.stop, C)
-    return Result(out[0], out[1], gait, contacts, stitches, h, prep.positions,
-                  prep.resample_rate, prep.kept, prep.rejected, prep.warnings)
+    return Result(out[0], out[1], gait, contacts, stitches, h, prep.positions, prep.resample_rate,
+                  prep.kept, prep.rejected, prep.warnings, character_leads(bank, keys) > 0)

@@ -138,7 +138,7 @@ def footprint(bank: Bank) -> Floats:
     """``(4, 2)``: each foot's median (side, forward) place under the root over the library's
     poses, in the library's unit (root yaw canonical: forward +Z, side +X)."""
     sk = bank.skeleton
-    pos, _ = forward_kinematics(sk, np.zeros((len(bank.poses), 3)), bank.poses)
+    pos, _ = forward_kinematics(sk, np.zeros((bank.own, 3)), bank.poses[:bank.own])
     feet = np.asarray(pos, np.float64)[:, sk.foot_joints]
     return np.asarray(np.median(feet[..., [0, 2]], axis=0))
 

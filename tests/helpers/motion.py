@@ -10,6 +10,8 @@ from synth_core.builtin.gaits import GAIT_SPECS
 from synth_core.motion import quat
 from synth_core.motion.clip import Motion
 from synth_core.motion.skeleton import Skeleton
+from synth_core.runtime.bank import Bank
+from synth_core.runtime.footlock import MAX_SINK
 from synth_core.runtime.terrain import HeightField
 
 
@@ -96,3 +98,13 @@ def herd_on_hills() -> tuple[np.ndarray, HeightField]:
         step = np.stack([np.sin(yaw), np.zeros(T), np.cos(yaw)], -1) * speed / 60.0
         paths[c] = np.cumsum(step, axis=0) + [c * 3.0, 0.0, 0.0]
     return paths, field
+
+
+def assert_far_root(bank: Bank, far: np.ndarray, full: np.ndarray, scales: np.ndarray) -> None:
+    """A far character's root (root_gait: not posed, so no foot lock) against the same
+    character posed: across the ground exactly the posed root (to float32); in height the plan's,
+    which the posed character's foot lock only ever lowers (its sink), by at most its bound."""
+    np.testing.assert_allclose(far[..., [0, 2]], full[..., [0, 2]], rtol=0, atol=1e-5)
+    sink = far[..., 1] - full[..., 1]
+    bound = MAX_SINK * bank.skeleton.leg_length() * np.asarray(scales, np.float64).reshape(-1, 1)
+    assert (sink >= -1e-5).all() and (sink <= bound + 1e-5).all()

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import random
 import re
 import socket
 import subprocess
@@ -14,13 +15,32 @@ from pathlib import Path
 
 import httpx
 
+PORT_LOW = 20000  # well above the ports system services listen on
 STARTUP_TIMEOUT_S = 120.0  # the first start after an empty numba cache compiles the kernels (~30 s here)
 
 
+def ephemeral_low() -> int:
+    """The lowest port the kernel hands to outgoing connections (Linux; the IANA range elsewhere)."""
+    try:
+        return int(Path("/proc/sys/net/ipv4/ip_local_port_range").read_text().split()[0])
+    except (OSError, ValueError, IndexError):
+        return 49152
+
+
 def free_port() -> int:
-    with socket.socket() as sock:
-        sock.bind(("127.0.0.1", 0))
-        return int(sock.getsockname()[1])
+    """A port nothing listens on, drawn below the ephemeral range: a port the kernel picked for
+    bind(0) is ephemeral, so a client's outgoing connection could take it before the server binds
+    it (seen once as "Address already in use" starting nginx in tests/test_fanout.py)."""
+    draw = random.Random()
+    for _ in range(500):
+        port = draw.randrange(PORT_LOW, max(PORT_LOW + 1, ephemeral_low()))
+        with socket.socket() as sock:
+            try:
+                sock.bind(("127.0.0.1", port))
+            except OSError:
+                continue
+            return port
+    raise AssertionError(f"no free port between {PORT_LOW} and {ephemeral_low()}")
 
 
 def quadsynth_command() -> list[str]:

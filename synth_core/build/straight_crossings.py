@@ -1,0 +1,149 @@
+"""Joints that pass through straight slowly enough to be played at any stride rate (issue 28).
+
+A dog's wrist (and a toe, a hock) bends both ways: hyperextended under the load of a stance,
+flexed in the swing. At lift-off and touchdown it passes through straight, in the real dog's
+mocap at up to 60-70 deg in one frame (the gallop's wrist: 34 deg one way, 34 the other). Played
+at the clip's rate, one frame is then bent one way and the next the other way; played faster
+(a small character's Froude tempo, a character asked to go faster than the fastest clip: up to
+``MAX_RATE`` 1.6, so a shown frame may skip one clip frame) or blended, two shown frames straddle
+straight while both are clearly bent -- the joint reads as flipping its bend side in one frame
+(``metrics.limb_flips``: turned by more than 90 deg while bent 15 deg or more in both).
+
+So each crossing faster than :data:`CROSS_STEP_DEG` a frame is slowed down in time to that pace
+at its centre (faster again a frame or two either side, where the joint is bent), the joint
+following its own path (its local rotations resampled along the clip), spending longer near
+straight and catching up on either side, over :data:`EASE_FRAMES` frames each way. Only the
+joint's timing changes; the speed maps then re-solve the limb so the foot stays on its target.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+
+import numpy as np
+from numpy.typing import NDArray
+
+from synth_core.build import ik
+from synth_core.motion import quat
+from synth_core.motion.skeleton import Skeleton
+
+Floats = NDArray[np.float64]
+
+# A passage through straight at most this fast (deg per clip frame) is left alone: a shown frame
+# that skips one clip frame (rate <= 2) then moves the joint at most 20 deg, short of the 21 deg
+# between two bends of 15 deg whose directions are 90 deg apart (a flip, at the least).
+CROSS_STEP_DEG = 10.0
+EASE_FRAMES = 4.0  # the slowed crossing takes its time from this many frames either side
+
+
+def bend_vectors(skeleton: Skeleton, rotations: NDArray[np.floating], joint: int, child: int) -> Floats:
+    """``(..., 3)``: the bend of ``joint`` (between its parent's bone and its bone to ``child``)
+    as a vector in its parent's frame: along the bend axis, its length the angle in degrees.
+    It depends on the joint's own local rotation only (bones are rigid)."""
+    upper = np.asarray(skeleton.offsets[joint], np.float64)
+    upper = upper / max(float(np.linalg.norm(upper)), 1e-12)
+    lower = quat.rotate(np.asarray(rotations, np.float64)[..., joint, :],
+                        np.asarray(skeleton.offsets[child], np.float64))
+    axis = np.cross(np.broadcast_to(upper, lower.shape), lower)
+    norm = np.linalg.norm(axis, axis=-1)
+    angle = np.degrees(np.arctan2(norm, lower @ upper))
+    return np.asarray(axis / np.maximum(norm, 1e-12)[..., None] * angle[..., None])
+
+
+def _passages(bend: Floats, cyclic: bool) -> tuple[Floats, Floats]:
+    """Per frame i: the fastest step (deg a frame) of a passage through straight starting there
+    -- the bend's direction reversed (turned more than 90 deg) from frame i to i + 1 or i + 2,
+    what a shown frame that skips one clip frame sees -- 0 where none; and the time of the
+    passage's closest approach to straight (on the straight line between frames)."""
+    F = len(bend)
+    idx = np.arange(F)
+    at = (lambda k: np.roll(bend, -k, axis=0)) if cyclic else (lambda k: bend[np.minimum(idx + k, F - 1)])
+    b1, b2 = at(1), at(2)
+    s1, s2 = b1 - bend, b2 - b1
+    one = np.sum(bend * b1, axis=-1) < 0
+    two = np.sum(bend * b2, axis=-1) < 0
+    speed = np.where(one, np.linalg.norm(s1, axis=-1), 0.0)
+    speed = np.where(two & ~one, np.maximum(np.linalg.norm(s1, axis=-1), np.linalg.norm(s2, axis=-1)), speed)
+    # Closest approach on each of the two steps; the nearer one is the passage's centre.
+    tau1 = np.clip(-np.sum(bend * s1, -1) / np.maximum(np.sum(s1 * s1, -1), 1e-12), 0.0, 1.0)
+    tau2 = np.clip(-np.sum(b1 * s2, -1) / np.maximum(np.sum(s2 * s2, -1), 1e-12), 0.0, 1.0)
+    near1 = np.linalg.norm(bend + tau1[:, None] * s1, axis=-1)
+    near2 = np.linalg.norm(b1 + tau2[:, None] * s2, axis=-1)
+    centre = np.where(one | (near1 <= near2), idx + tau1, idx + 1 + tau2)
+    if not cyclic:
+        speed[idx + (1 + (two & ~one)) > F - 1] = 0.0
+    return speed, centre
+
+
+def crossing_times(bend: Floats, cyclic: bool) -> Floats:
+    """``(F,)``: the clip time (fractional frame) each frame shows the joint at, from its bend
+    vectors ``(F, 3)``: the identity except around each passage through straight
+    (:func:`_passages`) faster than :data:`CROSS_STEP_DEG`, where time is warped
+    ``tc + h g((t - tc) / h)``, g(x) = s x + (1 - s) x^3: slope s = CROSS_STEP / step at the
+    passage's centre tc, faster on either side, the same at the window's ends. The fastest
+    passage first; one whose window would overlap a slowed one keeps its pace."""
+    F = len(bend)
+    speed, centre = _passages(bend, cyclic)
+    times = np.arange(F, dtype=np.float64)
+    taken = np.zeros(F, bool)
+    for i in sorted(np.flatnonzero(speed > CROSS_STEP_DEG), key=lambda i: -speed[i]):  # a few per clip
+        tc = float(centre[i])
+        h = EASE_FRAMES if cyclic else min(EASE_FRAMES, tc, F - 1 - tc)
+        t = np.arange(int(np.floor(tc - h)) + 1, int(np.ceil(tc + h)))
+        if h < 1.0 or taken[t % F].any():
+            continue
+        s = CROSS_STEP_DEG / speed[i]
+        x = (t - tc) / h
+        times[t % F] = tc + h * (s * x + (1.0 - s) * x**3) - (t - t % F)
+        taken[t % F] = True
+    return times
+
+
+def _resampled(q: Floats, times: Floats, cyclic: bool) -> Floats:
+    """Unit quaternions ``(F, 4)`` taken at fractional frames ``times`` (nlerp between frames)."""
+    F = len(q)
+    first = np.floor(times).astype(np.int64)
+    w = times - first
+    a = first % F if cyclic else np.clip(first, 0, F - 1)
+    b = (first + 1) % F if cyclic else np.clip(first + 1, 0, F - 1)
+    return np.asarray(quat.nlerp(q[a], q[b], w))
+
+
+def ease_crossings(skeleton: Skeleton, rotations: NDArray[np.floating],
+                   joints: Sequence[tuple[int, int]], cyclic: bool) -> NDArray[np.float32]:
+    """Local rotations ``(..., F, J, 4)`` (frames the last leading axis) with each of ``joints``
+    (joint, the child its bone points to) passing through straight no faster than
+    :data:`CROSS_STEP_DEG` a frame (:func:`crossing_times`). ``cyclic``: the clip loops."""
+    out = np.array(rotations, np.float32)
+    F, J = out.shape[-3:-1]
+    flat = out.reshape(-1, F, J, 4)  # clips: a speed map's 60, one for a transition
+    for joint, child in joints:
+        bends = bend_vectors(skeleton, flat, joint, child)
+        for n in range(len(flat)):
+            times = crossing_times(bends[n], cyclic)
+            if np.any(times != np.arange(F)):
+                flat[n, :, joint] = _resampled(flat[n, :, joint].astype(np.float64), times, cyclic)
+    return flat.reshape(out.shape)
+
+
+# A pose -> the root and the toe targets to solve it for.
+Placing = Callable[[NDArray[np.floating]], tuple[NDArray[np.floating], NDArray[np.floating]]]
+
+
+def solve_eased(skeleton: Skeleton, rotations: NDArray[np.floating], place: Placing,
+                rigs: tuple[ik.LimbRig, ...], ground: float, axes: NDArray[np.floating],
+                cyclic: bool) -> tuple[NDArray[np.float32], ik.IKResult, NDArray[np.floating]]:
+    """:func:`ik.solve` with flips mended (:func:`ik.mend_flips`), then each paw's ankle (the
+    wrist, hock or toe the IK keeps the world orientation of) eased through straight
+    (:func:`ease_crossings`) and the legs solved again around the paws' new orientation, so the
+    feet stay on their targets. ``place``: the root (lowered where a leg would lock straight)
+    and the toe targets for a pose -- asked again for the eased one, whose ankles sit elsewhere
+    (kept from the first solve, a real dog's gallop locked a fore leg straight). Returns the
+    rotations, the last solve's result and its root."""
+    root, targets = place(rotations)
+    result = ik.solve(skeleton, root, rotations, targets, rigs, ground=ground, axes=axes)
+    solved = ik.mend_flips(result.rotations, result.wrong_side, rigs, cyclic=cyclic)
+    eased = ease_crossings(skeleton, solved, [(r.ankle, r.effector) for r in rigs], cyclic)
+    root, targets = place(eased)
+    result = ik.solve(skeleton, root, eased, targets, rigs, ground=ground, axes=axes)
+    return ik.mend_flips(result.rotations, result.wrong_side, rigs, cyclic=cyclic), result, root

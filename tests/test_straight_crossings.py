@@ -1,0 +1,39 @@
+"""A joint passing through straight is slowed to what a skipped clip frame cannot flip
+(issue 28; synth_core.build.straight_crossings)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from synth_core.build.straight_crossings import crossing_times
+
+FLIP_BEND_DEG = 15.0  # metrics.limb_flips: bent at least this much one frame, the other way the next
+
+
+def bends_at(times: np.ndarray, angles: np.ndarray) -> np.ndarray:
+    """A hinge's signed bend (deg) at fractional frames, linear between frames."""
+    return np.interp(times, np.arange(len(angles)), angles)
+
+
+def test_a_fast_passage_is_slowed_and_no_skip_straddles_straight() -> None:
+    """Shown frame by frame or skipping one clip frame (a stride rate up to 2), no two frames
+    are bent 15 deg or more to either side of straight (metrics.limb_flips' flip)."""
+    # A wrist from 50 deg one way to 50 the other at 30 deg a frame, about one axis.
+    angles = np.clip(np.arange(30) * -30.0 + 400.0, -50.0, 50.0)
+    vectors = angles[:, None] * np.array([0.0, 0.0, 1.0])
+    times = crossing_times(vectors, cyclic=False)
+    shown = bends_at(times, angles)
+    crossing = shown[1:] * shown[:-1] < 0
+    assert np.abs(np.diff(shown))[crossing].max() < 30.0  # was 30: now slower through straight
+    for skip in (1, 2):  # a frame shown, the next or the one after
+        a, b = shown[:-skip], shown[skip:]
+        assert not np.any((a * b < 0) & (np.abs(a) >= FLIP_BEND_DEG) & (np.abs(b) >= FLIP_BEND_DEG))
+    assert np.all(np.diff(times) > 0)  # the joint still moves forward in time
+    far = np.abs(np.arange(30) - 400.0 / 30.0) > 5
+    assert np.array_equal(times[far], np.arange(30)[far])  # only the passage's frames change
+
+
+def test_a_slow_passage_is_left_alone() -> None:
+    angles = np.linspace(30.0, -30.0, 20)  # 3.2 deg a frame
+    times = crossing_times(angles[:, None] * np.array([1.0, 0.0, 0.0]), cyclic=False)
+    assert np.array_equal(times, np.arange(20))
