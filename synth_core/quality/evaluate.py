@@ -350,9 +350,6 @@ def edge_figures(bank: Bank, result: Result, reference_path: NDArray[np.floating
     nan = float("nan")
     yaw = M.yaw_rates_deg(result.rotations[:, :, 0], fps)
     footfall = footfall_preserved(bank, result, down, ref.clip_plants)
-    kept = np.asarray(reference_path)[result.kept]
-    path = M.path_distance_cm(root, kept)
-    from_sent = path if sent is None else M.path_distance_cm(root, np.asarray(sent, np.float64)[result.kept])
     T = result.root_pos.shape[1]
     return {
         "glide_ratio": _round(glide.ratio),
@@ -378,15 +375,23 @@ def edge_figures(bank: Bank, result: Result, reference_path: NDArray[np.floating
         "yaw_deg_s_p95": _round(float(np.percentile(yaw, 95)) if yaw.size else 0.0, 1),
         "footfall_preserved": _share(footfall[0]),
         "footfall_across_transitions": _share(footfall[1]),
-        "path_cm_max": _round(float(path.max()), 3),
-        "path_cm_mean": _round(float(path.mean()), 3),
-        "path_sent_cm_max": _round(float(from_sent.max()), 3),
         "clock_kept": int(T == frames_in),
         "resample_rate": round(result.resample_rate, 4),
         "gait_frames": {name: int(n) for name, n in
                         zip(HUBS, np.bincount(result.gait.ravel(), minlength=N_HUBS), strict=False)},
         "nan_count": int(np.isnan(result.rotations).sum() + np.isnan(result.root_pos).sum()),
-    } | ground_figures(bank, result, fk, ground, ref)
+    } | path_figures(result, reference_path, sent) | ground_figures(bank, result, fk, ground, ref)
+
+
+def path_figures(result: Result, reference_path: NDArray[np.floating],
+                 sent: NDArray[np.floating] | None = None) -> dict[str, Any]:
+    """The root's ground point from the path meant (``path_cm_*``) and from the positions sent
+    (``path_sent_cm_max``; ``sent`` None: the path meant), :func:`metrics.path_distance_cm`."""
+    root = result.root_pos.astype(np.float64)
+    path = M.path_distance_cm(root, np.asarray(reference_path)[result.kept])
+    from_sent = path if sent is None else M.path_distance_cm(root, np.asarray(sent, np.float64)[result.kept])
+    return {"path_cm_max": _round(float(path.max()), 3), "path_cm_mean": _round(float(path.mean()), 3),
+            "path_sent_cm_max": _round(float(from_sent.max()), 3)}
 
 
 def passes(figure: str, value: float | None) -> bool | None:
