@@ -261,6 +261,22 @@ def test_path_distance_maps_time_and_ignores_running_ahead_along_the_path() -> N
     assert M.mapped_frames(T, F)[[0, 2, -1]] == pytest.approx([0.0, 1.0, F - 1.0])
 
 
+def test_path_distance_takes_a_surge_past_a_moving_end_as_along_the_path_but_not_past_a_stop() -> None:
+    """The target goes on past its ends as it went: a root 3 cm ahead at the last frame of a path
+    still moving is on it (the same lead as mid-path), 3 cm past a path that stopped is off it."""
+    F = 61
+    target = np.zeros((F, 3))
+    target[:, 2] = np.linspace(0.0, 6.0, F)
+    root = target.copy()
+    root[-1, 2] += 0.03
+    assert M.path_distance_cm(root, target).max() == pytest.approx(0.0, abs=1e-9)
+    stopped = target.copy()
+    stopped[-10:, 2] = stopped[-10, 2]  # stands for its last 10 frames
+    root = stopped.copy()
+    root[-1, 2] += 0.03
+    assert M.path_distance_cm(root, stopped).max() == pytest.approx(3.0)
+
+
 def test_same_pattern_share_is_one_in_lock_step_and_chance_level_out_of_it() -> None:
     rng = np.random.default_rng(0)
     stride = rng.random((40, 4)) < 0.5  # a 40-frame pattern cycle

@@ -322,11 +322,14 @@ def stance_frames(ref: LibraryReference, result: Result) -> Floats:
 
 
 def edge_figures(bank: Bank, result: Result, reference_path: NDArray[np.floating], frames_in: int,
-                 ref: LibraryReference, ground: HeightField | None = None) -> dict[str, Any]:
+                 ref: LibraryReference, ground: HeightField | None = None,
+                 sent: NDArray[np.floating] | None = None) -> dict[str, Any]:
     """Every edge figure of one synthesized scenario, from world positions after FK.
 
     ``reference_path (C, F, 3)``: the path the characters were meant to follow, ``frames_in``
-    its frame count (the output's time is mapped onto it); ``ground``: the terrain walked on."""
+    its frame count (the output's time is mapped onto it); ``ground``: the terrain walked on;
+    ``sent (C, F, 3)``: the positions the simulator sent, where they are not the path meant (a
+    jittery simulator's): ``path_sent_cm_max`` is the root's distance from them."""
     sk, fps = bank.skeleton, bank.fps
     fk = feet_after_fk(bank, result, ref, ground)
     pos, feet, above_ground, heights, down = fk.positions, fk.feet, fk.above_ground, fk.heights, fk.down
@@ -347,8 +350,6 @@ def edge_figures(bank: Bank, result: Result, reference_path: NDArray[np.floating
     nan = float("nan")
     yaw = M.yaw_rates_deg(result.rotations[:, :, 0], fps)
     footfall = footfall_preserved(bank, result, down, ref.clip_plants)
-    kept = np.asarray(reference_path)[result.kept]
-    path = M.path_distance_cm(root, kept)
     T = result.root_pos.shape[1]
     return {
         "glide_ratio": _round(glide.ratio),
@@ -374,14 +375,23 @@ def edge_figures(bank: Bank, result: Result, reference_path: NDArray[np.floating
         "yaw_deg_s_p95": _round(float(np.percentile(yaw, 95)) if yaw.size else 0.0, 1),
         "footfall_preserved": _share(footfall[0]),
         "footfall_across_transitions": _share(footfall[1]),
-        "path_cm_max": _round(float(path.max()), 3),
-        "path_cm_mean": _round(float(path.mean()), 3),
         "clock_kept": int(T == frames_in),
         "resample_rate": round(result.resample_rate, 4),
         "gait_frames": {name: int(n) for name, n in
                         zip(HUBS, np.bincount(result.gait.ravel(), minlength=N_HUBS), strict=False)},
         "nan_count": int(np.isnan(result.rotations).sum() + np.isnan(result.root_pos).sum()),
-    } | ground_figures(bank, result, fk, ground, ref)
+    } | path_figures(result, reference_path, sent) | ground_figures(bank, result, fk, ground, ref)
+
+
+def path_figures(result: Result, reference_path: NDArray[np.floating],
+                 sent: NDArray[np.floating] | None = None) -> dict[str, Any]:
+    """The root's ground point from the path meant (``path_cm_*``) and from the positions sent
+    (``path_sent_cm_max``; ``sent`` None: the path meant), :func:`metrics.path_distance_cm`."""
+    root = result.root_pos.astype(np.float64)
+    path = M.path_distance_cm(root, np.asarray(reference_path)[result.kept])
+    from_sent = path if sent is None else M.path_distance_cm(root, np.asarray(sent, np.float64)[result.kept])
+    return {"path_cm_max": _round(float(path.max()), 3), "path_cm_mean": _round(float(path.mean()), 3),
+            "path_sent_cm_max": _round(float(from_sent.max()), 3)}
 
 
 def passes(figure: str, value: float | None) -> bool | None:
@@ -439,7 +449,8 @@ def edge_suite(bank: Bank, seed: int = 0, names: list[str] | None = None, backen
         except ValueError as exc:  # a refusal is a figure too: the scenario could not be played
             scenarios[sc.name] = entry | {"error": str(exc), "failed": ["error"]}
             continue
-        figures = edge_figures(bank, result, sc.reference, sc.positions.shape[1], ref, sc.ground)
+        figures = edge_figures(bank, result, sc.reference, sc.positions.shape[1], ref, sc.ground,
+                               sent=sc.positions)
         targets = EDGE_TARGETS | (TERRAIN_TARGETS if sc.ground is not None else {})
         failed = [f for f in targets if passes(f, figures.get(f)) is False]
         # By how much, in the figure's unit (a share: how much of it is missing).

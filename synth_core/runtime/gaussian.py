@@ -19,6 +19,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.ndimage import gaussian_filter1d
 
+from synth_core.compiled import path_kernels
 from synth_core.compiled.jit import AVAILABLE
 
 if AVAILABLE:
@@ -77,4 +78,22 @@ def smooth_frames(x: NDArray[np.float64], sigma: float, first: int, n: int) -> N
         return np.asarray(gaussian_filter1d(x, sigma, axis=1, mode="nearest")[:, first:first + n])
     out = np.empty((x.shape[0], n, x.shape[2]))
     _rows(np.ascontiguousarray(x, np.float64), kernel, first, out)
+    return out
+
+
+def along_frames(x: NDArray[np.float64], sigma: float, first: int, n: int) -> NDArray[np.float64]:
+    """Frames ``[first, first + n)`` of the paths ``x (C, T, 3)`` with their *timing* smoothed and
+    their shape kept: each frame's point moved along its path's own segments by the Gaussian
+    average (``sigma`` frames) of the distance along the path around that frame -- the arc length
+    smoothed in time, read back on the path (:mod:`synth_core.compiled.path_kernels`). A
+    simulator's held or uneven steps become an even pace while the point stays on the line it
+    sent: the simulator is the authority on where an agent is (issue 27). Smoothing the positions
+    themselves (:func:`smooth_frames`) cut a 0.5 m corner at a horse's gallop by 18 cm: a
+    circle's points averaged over +-sigma frames lie inside it, by r (1 - exp(-(w sigma)^2 / 2)),
+    w its turn rate. Each frame reads only the points within the Gaussian's radius of it, in a
+    fixed order, so a live window gives the batch's numbers bit for bit."""
+    if sigma < IDENTITY_SIGMA:
+        return np.array(x[:, first:first + n], np.float64)
+    out = np.empty((x.shape[0], n, x.shape[2]))
+    path_kernels.along(np.ascontiguousarray(x, np.float64), weights(float(sigma)), first, out)
     return out

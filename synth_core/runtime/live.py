@@ -192,7 +192,9 @@ class LiveSynth(LivePath):
         """Smoothed path, segment speeds, and what the plan carries from block to block."""
         # Room for the path the finish adds too (see _end): growing at the finish moved it into
         # fresh memory, 20-30 ms of a 2,000-horse session's finish (page faults).
-        self.path = Columns(C, [((3,), np.float64)], 2 * self.latency_frames + self._end_frames)
+        # The path followed and the one whose way the body faces (trajectory.Prepared.facing).
+        self.path = Columns(C, [((3,), np.float64), ((3,), np.float64)],
+                            2 * self.latency_frames + self._end_frames)
         self.n_path = 0
         self.seg = np.zeros((C, 0))  # segment speeds / (scale x tempo): the library's speeds
         self.seg_start = 0
@@ -398,9 +400,10 @@ class LiveSynth(LivePath):
         faces where it will first go if that is known yet, else ``heading``."""
         lo = max(t0 - 1, 0)
         facing = np.full(len(self.scales), self.heading)
-        ground = self._path(lo, t1 + 1)[..., GROUND]
+        ground = self._facing(lo, t1 + 1)[..., GROUND]
         return self.heading_state.advance(ground, t0 - lo, t1 - t0, self.bank.fps, facing,
-                                          ahead=lambda who: self._path(lo, self.n_path)[who][..., GROUND])
+                                          ahead=lambda who: self._facing(lo, self.n_path)[who][..., GROUND],
+                                          moving=self._path(lo, t1 + 1)[..., GROUND])
 
     def _fade(self, start: int, stop: int) -> Floats | None:
         """``(n,)`` how far the new ground has faded in on each frame sent of [start, stop), or

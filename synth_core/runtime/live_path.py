@@ -135,11 +135,15 @@ class LivePath:
             lo = max(self.n_path + self.pad - self.radius, 0)  # in `longer` coordinates
             hi = ready + self.pad + self.radius
             part = self.longer[:, lo - self.longer_start:hi - self.longer_start]
-            # Only the frames made (half of what scipy would filter); the same numbers.
-            new = gaussian.smooth_frames(part, self.sigma, self.n_path + self.pad - lo, ready - self.n_path)
+            # Only the frames made (half of what scipy would filter); the same numbers. The root
+            # follows the points (their timing smoothed); the body faces the way of them smoothed.
+            first, n = self.n_path + self.pad - lo, ready - self.n_path
+            new, facing = gaussian.along_frames(part, self.sigma, first, n), \
+                gaussian.smooth_frames(part, self.sigma, first, n)
         else:
-            new = self.longer[:, self.n_path - self.longer_start:ready - self.longer_start]
-        self.path.reserve(new.shape[1])[0][...] = new
+            new = facing = self.longer[:, self.n_path - self.longer_start:ready - self.longer_start]
+        path, face = self.path.reserve(new.shape[1])
+        path[...], face[...] = new, facing
         self.n_path = ready
         drop = max(self.n_path + self.pad - self.radius - 1, 0) - self.longer_start
         if drop > 0:
@@ -166,7 +170,8 @@ class LivePath:
         n = ready - self.n_path
         value, _ = causal.fit_weights(self.sigma, self.behind, self.ahead)
         _, slope = causal.fit_weights(self.speed_sigma, self.behind, self.ahead)
-        self.path.reserve(n)[0][...] = causal.apply(part, value, self.behind, self.behind, n)
+        path, face = self.path.reserve(n)
+        path[...] = face[...] = causal.apply(part, value, self.behind, self.behind, n)
         velocity = causal.apply(part[..., GROUND], slope, self.behind, self.behind, n)
         speed = np.hypot(velocity[..., 0], velocity[..., 1]) * self.bank.fps / self.pace[:, None]
         self.frame_speed = np.concatenate([self.frame_speed, speed], axis=1)
@@ -177,8 +182,12 @@ class LivePath:
             self.longer_start += drop
 
     def _path(self, a: int, b: int) -> Floats:
-        """The smoothed path's frames [a, b) (a view)."""
+        """The followed path's frames [a, b) (a view)."""
         return self.path.columns(a, b)[0]
+
+    def _facing(self, a: int, b: int) -> Floats:
+        """The frames [a, b) of the path whose way the body faces (a view)."""
+        return self.path.columns(a, b)[1]
 
     def _speeds(self, t: NDArray[np.int64], who: NDArray[np.int64] | None = None) -> Floats:
         """(C, len(t)) speed at frames t (interpolated between segment centres); of the

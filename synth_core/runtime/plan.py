@@ -261,7 +261,8 @@ class Headings:
         self.last_lean = np.zeros(characters)  # the lean of the frame before
 
     def advance(self, ground: Floats, off: int, n: int, fps: float, facing: Floats, ends: bool = False,
-                ahead: Callable[[NDArray[np.int64]], Floats] | None = None) -> tuple[Floats, Floats]:
+                ahead: Callable[[NDArray[np.int64]], Floats] | None = None,
+                moving: Floats | None = None) -> tuple[Floats, Floats]:
         """(C, n) yaw (about +Y, 0 = +Z) of frames ``[t0, t0 + n)``: the tangent of the path's
         ground points ``ground (C, m, 2)`` (frame t0 at ``off``), held where the character moves
         slower than MIN_TURN_SPEED (a standing animal does not spin with its trajectory's jitter),
@@ -269,7 +270,9 @@ class Headings:
         turn (:func:`heading_kernels.turn`);
         before it first moves, the way it first moves -- searched on in ``ground`` (to its end if
         ``ends``: the path's end), or in ``ahead(characters)``, their ground from the same point
-        on as far as known -- else ``facing (C,)``."""
+        on as far as known -- else ``facing (C,)``. ``moving``: the ground points of the path the
+        root follows, if not ``ground`` (its speed caps the turn: a smoothed path cutting a corner
+        is slower through it than the body)."""
         held = np.empty((ground.shape[0], n, 2))
         self.kernels.headings(ground, off, ends, fps, MIN_TURN_SPEED, self.last_dir, self.moved, held)
         unknown = np.flatnonzero(np.isnan(held[:, 0, 0]))  # NaN over every frame before a first move
@@ -284,8 +287,9 @@ class Headings:
             yaw = np.asarray(np.where(np.isnan(yaw[:, :1]), facing[:, None], yaw))
         yaw = np.ascontiguousarray(yaw)
         lean = np.empty_like(yaw)
-        self.kernels.turn(yaw, ground, off, fps, MAX_YAW_RATE, MAX_LATERAL, MAX_LEAN, LEAN_RATE, GENTLE_LEAN,
-                          self.last_yaw, self.last_lean, lean)
+        speed_from = ground if moving is None else moving
+        self.kernels.turn(yaw, speed_from, off, fps, MAX_YAW_RATE, MAX_LATERAL, MAX_LEAN, LEAN_RATE,
+                          GENTLE_LEAN, self.last_yaw, self.last_lean, lean)
         return yaw, lean
 
 
@@ -294,17 +298,18 @@ def headings(path: Floats, fps: float, frames: int | None = None, backend: str =
     return turning(path, fps, frames, backend)[0]
 
 
-def turning(path: Floats, fps: float, frames: int | None = None, backend: str = "auto"
-            ) -> tuple[Floats, Floats]:
+def turning(path: Floats, fps: float, frames: int | None = None, backend: str = "auto",
+            facing_path: Floats | None = None) -> tuple[Floats, Floats]:
     """(C, T) yaw and lean of a whole path ``(C, T, 3)`` (:meth:`Headings.advance`); a character
     that never moves faces its path's first step. ``frames``: the first ``frames`` only (the same
-    numbers)."""
-    ground = np.ascontiguousarray(path[..., GROUND])
+    numbers). ``facing_path``: the path whose way the body faces, if not ``path``."""
+    moving = np.ascontiguousarray(path[..., GROUND])
+    ground = moving if facing_path is None else np.ascontiguousarray(facing_path[..., GROUND])
     T = ground.shape[1]
     n = T if frames is None else min(frames, T)
     first_step = ground[:, min(1, T - 1)] - ground[:, 0]
     facing = np.arctan2(first_step[:, 0], first_step[:, 1])
-    return Headings(len(ground), backend).advance(ground, 0, n, fps, facing, ends=True)
+    return Headings(len(ground), backend).advance(ground, 0, n, fps, facing, ends=True, moving=moving)
 
 
 def character_leads(bank: Bank, keys: NDArray[np.uint64]) -> NDArray[np.int64]:
@@ -366,6 +371,7 @@ def plan(bank: Bank, prep: Prepared, h: Floats, keys: NDArray[np.uint64], margin
     out = empty_plan(C, keep, h)
     planner = Planner(bank, h, tempo, character_leads(bank, keys), margin, backend)
     planner.advance(0, np.ascontiguousarray(v[:, :keep]), path, decisions, out)
-    out.yaw[...], out.lean[...] = turning(path, bank.fps, keep, backend)
+    # The body faces the way of the smoothed positions (a simulator's jitter does not swing it).
+    out.yaw[...], out.lean[...] = turning(path, bank.fps, keep, backend, prep.facing)
     out.path[...] = path[:, :keep]
     return out

@@ -3,8 +3,10 @@
 Input: one 3D root point per frame per character, ``(C, F, 3)`` metres, Y up, all characters
 the same frame count at one frame rate. Steps, in the paper's order:
 
-1. **Smooth** each path with a Gaussian low-pass (``sigma`` frames) so a simulator's jitter does
-   not become stride-by-stride speed changes.
+1. **Smooth** each path's timing with a Gaussian low-pass (``sigma`` frames) so a simulator's
+   jitter does not become stride-by-stride speed changes -- along the path it sent, which the root
+   follows (the simulator is the authority on where an agent is: :func:`gaussian.along_frames`);
+   the body faces the way of the positions smoothed (:attr:`Prepared.facing`), which may lag.
 2. **Segment** into ``m``-frame pieces (``m``: the library's mean gait cycle) and measure each
    piece's speed ``s = l / n`` (ground length over frames; reported in m/s).
 3. **Clock.** By default the simulator's clock is kept: one output frame per input frame (at the
@@ -87,7 +89,7 @@ class FrameLimitError(TrajectoryError):
 class Prepared:
     """Trajectories ready for synthesis, at the library's frame rate."""
 
-    positions: Floats  # (C, F', 3) smoothed, resampled
+    positions: Floats  # (C, F', 3) the path followed: the input's, its timing smoothed; resampled
     segment: int  # m, frames per segment
     segment_speeds: Floats  # (C, K) m/s, per segment, before scale
     resample_rate: float  # r >= 1 (1: not resampled)
@@ -95,11 +97,14 @@ class Prepared:
     rejected: dict[int, str] = field(default_factory=dict)  # input index -> why it was skipped
     warnings: dict[int, str] = field(default_factory=dict)  # input index -> what could not be kept
     tempo: Floats | None = None  # (C,) each character's stride-frequency factor (None: all 1)
+    facing: Floats | None = None  # (C, F', 3) the positions smoothed, whose way the body faces
+    # (None: the path followed's)
 
     def rows(self, rows: slice) -> Prepared:
         """The characters ``rows`` alone (a chunk or part of the batch)."""
         return replace(self, positions=self.positions[rows], segment_speeds=self.segment_speeds[rows],
-                       tempo=None if self.tempo is None else self.tempo[rows])
+                       tempo=None if self.tempo is None else self.tempo[rows],
+                       facing=None if self.facing is None else self.facing[rows])
 
 
 def check(positions: ArrayLike, fps: float, ids: list[str] | None = None) -> NDArray[np.floating]:
@@ -176,8 +181,9 @@ def resample(positions: Floats, n: int) -> Floats:
     return np.asarray(positions[:, i0] * (1 - w) + positions[:, i0 + 1] * w)
 
 
-def smooth(positions: Floats, sigma: float) -> Floats:
-    """Gaussian low-pass along frames. The ends are extended by point reflection (a path going
+def smooth(positions: Floats, sigma: float, keep_shape: bool = False) -> Floats:
+    """Gaussian low-pass along frames (``keep_shape``: of the timing only, the points kept on the
+    path: :func:`gaussian.along_frames`). The ends are extended by point reflection (a path going
     on as it went), so a path at steady speed keeps its end points and its length."""
     if sigma <= 0:
         return positions
@@ -186,7 +192,7 @@ def smooth(positions: Floats, sigma: float) -> Floats:
     head = 2 * positions[:, :1] - positions[:, pad:0:-1]
     tail = 2 * positions[:, -1:] - positions[:, -2:-2 - pad:-1]
     longer = np.concatenate([head, positions, tail], axis=1)
-    return gaussian.smooth_frames(longer, sigma, pad, F)
+    return (gaussian.along_frames if keep_shape else gaussian.smooth_frames)(longer, sigma, pad, F)
 
 
 def segment_speeds(positions: Floats, m: int, fps: float, along_ground: bool = False) -> Floats:
@@ -203,32 +209,36 @@ def segment_speeds(positions: Floats, m: int, fps: float, along_ground: bool = F
 
 
 def smooth_and_measure(positions: NDArray[np.floating], kept: NDArray[np.int64], fps: float,
-                       library_fps: float, sigma: float, segment: int) -> tuple[Floats, Floats]:
-    """The ``kept`` characters' paths at the library's frame rate, smoothed, and their segment
-    speeds -- ``ROWS`` characters at a time (:func:`by_rows`), so no array the size of the
-    batch is made but the result: fresh memory costs 0.5-2 ms per MB to first touch on a VM,
-    and a batch of 10,000 spent 1.9 s making six such arrays."""
+                       library_fps: float, sigma: float, segment: int) -> tuple[Floats, Floats, Floats]:
+    """The ``kept`` characters' paths at the library's frame rate, followed (their timing
+    smoothed) and smoothed (:func:`smooth`), and the followed paths' segment speeds -- ``ROWS``
+    characters at a time (:func:`by_rows`), so no array the size of the batch is made but the
+    results: fresh memory costs 0.5-2 ms per MB to first touch on a VM, and a batch of 10,000
+    spent 1.9 s making six such arrays."""
     F = retime(np.asarray(positions[kept[:1]], np.float64), fps, library_fps).shape[1]
-    smoothed = np.empty((len(kept), F, 3))
+    followed, smoothed = np.empty((len(kept), F, 3)), np.empty((len(kept), F, 3))
 
     def rows(a: int) -> Floats:
         part = retime(np.asarray(positions[kept[a:a + ROWS]], np.float64), fps, library_fps)
+        followed[a:a + ROWS] = smooth(part, sigma, keep_shape=True)
         smoothed[a:a + ROWS] = smooth(part, sigma)
-        return segment_speeds(smoothed[a:a + ROWS], segment, library_fps)
+        return segment_speeds(followed[a:a + ROWS], segment, library_fps)
 
-    return smoothed, np.concatenate(by_rows(rows, len(kept)))
+    return followed, smoothed, np.concatenate(by_rows(rows, len(kept)))
 
 
-def resample_and_measure(smoothed: Floats, frames: int, segment: int, fps: float) -> tuple[Floats, Floats]:
-    """The smoothed paths resampled to ``frames`` points, and their segment speeds (``ROWS``
+def resample_and_measure(followed: Floats, smoothed: Floats, frames: int, segment: int,
+                         fps: float) -> tuple[Floats, Floats, Floats]:
+    """Both paths resampled to ``frames`` points, and the followed ones' segment speeds (``ROWS``
     characters at a time, as :func:`smooth_and_measure`)."""
-    out = np.empty((len(smoothed), frames, 3))
+    out, facing = np.empty((len(followed), frames, 3)), np.empty((len(followed), frames, 3))
 
     def rows(a: int) -> Floats:
-        out[a:a + ROWS] = resample(smoothed[a:a + ROWS], frames)
+        out[a:a + ROWS] = resample(followed[a:a + ROWS], frames)
+        facing[a:a + ROWS] = resample(smoothed[a:a + ROWS], frames)
         return segment_speeds(out[a:a + ROWS], segment, fps)
 
-    return out, np.concatenate(by_rows(rows, len(smoothed)))
+    return out, facing, np.concatenate(by_rows(rows, len(followed)))
 
 
 # Arguments as synthesis.prepare_batch passes them (positionally); an options object is for when
@@ -251,7 +261,7 @@ def prepare(positions: ArrayLike, fps: float, library_fps: float, top_speed: flo
     scales = np.asarray(scales, dtype=np.float64)
     names = ids or [str(c) for c in range(len(arr))]
     bad, kept = _valid(arr, fps, scales, names, skip_invalid)
-    smoothed, speeds = smooth_and_measure(arr, kept, fps, library_fps, sigma, segment)
+    followed, smoothed, speeds = smooth_and_measure(arr, kept, fps, library_fps, sigma, segment)
     pace = scales if tempo is None else scales * np.asarray(tempo, np.float64)
     own = speeds / pace[kept, None]  # (C, K) the library's speed each character asks for
     unfit = _too_fast(own, MAX_RESAMPLE * top_speed, segment)
@@ -267,11 +277,12 @@ def prepare(positions: ArrayLike, fps: float, library_fps: float, top_speed: flo
         if len(stay) == 0:
             raise TrajectoryError(ALL_INVALID + ": " +
                                   "; ".join(f"{names[c]}: {w}" for c, w in sorted(bad.items())))
-        kept, smoothed, speeds, own = kept[stay], smoothed[stay], speeds[stay], own[stay]
+        kept, followed, smoothed = kept[stay], followed[stay], smoothed[stay]
+        speeds, own = speeds[stay], own[stay]
     rate = max(1.0, float(own.max()) / top_speed) if resample else 1.0
     warnings = _too_fast_to_step(own, kept, top_speed, stride_rate, segment) if rate == 1.0 else {}
     rate = max(rate, min_rate)
-    F = smoothed.shape[1]
+    F = followed.shape[1]
     n = resampled_frames(F, rate)
     if max_character_frames is not None and n * len(kept) > max_character_frames:
         raise FrameLimitError(len(kept), n, rate, max_character_frames)
@@ -279,9 +290,9 @@ def prepare(positions: ArrayLike, fps: float, library_fps: float, top_speed: flo
         rate = (n - 1) / (F - 1)  # what it really is after rounding to whole frames
         # The paper's order: the smoothed paths are resampled (not the raw ones smoothed again:
         # that smoothed every resampled batch twice, a seventh of its synthesis time).
-        smoothed, speeds = resample_and_measure(smoothed, n, segment, library_fps)
-    return Prepared(smoothed, segment, speeds, float(rate), kept, bad, warnings,
-                    None if tempo is None else np.asarray(tempo, np.float64)[kept])
+        followed, smoothed, speeds = resample_and_measure(followed, smoothed, n, segment, library_fps)
+    return Prepared(followed, segment, speeds, float(rate), kept, bad, warnings,
+                    None if tempo is None else np.asarray(tempo, np.float64)[kept], smoothed)
 
 
 def _check_rates(sigma: float, min_rate: float) -> None:

@@ -1,0 +1,64 @@
+"""A path's timing smoothed and its shape kept (:func:`synth_core.runtime.gaussian.along_frames`):
+each frame's point walked along the path's own segments by the Gaussian average of the distance
+along it around that frame."""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from synth_core.compiled.jit import jit, prange
+
+
+@jit(inline="always")
+def _step(x: Any, a: int, b: int) -> Any:
+    """The straight distance from point a to point b of one path ``x (T, 3)``."""
+    return math.sqrt((x[b, 0] - x[a, 0]) ** 2 + (x[b, 1] - x[a, 1]) ** 2 + (x[b, 2] - x[a, 2]) ** 2)
+
+
+@jit(inline="always")
+def _shift(steps: Any, w: Any, t: int) -> Any:
+    """The Gaussian (weights ``w``, centre first) average of the distance along the path from
+    frame t's point (``steps (T - 1,)``: from each point to the next): the steps either side
+    summed outwards, in a fixed order (frames beyond an end repeat it: steps of 0)."""
+    T = steps.shape[0] + 1
+    d, ahead, behind = 0.0, 0.0, 0.0
+    for j in range(1, len(w)):
+        if t + j < T:
+            ahead += steps[t + j - 1]
+        if t - j >= 0:
+            behind += steps[t - j]
+        d += w[j] * (ahead - behind)
+    return d
+
+
+@jit(parallel=True)  # characters side by side: each writes its own rows
+def along(x: Any, w: Any, first: int, out: Any) -> None:
+    """``out (C, n, 3)``: frames ``[first, first + n)`` of the paths ``x (C, T, 3)``, each frame's
+    point moved along its path by :func:`_shift` (forward where the path ahead is longer). Each
+    step's length is one number whatever the window (a live one gives the batch's bits)."""
+    T = x.shape[1]
+    for c in prange(x.shape[0]):
+        xc = x[c]
+        lo, hi = max(first - len(w) + 1, 0), min(first + out.shape[1] + len(w) - 1, T)
+        steps = np.zeros(max(T - 1, 0))  # only [lo, hi - 1) is read
+        for k in range(lo, hi - 1):
+            steps[k] = _step(xc, k, k + 1)
+        for i in range(out.shape[1]):
+            t = first + i
+            d = _shift(steps, w, t)
+            way = 1 if d >= 0.0 else -1
+            k, left = t, abs(d)
+            while 0 <= k + way < T:
+                seg = steps[min(k, k + way)]
+                if left <= seg:
+                    break
+                left -= seg
+                k += way
+            seg = steps[min(k, k + way)] if 0 <= k + way < T else 0.0
+            for a in range(3):
+                out[c, i, a] = xc[k, a]
+                if seg > 0.0:
+                    out[c, i, a] += (xc[k + way, a] - xc[k, a]) * (left / seg)
