@@ -64,7 +64,7 @@ def test_far_characters_are_not_posed_and_keep_the_full_sessions_root_gait_and_c
     np.testing.assert_array_equal(cat(got, "contacts"), cat(want, "contacts"))
     root, root_full = cat(got, "root_pos"), cat(want, "root_pos")
     assert_far_root(bank, root, root_full, far.scales)
-    assert (np.abs(root[..., 1] - root_full[..., 1]) < 1e-5).mean() > 0.5  # most frames need no sink
+    assert (np.abs(root[..., 1] - root_full[..., 1]) < 1e-5).mean() > 0.5  # most frames need neither
 
 
 def test_characters_switched_to_full_are_posed_as_if_they_always_were(bank: Bank, herd: np.ndarray) -> None:

@@ -301,7 +301,8 @@ def reach_sink(targets: Any, legs: Any, path: Any, h: float, terrain: bool, s: i
 
 
 @_jit(inline="always")
-def fold_room(targets: Any, legs: Any, bends: Any, limit: float, s: int, T: int, eased: Any) -> None:
+def fold_room(targets: Any, legs: Any, bends: Any, limit: float, s: int, T: int, eased: Any,
+              lift: Any) -> None:
     """The eased sink of frames ``[s, T)`` lowered no further than lets every leg reach its
     target with its hinge folded no more than the animal's own poses fold it (``bends[:, 3]``) --
     raised for that where it must, by ``limit`` at most, and no further than every leg still
@@ -310,7 +311,12 @@ def fold_room(targets: Any, legs: Any, bends: Any, limit: float, s: int, T: int,
     foot). The easing spreads a sink over the frames around the one that needs it: a dog's hind
     leg stretching back to its plant below a 20 cm step sank the body 9 cm while the other hind
     paw swung up onto the step, and the IK folded that knee through its thigh to reach it (185
-    deg; the clips' furthest, 128): a limb flip, the bend's side reversing in one frame."""
+    deg; the clips' furthest, 128): a limb flip, the bend's side reversing in one frame.
+
+    The raise is eased as the sink is (:func:`ease_sink`, ``lift``: its per-frame amounts), and
+    so is what it takes back where it would lift the body past a leg's reach: applied frame by
+    frame, the bounds moved the root 8 cm in one frame on the step as a plant's target changed."""
+    reach = np.empty(T)
     for t in range(s, T):
         room, need = np.inf, -np.inf
         for f in range(4):
@@ -324,4 +330,11 @@ def fold_room(targets: Any, legs: Any, bends: Any, limit: float, s: int, T: int,
             if gap2 > 0.0:  # folded that far, the hip is sqrt(gap2) above the target; sunk by s,
                 # it is -(to_ankle[1] + s) above it
                 room = min(room, -to_ankle[1] - math.sqrt(gap2))
-        eased[t] = max(min(eased[t], max(room, need)), -limit)
+        reach[t] = max(need, -limit)
+        lift[t] = eased[t] - max(min(eased[t], max(room, need)), -limit)
+    ease_sink(lift[s:T], 2.0 * limit, lift[s:T])
+    for t in range(s, T):  # how far the eased raise lifts the body past a leg's reach: given back,
+        reach[t] = max(reach[t] - (eased[t] - lift[t]), 0.0)  # eased too
+    ease_sink(reach[s:T], 2.0 * limit, reach[s:T])
+    for t in range(s, T):
+        eased[t] = min(eased[t], eased[t] - lift[t] + reach[t])

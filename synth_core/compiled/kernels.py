@@ -126,7 +126,7 @@ def _character(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, yaw
     reach_sink(targets, legs, path, h, terrain, s, T, sink)
     # Eased from frame s on: the wanted frames, PAD or more after it, read nothing before it.
     ease_sink(sink[s:], sink_limit, eased[s:])
-    fold_room(targets, legs, bends, sink_limit, s, T, eased)
+    fold_room(targets, legs, bends, sink_limit, s, T, eased, sink)  # the sink read: its frames free
     for t in range(a, T):
         out_root[t, 1] = (out_root[t, 1] / h - eased[t]) * h
     solve_legs(world, targets, eased, rigs, parents, offsets, bends, out_rot, keep_from, keep_to, o)

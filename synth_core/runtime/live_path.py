@@ -154,7 +154,7 @@ class LivePath:
         whole = (self.n_path - 1) // m
         if whole > self.n_seg:
             a, b = self.n_seg * m, whole * m + 1
-            pts = self._path(a, b)
+            pts = self._facing(a, b)  # the positions smoothed, as the batch's (trajectory, step 2)
             # With a terrain, the speed along the ground, as the batch's (terrain.along_ground).
             on = pts[..., GROUND] if self.ground is None else laid(pts, self.ground)
             step = np.linalg.norm(np.diff(on, axis=1), axis=-1)

@@ -69,7 +69,7 @@ N_HUBS = 5  # static, walk, trot, canter, gallop
 # horses stood while their root crept on over the pinned hooves, which lifted 25 cm; at 0.08 a
 # horse at 0.05 m/s stood for 12 s while its root slid 57 cm on over its hooves: the edge suite's
 # stand_drift. The root stays on the path, so only a stride kept in pace with it keeps the feet.)
-STAND_SHARE = 0.03
+STAND_SHARE = 0.05
 # A path whose every step for this long is slower than a standing character's (STAND_SHARE of the
 # slowest clip) has stopped: the character settles into the idle at once (see plan_kernels). The
 # segment speeds alone see a stop a segment late; longer than a 10 Hz simulator's tick (0.1 s),

@@ -208,5 +208,7 @@ def along_ground(prep: Prepared, field: HeightField, fps: float) -> Prepared:
     # Here, not at the top: trajectory imports the compiled kernels, which import footlock and this.
     from synth_core.runtime.trajectory import segment_speeds
     positions = laid(prep.positions, field)
-    speeds = segment_speeds(positions, prep.segment, fps, along_ground=True)
-    return replace(prep, positions=positions, segment_speeds=speeds)
+    facing = None if prep.facing is None else laid(prep.facing, field)
+    # On the positions smoothed, as on flat ground (trajectory's step 2: not the noise's zig-zag).
+    speeds = segment_speeds(positions if facing is None else facing, prep.segment, fps, along_ground=True)
+    return replace(prep, positions=positions, facing=facing, segment_speeds=speeds)
