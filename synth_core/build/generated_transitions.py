@@ -155,6 +155,7 @@ def hold_plants(motion: Motion) -> Motion:
 
     axes = ik.hinge_axes_over_time(motion.skeleton, motion.rotations, rigs)
     rotations, _, sunk = solve_eased(motion.skeleton, motion.rotations, place, rigs,
-                                     float(feet[..., UP_AXIS].min()), axes, cyclic=False)
+                                     float(feet[..., UP_AXIS].min()), axes, cyclic=False,
+                                     contacts=motion.contacts)
     return Motion(motion.skeleton, sunk.astype(np.float32), rotations, motion.fps, motion.contacts,
                   motion.name, motion.gait)

@@ -356,7 +356,8 @@ def build_speed_map(source: Motion, speeds: Sequence[float] | Floats,
         return sink_for_reach(source, new_root, pose, targets, rigs), targets
 
     # The paws' ankles through straight no faster than a stride rate can play them (issue 28).
-    solved, result, sunk = solve_eased(source.skeleton, rotations, place, rigs, ground, axes, cyclic=True)
+    solved, result, sunk = solve_eased(source.skeleton, rotations, place, rigs, ground, axes, cyclic=True,
+                                       contacts=source.contacts)
     return SpeedMap(source.gait or source.name, source.skeleton, source.fps, speeds,
                     sunk.astype(np.float32), solved, source.contacts.copy(),
                     result.stretch.astype(np.float32), source.speed_mps())

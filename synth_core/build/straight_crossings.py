@@ -34,6 +34,10 @@ Floats = NDArray[np.float64]
 # between two bends of 15 deg whose directions are 90 deg apart (a flip, at the least).
 CROSS_STEP_DEG = 10.0
 EASE_FRAMES = 4.0  # the slowed crossing takes its time from this many frames either side
+# A stance's share before its breakover: a passage centred there is left alone (issue 28: hooves
+# flat in stance, moving only in the last 20% of it; warped there, a horse's gallop hoof rocked
+# 13 mm a frame through its stance).
+BREAKOVER_SHARE = 0.2
 
 
 def bend_vectors(skeleton: Skeleton, rotations: NDArray[np.floating], joint: int, child: int) -> Floats:
@@ -75,13 +79,35 @@ def _passages(bend: Floats, cyclic: bool) -> tuple[Floats, Floats]:
     return speed, centre
 
 
-def crossing_times(bend: Floats, cyclic: bool) -> Floats:
+def flat_stance(contacts: NDArray[np.bool_], cyclic: bool) -> NDArray[np.bool_]:
+    """``(F, 4)``: frames of each foot's stance before its breakover (the last
+    :data:`BREAKOVER_SHARE` of the stance), where a foot stands flat."""
+    down = np.asarray(contacts, bool)
+    F = len(down)
+    out = np.zeros_like(down)
+    for f in range(down.shape[1]):
+        col = down[:, f]
+        if col.all():
+            out[:, f] = True
+            continue
+        shift = int(np.argmin(col)) if cyclic else 0  # a run wrapping the loop read from a lift-off
+        rolled = np.roll(col, -shift)
+        edges = np.flatnonzero(np.diff(np.concatenate([[False], rolled, [False]]).astype(np.int8)))
+        for a, b in zip(edges[::2], edges[1::2], strict=True):
+            keep = int(np.ceil((b - a) * (1.0 - BREAKOVER_SHARE)))
+            out[(np.arange(a, a + keep) + shift) % F, f] = True
+    return out
+
+
+def crossing_times(bend: Floats, cyclic: bool, flat: NDArray[np.bool_] | None = None) -> Floats:
     """``(F,)``: the clip time (fractional frame) each frame shows the joint at, from its bend
     vectors ``(F, 3)``: the identity except around each passage through straight
     (:func:`_passages`) faster than :data:`CROSS_STEP_DEG`, where time is warped
     ``tc + h g((t - tc) / h)``, g(x) = s x + (1 - s) x^3: slope s = CROSS_STEP / step at the
     passage's centre tc, faster on either side, the same at the window's ends. The fastest
-    passage first; one whose window would overlap a slowed one keeps its pace."""
+    passage first; one whose window would overlap a slowed one keeps its pace. The window stops
+    short of ``flat (F,)`` (the foot's stance before breakover: :func:`flat_stance`), which keeps
+    its own timing."""
     F = len(bend)
     speed, centre = _passages(bend, cyclic)
     times = np.arange(F, dtype=np.float64)
@@ -89,6 +115,9 @@ def crossing_times(bend: Floats, cyclic: bool) -> Floats:
     for i in sorted(np.flatnonzero(speed > CROSS_STEP_DEG), key=lambda i: -speed[i]):  # a few per clip
         tc = float(centre[i])
         h = EASE_FRAMES if cyclic else min(EASE_FRAMES, tc, F - 1 - tc)
+        if flat is not None and flat.any():  # the window stops short of the flat stance
+            gap = np.abs(np.flatnonzero(flat) - tc)
+            h = min(h, float((np.minimum(gap, F - gap) if cyclic else gap).min()))
         t = np.arange(int(np.floor(tc - h)) + 1, int(np.ceil(tc + h)))
         if h < 1.0 or taken[t % F].any():
             continue
@@ -110,20 +139,23 @@ def _resampled(q: Floats, times: Floats, cyclic: bool) -> Floats:
 
 
 def ease_crossings(skeleton: Skeleton, rotations: NDArray[np.floating],
-                   joints: Sequence[tuple[int, int]], cyclic: bool) -> NDArray[np.float32]:
+                   joints: Sequence[tuple[int, int]], cyclic: bool,
+                   contacts: NDArray[np.bool_] | None = None) -> NDArray[np.float32]:
     """Local rotations ``(..., F, J, 4)`` (frames the last leading axis) with each of ``joints``
     (joint, the child its bone points to) passing through straight no faster than
-    :data:`CROSS_STEP_DEG` a frame (:func:`crossing_times`). ``cyclic``: the clip loops."""
+    :data:`CROSS_STEP_DEG` a frame (:func:`crossing_times`). ``cyclic``: the clip loops.
+    ``contacts (F, len(joints))``: each joint's foot planted; none is warped in its flat stance."""
+    flat = None if contacts is None else flat_stance(contacts, cyclic)
     out = np.array(rotations, np.float32)
     F, J = out.shape[-3:-1]
-    flat = out.reshape(-1, F, J, 4)  # clips: a speed map's 60, one for a transition
-    for joint, child in joints:
-        bends = bend_vectors(skeleton, flat, joint, child)
-        for n in range(len(flat)):
-            times = crossing_times(bends[n], cyclic)
+    clips = out.reshape(-1, F, J, 4)  # a speed map's 60, one for a transition
+    for k, (joint, child) in enumerate(joints):
+        bends = bend_vectors(skeleton, clips, joint, child)
+        for n in range(len(clips)):
+            times = crossing_times(bends[n], cyclic, None if flat is None else flat[:, k])
             if np.any(times != np.arange(F)):
-                flat[n, :, joint] = _resampled(flat[n, :, joint].astype(np.float64), times, cyclic)
-    return flat.reshape(out.shape)
+                clips[n, :, joint] = _resampled(clips[n, :, joint].astype(np.float64), times, cyclic)
+    return clips.reshape(out.shape)
 
 
 # A pose -> the root and the toe targets to solve it for.
@@ -132,7 +164,8 @@ Placing = Callable[[NDArray[np.floating]], tuple[NDArray[np.floating], NDArray[n
 
 def solve_eased(skeleton: Skeleton, rotations: NDArray[np.floating], place: Placing,
                 rigs: tuple[ik.LimbRig, ...], ground: float, axes: NDArray[np.floating],
-                cyclic: bool) -> tuple[NDArray[np.float32], ik.IKResult, NDArray[np.floating]]:
+                cyclic: bool, contacts: NDArray[np.bool_] | None = None
+                ) -> tuple[NDArray[np.float32], ik.IKResult, NDArray[np.floating]]:
     """:func:`ik.solve` with flips mended (:func:`ik.mend_flips`), then each paw's ankle (the
     wrist, hock or toe the IK keeps the world orientation of) eased through straight
     (:func:`ease_crossings`) and the legs solved again around the paws' new orientation, so the
@@ -143,7 +176,9 @@ def solve_eased(skeleton: Skeleton, rotations: NDArray[np.floating], place: Plac
     root, targets = place(rotations)
     result = ik.solve(skeleton, root, rotations, targets, rigs, ground=ground, axes=axes)
     solved = ik.mend_flips(result.rotations, result.wrong_side, rigs, cyclic=cyclic)
-    eased = ease_crossings(skeleton, solved, [(r.ankle, r.effector) for r in rigs], cyclic)
+    eased = ease_crossings(skeleton, solved, [(r.ankle, r.effector) for r in rigs], cyclic, contacts)
+    if np.array_equal(eased, solved):  # nothing eased: the first solve stands
+        return solved, result, root
     root, targets = place(eased)
     result = ik.solve(skeleton, root, eased, targets, rigs, ground=ground, axes=axes)
     return ik.mend_flips(result.rotations, result.wrong_side, rigs, cyclic=cyclic), result, root

@@ -29,5 +29,6 @@ MAX_SINK = 0.05  # of the leg length, the most the root is lowered
 TERRAIN_MAX_SINK = 0.2
 EASE_FRAMES = 9
 # Frames either side of a frame that its eased sink reads: the running max's half width plus the
-# Gaussian's radius (ease_sink: sigma EASE_FRAMES / 6, truncated at 4 sigma).
-PAD = EASE_FRAMES // 2 + int(4.0 * EASE_FRAMES / 6 + 0.5)
+# Gaussian's radius (ease_sink: sigma EASE_FRAMES / 6, truncated at 4 sigma), twice: fold_room's
+# raise is eased again over the eased sink.
+PAD = 2 * (EASE_FRAMES // 2 + int(4.0 * EASE_FRAMES / 6 + 0.5))
