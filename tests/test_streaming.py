@@ -10,20 +10,22 @@ from synth_core.compiled.kernels import lock_context
 from synth_core.quality import herd_sim as crowd
 from synth_core.runtime import streaming
 from synth_core.runtime.bank import Bank
+from synth_core.runtime.footlock import PAD
 from synth_core.runtime.streaming import BatchStream
 from synth_core.runtime.synthesis import Options, synthesize
 
 
 def test_context_covers_whole_plants() -> None:
-    contacts = np.zeros((1, 20, 4), bool)
-    contacts[0, 2:6, 0] = contacts[0, 9:15, 0] = True  # foot 0: plants [2, 6) and [9, 15)
+    F = 8 + 2 * PAD  # the first window reaches PAD past its end: the array's
+    contacts = np.zeros((1, F, 4), bool)
+    contacts[0, 2:6, 0] = contacts[0, PAD - 1:PAD + 5, 0] = True  # foot 0: two plants, a swing between
     contacts[0, :, 1:] = True  # the others planted throughout
-    begin, stop = lock_context(contacts[:, :, :1], 17, 18)  # PAD 10 back reaches the swing at 7
-    assert begin[0] == 2 and stop[0] == 20  # from the plant before that swing
-    begin, stop = lock_context(contacts[:, :, :1], 0, 1)  # PAD 10 on reaches the plant [9, 15)
-    assert begin[0] == 0 and stop[0] == 15
-    begin, stop = lock_context(contacts, 19, 20)  # the feet planted throughout: all of it
-    assert begin[0] == 0 and stop[0] == 20
+    begin, stop = lock_context(contacts[:, :, :1], PAD + 7, PAD + 8)  # PAD back reaches the swing at 7
+    assert begin[0] == 2 and stop[0] == F  # from the plant before that swing
+    begin, stop = lock_context(contacts[:, :, :1], 0, 1)  # PAD on reaches the plant [PAD - 1, PAD + 5)
+    assert begin[0] == 0 and stop[0] == PAD + 5
+    begin, stop = lock_context(contacts, F - 1, F)  # the feet planted throughout: all of it
+    assert begin[0] == 0 and stop[0] == F
 
 
 # The reference backend runs the same render source, interpreted: tests/test_backends.py holds its
