@@ -144,7 +144,9 @@ class SynthesizeRequest(BaseModel):
     animal: str = Field(default="horse", description="a library from GET /v1/libraries")
     fps: float = Field(default=60.0, gt=0, le=1000, description="frame rate of the trajectory points")
     seed: int = Field(default=0, ge=0, le=2**63 - 1, description="same input and seed: same bytes out")
-    sigma: float = Field(default=4.0, ge=0, le=100, description="Gaussian smoothing of the paths, frames")
+    sigma: float = Field(default=4.0, ge=0, le=100, description=(
+        "Gaussian smoothing, frames: of the timing along the points sent (the root stays on them) "
+        "and of the positions the body faces and the gaits are chosen on"))
     encoding: Encoding = Field(default="s48", description=f"rotation encoding: {', '.join(ENCODINGS)}")
     lod: Lod = Field(default_factory=Lod, description="level of detail of every character (each may "
                                                       "override its detail)")

@@ -20,8 +20,8 @@ from synth_core.build.motion_graph import HUBS
 from synth_core.build.speed_map import build_speed_map
 from synth_core.compiled import kernels
 from synth_core.motion import quat
-from synth_core.motion.mirror import FOOT_SWAP, mirror_poses, skeleton_mirror
-from synth_core.runtime.bank import Bank, canonical_cycle
+from synth_core.runtime.bank import Bank, Table, canonical_cycle, mirrored
+from synth_core.runtime.plan import character_leads
 from synth_core.runtime.synthesis import Options, Plan, Result, compiled_backend, plan, prepare_batch
 
 DEFAULT_OPTIONS = Options()
@@ -65,15 +65,15 @@ def _remap(bank: Bank, p: Plan, segment: NDArray[np.int64], speeds: NDArray[np.f
         # The clips made, then their mirror images (bank.mirror) for the characters on the other lead.
         block = len(order) * piece.frames
         rows[gait_rows] = offset + (lead[gait_rows] > 0) * block + rank[slot] * piece.frames + frame
-        made = quat.normalize(np.concatenate(made_rot))
-        mirror = skeleton_mirror(bank.skeleton) if bank.mirror else None
-        flipped = [] if mirror is None else [quat.normalize(mirror_poses(mirror, made))]
-        poses += [r.astype(np.float32) for r in (made, *flipped)]
-        height += [np.concatenate(made_height).astype(np.float32)] * (1 + len(flipped))
-        surge += [np.concatenate(made_surge).astype(np.float32)] * (1 + len(flipped))
-        tiled = np.tile(source.contacts, (len(order), 1))
-        contacts += [tiled, *([tiled[:, FOOT_SWAP]] if flipped else [])]
-        offset += block * (1 + len(flipped))
+        table: Table = (quat.normalize(np.concatenate(made_rot)).astype(np.float32),
+                        np.concatenate(made_height), np.concatenate(made_surge),
+                        np.tile(source.contacts, (len(order), 1)))
+        made = mirrored(bank.skeleton, *table) if bank.mirror else (*table, 0)
+        poses.append(made[0])
+        height.append(made[1].astype(np.float32))
+        surge.append(made[2].astype(np.float32))
+        contacts.append(made[3])
+        offset += len(made[0])
     # Exact speed: the pair blended is one clip (both rows the same, weight 0).
     exact = rows[..., 0] >= len(bank.poses)
     rows[..., 1] = np.where(exact, rows[..., 0], rows[..., 1])
@@ -98,4 +98,5 @@ def synthesize_onthefly(bank: Bank, library: Library, positions: ArrayLike, fps:
     extended, p = _remap(bank, p, segment, prep.segment_speeds / h[:, None], library)
     root, rotations = kernels.render(extended, p, options.foot_lock, compiled=compiled_backend(options))
     return Result(root, rotations, p.gait, p.contacts, p.stitches, h, p.path,
-                  prep.resample_rate, prep.kept, prep.rejected, prep.warnings)
+                  prep.resample_rate, prep.kept, prep.rejected, prep.warnings,
+                  character_leads(bank, keys) > 0)

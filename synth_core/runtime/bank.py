@@ -150,7 +150,7 @@ def nearest_pose(poses: NDArray[np.floating], contacts: NDArray[np.bool_], pose:
 Table = tuple[NDArray[np.float32], Floats, Floats, NDArray[np.bool_]]  # poses, height, surge, contacts
 
 
-def _mirrored(skeleton: Skeleton, poses: NDArray[np.float32], height: Floats, surge: Floats,
+def mirrored(skeleton: Skeleton, poses: NDArray[np.float32], height: Floats, surge: Floats,
               contacts: NDArray[np.bool_]) -> tuple[*Table, int]:
     """The table's rows followed by their mirror images (root height and surge are the same,
     each foot's contact is its partner's), and where the mirror rows start (0: none, the rows
@@ -218,7 +218,7 @@ def build_bank(library: Library, mirror: bool = True) -> Bank:
     bends = np.asarray(ik.bend_axes(library.skeleton, poses[:gait_rows]), np.float64)
     table = (poses, np.concatenate([r[1] for r in rows]) - ground, np.concatenate([r[2] for r in rows]),
              np.concatenate([r[3] for r in rows]).astype(bool))
-    poses, height, surge, contacts, half = _mirrored(library.skeleton, *table) if mirror else (*table, 0)
+    poses, height, surge, contacts, half = mirrored(library.skeleton, *table) if mirror else (*table, 0)
     return Bank(library.skeleton, library.fps, poses, height.astype(np.float32), surge.astype(np.float32),
                 contacts, tuple(h for h in HUBS if h == "static" or h in library.maps),
                 gaits, speeds, idle, transitions, distance, creep, bends, ground, half)

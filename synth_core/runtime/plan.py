@@ -113,7 +113,7 @@ class Plan:
     rows: NDArray[np.int32]
     weights: NDArray[np.float32]
     yaw: Floats  # (C, T) heading, radians about +Y, 0 = +Z
-    path: Floats  # (C, T, 3) smoothed trajectory
+    path: Floats  # (C, T, 3) the path followed: the points sent, their timing smoothed
     scales: Floats  # (C,)
     contacts: NDArray[np.bool_]  # (C, T, 4)
     stitches: NDArray[np.bool_]  # (C, T)

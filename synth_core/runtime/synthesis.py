@@ -68,6 +68,7 @@ class Options:
     posed: NDArray[np.bool_] | None = field(default=None, compare=False)  # (C,) per input character:
     # its rotations are wanted (None: all's). The others (far characters, at root_gait detail) get
     # the plan's root, gait and contacts alone: no pose, no foot lock, their rotations left unwritten
+    # (what ``out`` held; a fresh output's zeros): a caller exporting them fills in what it wants
 
     def posed_rows(self, kept: NDArray[np.int64]) -> NDArray[np.bool_] | None:
         """:attr:`posed` of the characters ``kept`` (a prepared batch's rows: input indices)."""
@@ -83,7 +84,7 @@ class Result:
     contacts: NDArray[np.bool_]  # (C, T, 4) planted feet
     stitches: NDArray[np.bool_]  # (C, T) frames where a new piece starts (transitions in/out)
     scales: Floats  # (C,)
-    path: Floats  # (C, T, 3) the smoothed trajectory followed
+    path: Floats  # (C, T, 3) the path followed: the points sent, their timing smoothed
     resample_rate: float
     kept: NDArray[np.int64]  # input characters synthesized
     rejected: dict[int, str] = field(default_factory=dict)
