@@ -281,6 +281,21 @@ def measure_feet(world: Any, out_root: Any, yaw: Any, lean: Any, path: Any, tilt
 
 
 @_jit(inline="always")
+def _from_hip(target: Any, leg: Any) -> tuple[float, float]:
+    """A foot's target from its leg's upper joint, the ankle-to-toe vector taken off: its height
+    (up) and its squared distance across the ground."""
+    to_ankle = vsub(vsub(v3(target), v3(leg[LEG_TOE:])), v3(leg[LEG_UP:]))
+    return to_ankle[1], to_ankle[0] ** 2 + to_ankle[2] ** 2
+
+
+@_jit(inline="always")
+def _sink_within(up: float, across2: float, allowed: float) -> float:
+    """How far the root must come down for a leg to reach a target ``up`` above its upper joint
+    and ``sqrt(across2)`` across within ``allowed`` (reach_sink's and fold_room's rule)."""
+    return -up - math.sqrt(max(allowed * allowed - across2, 0.0))
+
+
+@_jit(inline="always")
 def reach_sink(targets: Any, legs: Any, path: Any, h: float, terrain: bool, s: int, T: int,
                sink: Any) -> None:
     """Pass 3's sink of frames ``[s, T)``: how far the root must come down for the leg furthest
@@ -292,11 +307,8 @@ def reach_sink(targets: Any, legs: Any, path: Any, h: float, terrain: bool, s: i
         for f in range(4):
             if not terrain and targets[t, f, 1] < floor:
                 targets[t, f, 1] = floor
-            leg = legs[t, f]
-            to_ankle = vsub(vsub(v3(targets[t, f]), v3(leg[LEG_TOE:])), v3(leg[LEG_UP:]))
-            allowed = REACH * leg[LEG_REACH]
-            across2 = to_ankle[0] ** 2 + to_ankle[2] ** 2
-            worst = max(worst, -to_ankle[1] - math.sqrt(max(allowed * allowed - across2, 0.0)))
+            up, across2 = _from_hip(targets[t, f], legs[t, f])
+            worst = max(worst, _sink_within(up, across2, REACH * legs[t, f, LEG_REACH]))
         sink[t] = worst
 
 
@@ -321,15 +333,13 @@ def fold_room(targets: Any, legs: Any, bends: Any, limit: float, s: int, T: int,
         room, need = np.inf, -np.inf
         for f in range(4):
             leg = legs[t, f]
-            to_ankle = vsub(vsub(v3(targets[t, f]), v3(leg[LEG_TOE:])), v3(leg[LEG_UP:]))
-            across2 = to_ankle[0] ** 2 + to_ankle[2] ** 2
-            allowed = min(REACH * leg[LEG_REACH], bends[f, 4])
-            need = max(need, -to_ankle[1] - math.sqrt(max(allowed * allowed - across2, 0.0)))
+            up, across2 = _from_hip(targets[t, f], leg)
+            need = max(need, _sink_within(up, across2, min(REACH * leg[LEG_REACH], bends[f, 4])))
             thigh, shin = leg[LEG_THIGH], leg[LEG_REACH] - leg[LEG_THIGH]
             gap2 = thigh * thigh + shin * shin + 2.0 * thigh * shin * bends[f, 3] - across2
             if gap2 > 0.0:  # folded that far, the hip is sqrt(gap2) above the target; sunk by s,
-                # it is -(to_ankle[1] + s) above it
-                room = min(room, -to_ankle[1] - math.sqrt(gap2))
+                # it is -(up + s) above it
+                room = min(room, -up - math.sqrt(gap2))
         reach[t] = max(need, -limit)
         lift[t] = eased[t] - max(min(eased[t], max(room, need)), -limit)
     ease_sink(lift[s:T], 2.0 * limit, lift[s:T])
