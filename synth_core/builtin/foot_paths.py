@@ -25,8 +25,15 @@ class FootPlan:
     swing_frames: Floats  # (T,) length of the current swing in frames, NaN in stance
 
 
+# Share of the plan's speed a foot leaves the ground with, unless its gait says
+# (``GaitSpec.lift_off_speed``): the horse's leg is at full stretch behind at lift-off, so a hoof
+# lagging further would be out of its reach (a kink of the elbow or stifle).
+LIFT_OFF_SPEED = 0.5
+
+
 def plan_foot(planted: NDArray[np.bool_], root_z: Floats, neutral_z: float, lift: Floats,
-              ease_down: Floats | float = 0.25, lift_fall: Floats | float = 1.2) -> FootPlan:
+              ease_down: Floats | float = 0.25, lift_fall: Floats | float = 1.2,
+              lift_off: Floats | float = LIFT_OFF_SPEED) -> FootPlan:
     """Plants at the root's mid-stance place (square when open-ended) and swings between them."""
     T = len(planted)
     stance = runs(planted)
@@ -55,7 +62,8 @@ def plan_foot(planted: NDArray[np.bool_], root_z: Floats, neutral_z: float, lift
     z_body = root_z + behind + (ahead - behind) * min_jerk(s)
     swinging = ~planted & ~before_first & ~after_last
     swings = _Swings(start, stop, prev_c, lo, td, span)
-    z_swing = _eased_over_ground(z_body, swinging, planted, plant_z, swings, np.broadcast_to(ease_down, (T,)))
+    z_swing = _eased_over_ground(z_body, swinging, planted, plant_z, swings, np.broadcast_to(ease_down, (T,)),
+                                 np.broadcast_to(lift_off, (T,)))
     z_swing = np.where(before_first, plant_z[0], np.where(after_last, plant_z[-1], z_swing))
     # Lifts steeply and comes down as steeply or a little less (``lift_fall``), peaking at or just
     # before mid-swing (a hoof's flight peaks around mid-swing, gait-reference table 4): the toe is
@@ -83,9 +91,6 @@ def lift_profile(s: Floats, fall: Floats | float = 1.2) -> Floats:
 # over the gait's ``touchdown_ease`` before touchdown): lift quickly, slow before touchdown, as
 # the MANN dog's feet do.
 SPEED_RAMP_UP = 0.25
-# Share of the plan's speed a foot leaves the ground with: the leg is at full stretch behind at
-# lift-off, so a foot lagging further would be out of its reach (a kink of the elbow or stifle).
-LIFT_OFF_SPEED = 0.5
 
 
 @dataclass(frozen=True)
@@ -103,7 +108,8 @@ class _Swings:
 
 
 def _eased_over_ground(z_body: Floats, swinging: NDArray[np.bool_], planted: NDArray[np.bool_],
-                       plant_z: Floats, swings: _Swings, ease_down: Floats) -> Floats:
+                       plant_z: Floats, swings: _Swings, ease_down: Floats,
+                       lift_off: Floats) -> Floats:
     """Swing positions (T,) with the body-relative plan's per-frame advance eased in and out.
 
     The body-relative plan leaves and meets the ground at the body's speed: a foot sliding along
@@ -112,7 +118,8 @@ def _eased_over_ground(z_body: Floats, swinging: NDArray[np.bool_], planted: NDA
     advances rescaled so it still spans its two plants. The foot lags the plan a little early in
     the swing and reaches a little beyond it late, as swing legs retract before touchdown.
     ``ease_down (T,)``: the share of the swing the foot slows down over (the gait's
-    ``touchdown_ease``).
+    ``touchdown_ease``); ``lift_off (T,)``: the share of the plan's speed it leaves the ground
+    with (the gait's ``lift_off_speed``, read at each swing's lift-off frame).
     """
     start, stop, prev_c, lo, td, span = (swings.start, swings.stop, swings.prev, swings.lo, swings.td,
                                          swings.span)
@@ -128,7 +135,8 @@ def _eased_over_ground(z_body: Floats, swinging: NDArray[np.bool_], planted: NDA
     plan = np.where(swinging, z_body, plant_z[prev_c])  # stance frames: on their plant
     advance = np.diff(plan, prepend=plan[0])
     up = smoothstep((t - lo_k + 1) / np.maximum(SPEED_RAMP_UP * span_k, 1.0))
-    up = LIFT_OFF_SPEED + (1 - LIFT_OFF_SPEED) * up
+    start_speed = lift_off[np.clip(lo_k, 0, T - 1)]
+    up = start_speed + (1 - start_speed) * up
     down = smoothstep((td_k - t + 1) / np.maximum(ease_down[np.clip(td_k, 0, T - 1)] * span_k, 1.0))
     weighted = np.cumsum(np.where(member, advance * up * down, 0.0))
     before = weighted[np.clip(lo_k - 1, 0, T - 1)]

@@ -110,6 +110,16 @@ class GaitSpec:
     # last swing frame while still moving forward 4-9 mm, a strict-plant skate (issue 27: gallop
     # 9 mm p95); at 1.0 they are over 1 cm there, as the horse's hooves (2-3 cm) are at 1.2.
     lift_fall: float = 1.2
+    # Share of the body-relative plan's speed a foot leaves the ground with (``foot_paths``:
+    # the swing's advance ramps up from it). The real MANN dog's paw moves 0.10 of the body's
+    # speed in its first swing frame, 0.18-0.22 in its second, at the trot, canter and gallop
+    # (../shared/mocap/mann_dog, clean ranges); at 0.5 the built-in dog's canter and gallop paws
+    # read 0.63 and 0.8, skimming forward through the 2.5 cm of the glide measure as they rose
+    # (the steady canter's glide 0.091, gallop 0.082; now 0.33 and 0.59 of the body's speed,
+    # glide 0.062, 0.052). The trot keeps 0.5: at 0.2 its clips glide less (0.071 -> 0.053) but
+    # the edge suite's turns and brakes, whose glide is mostly the held end of walk2trot fading
+    # out (docs/edge_dogs.md), read worse.
+    lift_off_speed: float = 0.5
     notes: str = field(default="", compare=False)
 
     @property
@@ -166,13 +176,13 @@ DOG_GAITS: dict[str, GaitSpec] = {g.name: g for g in (
           pitch=5.0, pitch_down=0.33, nod=8.0, nod_per_stride=1, nod_down=0.35, steady_head=0.0,
           spine_flex=8.0, spine_arched=0.0, carpus_flex=90.0, hock_flex=50.0, hock_load=10.0,
           fetlock_sink=10.0, digit_flex=50.0, breakover=30.0, tail_lift=15.0, tail_swing=12.0, sway=1.0,
-          lift_fall=1.0),
+          lift_fall=1.0, lift_off_speed=0.2),
     _spec(name="gallop", speed=4.6, frames=25, phases={"RH": 0.86, "LH": 0.0, "LF": 0.16, "RF": 0.35},
           duty=0.24, step_height=0.20, crouch=0.055, bob=0.025, bob_per_stride=1, bob_low=0.15,
           pitch=7.0, pitch_down=0.35, nod=10.0, nod_per_stride=1, nod_down=0.4, steady_head=0.0,
           spine_flex=14.0, spine_arched=0.0, carpus_flex=100.0, hock_flex=55.0, hock_load=12.0,
           fetlock_sink=12.0, digit_flex=60.0, breakover=35.0, tail_lift=20.0, tail_swing=15.0, sway=1.0,
-          lift_fall=1.0),
+          lift_fall=1.0, lift_off_speed=0.2),
 )}
 
 # Swing height of each foot relative to its gait's step height: no two legs of an animal lift

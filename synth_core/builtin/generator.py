@@ -213,7 +213,8 @@ def _plant_and_solve(skeleton: Skeleton, limb: Limb, foot_planted: NDArray[np.bo
     neutral = rest_pos[end, 2] - rest_pos[0, 2]
     for _ in range(MAX_EARLY_LIFT_FRAMES + 1):
         lift = v["step_height"] * leg_length * FOOT_LIFT[limb.foot]
-        plan = plan_foot(foot_planted, root_z, neutral, lift, v["touchdown_ease"], v["lift_fall"])
+        plan = plan_foot(foot_planted, root_z, neutral, lift, v["touchdown_ease"], v["lift_fall"],
+                         v["lift_off_speed"])
         solution = solve_limb(skeleton, limb, plan, trunk_pos, global_pitch, v,
                               rest_protraction(limb, rest_pos))
         # A foot left behind at (or beyond) the leg's full reach on its last stance frame lifts
