@@ -174,11 +174,13 @@ def touchdown_drops(heights: np.ndarray, contacts: np.ndarray) -> np.ndarray:
 
 def test_speed_map_touchdowns_drop_no_further_than_the_source(mann: Library) -> None:
     """Issue 28: the exported speed-map clips dropped a paw 3-10 cm in the frame before it lands,
-    the source 1.6-4.6. Now no clip of any speed drops a paw further than its source cycle."""
+    the source's largest 1.6-4.6. Now no clip of any speed drops a paw further than its source
+    cycle's largest drop (a paw that slid in at the ground in the source lands from the
+    centimetre or so a paw clears the ground by, issue 27, not from further up)."""
     cycles = gait_cycles(FIXTURE)
     for gait, speed_map in mann.maps.items():
         source = cycles[gait]
-        want = touchdown_drops(source.foot_positions()[..., UP_AXIS], source.contacts)
+        want = touchdown_drops(source.foot_positions()[..., UP_AXIS], source.contacts).max()
         heights = map_positions(speed_map)[:, :, mann.skeleton.foot_joints, UP_AXIS]
         got = np.stack([touchdown_drops(h, speed_map.contacts) for h in heights])
         assert np.all(got <= want + 0.001), (gait, got.max(axis=0), want)
@@ -237,3 +239,29 @@ def test_a_paw_leaving_the_ground_does_not_drag_along_it(mann: Library) -> None:
     suite = edge_suite(build_bank(mann), names=["corner_walk", "uturn_walk"])
     for name, scenario in suite["scenarios"].items():
         assert scenario["figures"]["strict_skate_mm_p95"] <= 3.0, name
+
+
+APPROACH_FRAMES = 2  # the frames before a touchdown where the real dog's paw swept in low
+
+
+def test_speed_map_paws_land_from_above(mann: Library) -> None:
+    """Issue 27: strict plant skate p95 <= 3 mm (a foot within 1 cm of the ground for 3+ frames
+    counts as standing, its motion a frame as skate). The real dog's paw sweeps in low before a
+    touchdown, at a gallop 3-4 cm a frame within 1 cm of its plant (the speed-map clips' gallop
+    read 30 mm p95). In the frames before each touchdown of every clip, a paw within 1 cm of its
+    plant moves at most 3 mm a frame -- but where it is the second paw down (the pace's
+    handover: it lands low, as the source does, so that two paws carry the walk)."""
+    feet = mann.skeleton.foot_joints
+    for gait, speed_map in mann.maps.items():
+        F = speed_map.n_frames
+        paws = looped(map_positions(speed_map), speed_map.root_pos)[:, :, feet]  # (N, F + 2, 4, 3)
+        contacts = speed_map.contacts
+        for k, downs in enumerate(C.touchdowns(contacts, cyclic=True)):
+            for d in downs:
+                d = int(d) if d >= APPROACH_FRAMES else int(d) + F
+                for j in range(d - APPROACH_FRAMES, d):
+                    if contacts[j % F].sum() - contacts[j % F, k] == 1:
+                        continue  # the second support
+                    above = paws[:, j, k, UP_AXIS] - paws[:, d, k, UP_AXIS]
+                    step = np.linalg.norm((paws[:, j + 1, k] - paws[:, j, k])[:, [0, 2]], axis=-1)
+                    assert not np.any((above < 0.01) & (step > 0.003)), (gait, k, j, above.min(), step.max())
