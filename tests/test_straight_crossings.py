@@ -37,3 +37,20 @@ def test_a_slow_passage_is_left_alone() -> None:
     angles = np.linspace(30.0, -30.0, 20)  # 3.2 deg a frame
     times = crossing_times(angles[:, None] * np.array([1.0, 0.0, 0.0]), cyclic=False)
     assert np.array_equal(times, np.arange(20))
+
+
+def test_a_passage_at_a_lift_off_is_slowed_on_its_swing_side() -> None:
+    """A wrist passing through straight 0.7 frame after its flat stance ends (the real dog's
+    lift-offs in its transitions: 17-24 deg a frame, left as they were while the window had to be
+    symmetric) is slowed over the swing; the flat stance keeps its own timing (a foot flat in
+    stance, issue 28)."""
+    angles = np.clip(382.0 - 30.0 * np.arange(30), -50.0, 50.0)  # 22 deg at frame 12, -8 at 13
+    flat = np.arange(30) <= 12
+    times = crossing_times(angles[:, None] * np.array([0.0, 0.0, 1.0]), cyclic=False, flat=flat)
+    assert np.array_equal(times[flat], np.arange(30)[flat])
+    assert np.all(np.diff(times) > 0)
+    shown = bends_at(times, angles)
+    a, b = shown[:-1], shown[1:]  # frame by frame: no two frames 15 deg to either side
+    assert not np.any((a * b < 0) & (np.abs(a) >= FLIP_BEND_DEG) & (np.abs(b) >= FLIP_BEND_DEG))
+    crossing = shown[1:] * shown[:-1] < 0
+    assert np.abs(np.diff(shown))[crossing].max() < 30.0 - 1.0  # slower through straight than it was

@@ -99,29 +99,46 @@ def flat_stance(contacts: NDArray[np.bool_], cyclic: bool) -> NDArray[np.bool_]:
     return out
 
 
+def _room(flat: NDArray[np.bool_], tc: float, cyclic: bool) -> tuple[float, float]:
+    """How far (frames) a passage centred at ``tc`` is from the flat stance ``flat (F,)`` before
+    it and after it (inf: none on that side)."""
+    F = len(flat)
+    at = np.flatnonzero(flat).astype(np.float64)
+    before, after = tc - at, at - tc
+    if cyclic:
+        before, after = before % F, after % F
+    else:
+        before, after = before[before >= 0], after[after >= 0]
+    return (float(before.min()) if before.size else np.inf), (float(after.min()) if after.size else np.inf)
+
+
 def crossing_times(bend: Floats, cyclic: bool, flat: NDArray[np.bool_] | None = None) -> Floats:
     """``(F,)``: the clip time (fractional frame) each frame shows the joint at, from its bend
     vectors ``(F, 3)``: the identity except around each passage through straight
     (:func:`_passages`) faster than :data:`CROSS_STEP_DEG`, where time is warped
     ``tc + h g((t - tc) / h)``, g(x) = s x + (1 - s) x^3: slope s = CROSS_STEP / step at the
     passage's centre tc, faster on either side, the same at the window's ends. The fastest
-    passage first; one whose window would overlap a slowed one keeps its pace. The window stops
-    short of ``flat (F,)`` (the foot's stance before breakover: :func:`flat_stance`), which keeps
-    its own timing."""
+    passage first; one whose window would overlap a slowed one keeps its pace. Each side of the
+    window (its own h) stops short of ``flat (F,)`` (the foot's stance before breakover:
+    :func:`flat_stance`), which keeps its own timing: a passage at a lift-off or a touchdown is
+    slowed on its swing side alone (issue 28: a symmetric window left every such passage of the
+    real dog's transitions, next to a stance, at 17-24 deg a frame -- flips when played faster)."""
     F = len(bend)
     speed, centre = _passages(bend, cyclic)
     times = np.arange(F, dtype=np.float64)
     taken = np.zeros(F, bool)
     for i in sorted(np.flatnonzero(speed > CROSS_STEP_DEG), key=lambda i: -speed[i]):  # a few per clip
         tc = float(centre[i])
-        h = EASE_FRAMES if cyclic else min(EASE_FRAMES, tc, F - 1 - tc)
-        if flat is not None and flat.any():  # the window stops short of the flat stance
-            gap = np.abs(np.flatnonzero(flat) - tc)
-            h = min(h, float((np.minimum(gap, F - gap) if cyclic else gap).min()))
-        t = np.arange(int(np.floor(tc - h)) + 1, int(np.ceil(tc + h)))
-        if h < 1.0 or taken[t % F].any():
+        h_l = EASE_FRAMES if cyclic else min(EASE_FRAMES, tc)
+        h_r = EASE_FRAMES if cyclic else min(EASE_FRAMES, F - 1 - tc)
+        if flat is not None and flat.any():  # each side stops short of the flat stance
+            before, after = _room(flat, tc, cyclic)
+            h_l, h_r = min(h_l, before), min(h_r, after)
+        t = np.arange(int(np.floor(tc - h_l)) + 1, int(np.ceil(tc + h_r)))
+        if max(h_l, h_r) < 1.0 or min(h_l, h_r) <= 0.0 or t.size == 0 or taken[t % F].any():
             continue
         s = CROSS_STEP_DEG / speed[i]
+        h = np.where(t < tc, h_l, h_r)
         x = (t - tc) / h
         times[t % F] = tc + h * (s * x + (1.0 - s) * x**3) - (t - t % F)
         taken[t % F] = True
