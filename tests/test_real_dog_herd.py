@@ -266,3 +266,14 @@ def test_speed_map_paws_land_from_above(mann: Library) -> None:
                     above = paws[:, j, k, UP_AXIS] - paws[:, d, k, UP_AXIS]
                     step = np.linalg.norm((paws[:, j + 1, k] - paws[:, j, k])[:, [0, 2]], axis=-1)
                     assert not np.any((above < 0.01) & (step > 0.003)), (gait, k, j, above.min(), step.max())
+
+
+def test_the_foot_lock_stretches_no_leg_past_the_clips_reach(mann: Library) -> None:
+    """Issue 27: leg stretch <= 3 % past each leg's longest hip-to-paw reach in the library's own
+    clips, after FK. The real dog's hind legs never straighten (their longest reach is 0.92 of
+    their chain): a lock that let a leg reach 98 % of its chain stretched them 4.6-5.5 % in these
+    (a hind paw held onto its plant at the gallop, at a walk's touchdown while braking, down a
+    slope). Its limit is now the leg's own longest reach and a share of the target."""
+    suite = edge_suite(build_bank(mann), names=["cruise_straight", "accel_brake", "slope_down_30"])
+    for name, scenario in suite["scenarios"].items():
+        assert scenario["figures"]["stretch_pct_max"] <= 3.0, name

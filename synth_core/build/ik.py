@@ -123,7 +123,9 @@ def leg_ranges(skeleton: Skeleton, rotations: NDArray[np.floating],
     of the angle between thigh and shin (1: straight, -1: the shin folded back onto the thigh),
     and its longest reach, upper joint to ankle (the poses' unit). The render's sink lowers the
     body no further than lets every leg reach its target folded no more than this, nor raises it
-    for that further than every leg reaches its own within the longest (foot_kernels.fold_room)."""
+    for that further than every leg reaches its own within the longest (foot_kernels.fold_room);
+    it sinks it where a leg would reach past the longest and footlock.LONGEST_OVER, and the IK
+    reaches no further (foot_kernels.reach_sink, limb_kernels.solve_legs)."""
     rigs = limb_rigs(skeleton) if rigs is None else rigs
     rotations = np.asarray(rotations, np.float64)
     pos = np.asarray(forward_kinematics(skeleton, np.zeros((*rotations.shape[:-2], 3)), rotations)[0],

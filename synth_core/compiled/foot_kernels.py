@@ -20,7 +20,7 @@ from synth_core.compiled.jit import render_jit
 from synth_core.compiled.limb_kernels import unit4, world_position
 from synth_core.compiled.pose_kernels import lean_tilt
 from synth_core.compiled.vec_kernels import conj, norm3, q4, qmul, qrot, v3, vadd, vscale, vsub
-from synth_core.runtime.footlock import EASE_FRAMES, REACH
+from synth_core.runtime.footlock import EASE_FRAMES, LONGEST_OVER, REACH
 
 _jit = render_jit
 
@@ -296,11 +296,12 @@ def _sink_within(up: float, across2: float, allowed: float) -> float:
 
 
 @_jit(inline="always")
-def reach_sink(targets: Any, legs: Any, path: Any, h: float, terrain: bool, s: int, T: int,
+def reach_sink(targets: Any, legs: Any, bends: Any, path: Any, h: float, terrain: bool, s: int, T: int,
                sink: Any) -> None:
     """Pass 3's sink of frames ``[s, T)``: how far the root must come down for the leg furthest
-    from its target to reach it within ``REACH`` of its length (flat ground: targets no lower
-    than the path)."""
+    from its target to reach it within ``REACH`` of its length and ``LONGEST_OVER`` beyond its
+    longest reach in the animal's poses (``bends[:, 4]``; flat ground: targets no lower than the
+    path)."""
     for t in range(s, T):
         floor = path[t, 1] / h
         worst = 0.0
@@ -308,7 +309,8 @@ def reach_sink(targets: Any, legs: Any, path: Any, h: float, terrain: bool, s: i
             if not terrain and targets[t, f, 1] < floor:
                 targets[t, f, 1] = floor
             up, across2 = _from_hip(targets[t, f], legs[t, f])
-            worst = max(worst, _sink_within(up, across2, REACH * legs[t, f, LEG_REACH]))
+            allowed = min(REACH * legs[t, f, LEG_REACH], (1.0 + LONGEST_OVER) * bends[f, 4])
+            worst = max(worst, _sink_within(up, across2, allowed))
         sink[t] = worst
 
 

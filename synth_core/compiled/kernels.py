@@ -17,7 +17,8 @@ One character, in four passes over its frames:
    forward kinematics of the joints above the feet only, in the character's unit (its world
    divided by its scale h: the library skeleton's geometry);
 2. plant targets per foot (:func:`~synth_core.compiled.foot_kernels.plant_targets`);
-3. the root's sink where a target needs a leg straighter than ``REACH`` (eased, bounded);
+3. the root's sink where a target needs a leg straighter than ``REACH`` or than the animal's
+   poses reach (eased, bounded);
 4. limb IK (:func:`synth_core.build.ik.solve`, without the ground tipping) on the upper joint, hinge
    and ankle of each leg -- 16 frames at a time in SIMD lanes
    (:mod:`~synth_core.compiled.limb_kernels`).
@@ -123,7 +124,7 @@ def _character(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, yaw
     plant_targets(feet, contacts, targets, plant_frames)
     if terrain:
         ground_targets(targets, contacts, heights, ground_x0, ground_z0, spacing, h, sink)
-    reach_sink(targets, legs, path, h, terrain, s, T, sink)
+    reach_sink(targets, legs, bends, path, h, terrain, s, T, sink)
     # Eased from frame s on: the wanted frames, PAD or more after it, read nothing before it.
     ease_sink(sink[s:], sink_limit, eased[s:])
     fold_room(targets, legs, bends, sink_limit, s, T, eased, sink)  # the sink read: its frames free
@@ -266,7 +267,7 @@ def _bank_tables(bank: Bank) -> tuple[tuple[Any, Any, Any], tuple[Any, Any, Any,
     would otherwise spend a third of its time here): (pose table, heights, surges) and (parents,
     offsets, the joints above the feet (FK needs no others), the legs' rig table, bend axes and
     ranges (``(4, 5)``: the axis for limb_kernels.solve_legs, the furthest fold's cosine and the
-    longest reach (ik.leg_ranges) for the sink), the sink limit)."""
+    longest reach (ik.leg_ranges) for the sink and the IK's reach), the sink limit)."""
     sk = bank.skeleton
     rigs = limb_rigs(sk)
     rig_table = np.array([[r.upper, r.hinge, r.ankle, r.effector] for r in rigs], np.int64)

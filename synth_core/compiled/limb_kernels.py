@@ -15,6 +15,7 @@ import numpy as np
 from synth_core.build.ik import HINGE_AXIS_MIN_SIN
 from synth_core.compiled.jit import render_jit
 from synth_core.compiled.vec_kernels import conj, cross, dot3, qmul, qrot, v3, vadd, vscale, vsub
+from synth_core.runtime.footlock import LONGEST_OVER
 
 _jit = render_jit
 
@@ -95,8 +96,9 @@ def _bend(axis: Any, thigh: Any, shin: Any, distance2: float, thigh2: float, shi
 
 
 @_jit(inline="always")  # into the function allocating B (see the section's comment)
-def _solve_block(B: Any, toe_offset: Any, bend: Any) -> None:
-    """ik.solve (ground=None) for one leg over the block's LANES frames (rows: see above)."""
+def _solve_block(B: Any, toe_offset: Any, bend: Any, furthest: float) -> None:
+    """ik.solve (ground=None) for one leg over the block's LANES frames (rows: see above), its
+    ankle put no further than ``furthest`` from the upper joint: toward a target beyond it."""
     for t in range(LANES):
         sink = B[_SINK, t]
         down = (0.0, sink, 0.0)
@@ -124,8 +126,10 @@ def _solve_block(B: Any, toe_offset: Any, bend: Any) -> None:
         size = max(math.sqrt(dot3(pick, pick)), _EPS)
         axis = vscale(pick, math.copysign(1.0 / size, dot3(pick, dominant)))
         to_target = vsub(ankle_target, p_root)
+        # The foot lock's limit where its sink (bounded) leaves a target out of it: the leg
+        # reaches toward it no further (footlock.LONGEST_OVER), the foot falls short of it.
         distance2 = dot3(to_target, to_target)
-        bend_q = _bend(axis, thigh, shin, distance2, thigh2, shin2)
+        bend_q = _bend(axis, thigh, shin, min(distance2, furthest * furthest), thigh2, shin2)
         # The swing onto the target (quat.between; a half turn where the two are opposite).
         u = vadd(thigh, qrot(bend_q, shin))
         uu = dot3(u, u)
@@ -211,6 +215,7 @@ def solve_legs(world: Any, targets: Any, sink: Any, rigs: Any, parents: Any, off
         pup, pan = 7 * parents[rigs[f, 0]], 7 * parents[rigs[f, 2]]
         toe_offset = v3(offsets[rigs[f, 3]])
         bend = v3(bends[f])
+        furthest = (1.0 + LONGEST_OVER) * bends[f, 4]  # bends[:, 4]: its longest reach in the poses
         for b in range((a - o) // LANES, (T - o + LANES - 1) // LANES):
             block, b0 = world[b], o + b * LANES
             for t in range(LANES):
@@ -232,7 +237,7 @@ def solve_legs(world: Any, targets: Any, sink: Any, rigs: Any, parents: Any, off
                     B[_R_PAN + k, t] = block[pan + k, t]
                     B[_R_AN + k, t] = block[an + k, t]
                     B[_R_ROOT + k, t] = block[k, t]
-            _solve_block(B, toe_offset, bend)
+            _solve_block(B, toe_offset, bend, furthest)
             for t in range(max(a - b0, 0), min(T - b0, LANES)):
                 for k in range(4):
                     out_rot[b0 + t, rigs[f, 0], k] = B[_OUT + k, t]

@@ -11,9 +11,12 @@ module holds its constants:
 2. A swinging foot follows its own path plus a correction eased (smoothstep) from the one its
    last plant needed at lift-off to the one its next plant needs at touchdown -- over the
    ground only, so swing heights are the clip's.
-3. Where a target would straighten a leg beyond 98% of its reach, the root sinks just enough
-   (at most ``MAX_SINK`` of the leg length), eased in and out over ``EASE_FRAMES``.
-4. Limb IK (:func:`synth_core.build.ik.solve`'s, in SIMD lanes) puts each foot on its target.
+3. Where a target would straighten a leg beyond 98% of its reach, or ``LONGEST_OVER`` past the
+   longest reach the library's own poses give it, the root sinks just enough (at most
+   ``MAX_SINK`` of the leg length), eased in and out over ``EASE_FRAMES``.
+4. Limb IK (:func:`synth_core.build.ik.solve`'s, in SIMD lanes) puts each foot on its target, a
+   leg reaching no further than ``LONGEST_OVER`` past its longest (where the sink's bound leaves
+   a target beyond it).
 
 Scaled characters are solved in their own unit: a character of scale h is the library skeleton
 with every length times h, so dividing its world positions by h gives the library's geometry.
@@ -22,6 +25,15 @@ with every length times h, so dividing its world positions by h gives the librar
 from __future__ import annotations
 
 REACH = 0.98  # of a leg's full reach, at most
+# ... and at most this share beyond the leg's longest reach in the library's poses, upper joint
+# to ankle (ik.leg_ranges). An animal whose legs never straighten (the real dog's hind legs reach
+# 0.92 of their chain) read 4-6 % past its clips' longest with 0.98 of the chain alone. Issue
+# 27's limit is 3 % past the clips' longest hip-to-paw reach, after FK: two thirds of it here,
+# the rest for the paw, whose angle this rule (on the ankle) does not hold -- the real dog's hind
+# paws read up to 1.9 % past their longest with the ankle at this limit. The sink (bounded by
+# MAX_SINK) comes first; past it the IK reaches toward the target no further (limb_kernels) and
+# the foot falls short of it. The built-in animals' legs straighten: 0.98 of the chain binds them.
+LONGEST_OVER = 0.02
 MAX_SINK = 0.05  # of the leg length, the most the root is lowered
 # ... on a terrain: a foot planted a stride downhill of its hip is further from it than on the
 # flat (at 30%, 7% of the leg for a foot half a leg ahead), and a body lowers rather than a leg
