@@ -96,13 +96,17 @@ def test_the_fit_follows_a_steady_path_without_lag() -> None:
     np.testing.assert_allclose(value, np.concatenate([kernel[:0:-1], kernel]), atol=1e-12)
 
 
-def _targets(feet: np.ndarray, contacts: np.ndarray, most: int, compiled: bool = True) -> np.ndarray:
-    """foot_kernels.plant_targets of one character (compiled, or its source interpreted)."""
+def _targets(feet: np.ndarray, contacts: np.ndarray, most: int, compiled: bool = True,
+             pins: np.ndarray | None = None, pinned: np.ndarray | None = None, last: int = -1) -> np.ndarray:
+    """foot_kernels.plant_targets of one character (compiled, or its source interpreted); none
+    pinned unless ``pins``, ``pinned`` (written: the plants ``last`` is in, if >= 0)."""
     from synth_core.compiled import foot_kernels
     run = foot_kernels.plant_targets if compiled else getattr(foot_kernels.plant_targets, "py_func",
                                                               foot_kernels.plant_targets)
     out = np.empty(feet.shape)
-    run(feet, contacts, out, most)
+    pins = np.zeros((4, 3)) if pins is None else pins
+    pinned = np.full(4, foot_kernels.NOWHERE) if pinned is None else pinned
+    run(feet, contacts, out, most, pins, pinned, last)
     return out
 
 
@@ -123,6 +127,55 @@ def test_a_plants_target_can_average_its_first_frames_only() -> None:
     later[1:] += 1.0
     first = contacts[0] & contacts[1]
     np.testing.assert_allclose(_targets(later, contacts, 1)[1][first], feet[0][first], atol=1e-12)
+
+
+def test_a_pinned_plant_stays_where_it_was_sent_over_the_ground() -> None:
+    """plant_targets' pins: the plant through a pinned frame keeps the pin's place over the ground
+    (its height its frames' here) whatever its frames average; each foot's last plant up to
+    ``last`` is pinned anew -- the one it is in, or the one before its swing."""
+    from synth_core.compiled.foot_kernels import NOWHERE
+    rng = np.random.default_rng(5)
+    feet = rng.normal(size=(30, 4, 3))
+    contacts = np.zeros((30, 4), bool)
+    contacts[0:12, 0] = contacts[20:30, 0] = True  # foot 0: a plant cut by the context's start, swing, plant
+    contacts[5:25, 1] = True  # foot 1: a plant whose first frames are here
+    pins = np.arange(12.0).reshape(4, 3) + 100.0
+    pinned = np.array([3, NOWHERE, NOWHERE, NOWHERE])
+    for compiled in (True, False):
+        p, q = pins.copy(), pinned.copy()
+        got = _targets(feet, contacts, 3, compiled, p, q, last=15)
+        np.testing.assert_allclose(got[0:12, 0, [0, 2]], np.broadcast_to(pins[0, [0, 2]], (12, 2)))
+        np.testing.assert_allclose(got[0:12, 0, 1], feet[0:3, 0, 1].mean())  # its height: its frames'
+        np.testing.assert_allclose(got[5:25, 1], np.broadcast_to(feet[5:8, 1].mean(axis=0), (20, 3)))
+        # The swing after the pinned plant eases out the lift-off correction from the pin.
+        x = (12 - 11) / (20 - 11)
+        x = x * x * (3 - 2 * x)
+        lift, touch = pins[0] - feet[11, 0], feet[20:23, 0].mean(axis=0) - feet[20, 0]
+        np.testing.assert_allclose(got[12, 0, [0, 2]], (feet[12, 0] + (1 - x) * lift + x * touch)[[0, 2]])
+        # Frame 15: foot 0 swings after its plant [0, 12), foot 1 stands in [5, 25), 2 and 3 never planted.
+        np.testing.assert_array_equal(q, [11, 15, NOWHERE, NOWHERE])
+        np.testing.assert_allclose(p[:2], got[[11, 15], [0, 1]])
+        np.testing.assert_array_equal(p[2:], pins[2:])
+    # None pinned, none asked for: the plants' averages, as without pins.
+    plain = _targets(feet, contacts, 3)
+    np.testing.assert_allclose(plain[0:12, 0], np.broadcast_to(feet[0:3, 0].mean(axis=0), (12, 3)))
+
+
+def test_a_plant_longer_than_the_frames_kept_stays_planted(bank: Bank) -> None:
+    """A creeping horse (0.05-0.4 m/s: the edge suite's creep) stands on plants longer than the
+    frames a live session keeps for its foot lock. Re-averaged over the frames still kept, each
+    such plant followed its foot in the clip as they were dropped (glide 0.176); its place as sent
+    is kept instead. Issue 31's targets, after FK on the frames sent."""
+    from synth_core.build.motion_graph import HUBS
+    from synth_core.quality import edge
+
+    gaits = {HUBS[h]: (float(s[0]), float(s[-1])) for h, s in bank.speeds.items()}
+    (sc,) = edge.scenarios(gaits, bank.fps, 0, ["creep"])
+    run = play(bank, sc.positions, sc.scales, latency_ms=100.0)
+    figures = evaluate.edge_figures(bank, run.result, sc.reference, sc.positions.shape[1],
+                                    library_reference(bank))
+    assert figures["glide_ratio"] <= 0.12
+    assert figures["strict_skate_mm_p95"] <= 5.0
 
 
 def test_shards_make_the_low_latency_sessions_frames(bank: Bank, herd: np.ndarray) -> None:

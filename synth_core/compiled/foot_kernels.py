@@ -26,25 +26,41 @@ _jit = render_jit
 
 
 @_jit()
-def plant_targets(feet: Any, contacts: Any, out: Any, most: int) -> None:
+def plant_targets(feet: Any, contacts: Any, out: Any, most: int, pins: Any, pinned: Any, last: int) -> None:
     """Foot targets ``out (T, 4, 3)`` of one character from its feet ``(T, 4, 3)`` and ``contacts
     (T, 4)``: each plant at the foot's average over it; a swinging foot on its own path plus a
     correction eased (smoothstep) from the one its last plant needed at lift-off to the one its
     next plant needs at touchdown, over the ground only (x and z: swing heights are the clip's).
     ``most``: a plant's position averages its first so many frames at most (and, ``most`` < T, a
-    swing before no plant eases its correction out as there)."""
+    swing before no plant eases its correction out as there).
+
+    ``pins (4, 3)``, ``pinned (4,)``: foot f's plant through frame ``pinned[f]`` (if that is one
+    of its planted frames) is at ``pins[f]`` over the ground, whatever its frames here average:
+    where an earlier window sent it (a live window's context may have lost that plant's first
+    frames). Its height is still its frames' here: a stand begun with a foot still coming down
+    (braking from a canter, 3-5 cm up) puts it down as its first frames leave the context, where
+    pinned it would hover the whole stand. Then, for
+    ``last`` >= 0, the same of each foot's last plant up to frame ``last``: the one it is in, or
+    the one before its swing (whose lift-off correction the swing eases out)."""
     T = feet.shape[0]
     avg = np.empty((T, 3))  # per plant, indexed by its first frame
     for f in range(4):
         out[:, f, :] = feet[:, f, :]
-        _plants(feet, contacts, f, avg, out, most)
+        _plants(feet, contacts, f, avg, out, most, pins[f], pinned[f])
         _swings(feet, contacts, f, avg, out, most)
+        u = last
+        while u >= 0 and not contacts[u, f]:
+            u -= 1
+        if u >= 0:
+            pins[f, :] = out[u, f, :]
+            pinned[f] = u
 
 
 @_jit()
-def _plants(feet: Any, contacts: Any, f: int, avg: Any, out: Any, most: int) -> None:
+def _plants(feet: Any, contacts: Any, f: int, avg: Any, out: Any, most: int, pin: Any, pinned: int) -> None:
     """Foot f's plants at their average positions over their first ``most`` frames at most (also
-    into ``avg``, at each plant's first frame)."""
+    into ``avg``, at each plant's first frame); the one through frame ``pinned`` at ``pin`` over
+    the ground."""
     T = feet.shape[0]
     t = 0
     while t < T:
@@ -61,6 +77,8 @@ def _plants(feet: Any, contacts: Any, f: int, avg: Any, out: Any, most: int) -> 
             acc1 += feet[u, f, 1]
             acc2 += feet[u, f, 2]
         avg[s, 0], avg[s, 1], avg[s, 2] = acc0 / n, acc1 / n, acc2 / n
+        if s <= pinned < t:
+            avg[s, 0], avg[s, 2] = pin[0], pin[2]
         for u in range(s, t):
             out[u, f, 0], out[u, f, 1], out[u, f, 2] = avg[s, 0], avg[s, 1], avg[s, 2]
 

@@ -82,7 +82,7 @@ def _character(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, yaw
                     world: Any, feet: Any, legs: Any, targets: Any, sink: Any, eased: Any,
                     keep_from: int, keep_to: int, known_feet: Any, known: int, recent: Any,
                     recent_known: bool, tilt: Any, tilt_at: int, heights: Any, ground_x0: float,
-                    ground_z0: float, spacing: float, plant_frames: int) -> bool:
+                    ground_z0: float, spacing: float, plant_frames: int, pins: Any, pinned: Any) -> bool:
     """All four passes for one character (scratch arrays given). Only frames ``[keep_from, keep_to)``
     are wanted (a window over its foot lock's context): the legs' IK is solved for those alone.
 
@@ -90,12 +90,11 @@ def _character(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, yaw
     earlier windows), read there, not posed again, and written for the frames posed (an empty
     array: none kept). ``recent (PAD, 4, LEG_WIDTH)``: what the sink reads of the PAD frames
     before ``keep_from``, if ``recent_known`` (then ``known >= keep_from``): those are not posed
-    either. On return it holds the same of the PAD frames before ``keep_to``: True if it does
-    (the first frames of a plan have fewer than PAD frames before them).
+    either. On return it holds the same of the PAD frames before ``keep_to``: True if it does.
 
     ``heights (Nz, Nx)``: the terrain (``(0, 0)``: none), grid origin, spacing; the body tilted by
     ``tilt[tilt_at + t]`` (``(T', 4)``) on frame t, its feet planted on the terrain (measure_feet).
-    ``plant_frames``: a plant's target averages its first so many frames (plant_targets' ``most``)."""
+    ``plant_frames``: plant_targets' ``most``; short of all, with feet kept: its pins too."""
     terrain = heights.shape[0] > 0
     T = out_rot.shape[0]
     if not foot_lock:
@@ -121,7 +120,8 @@ def _character(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, yaw
     measure_feet(world, out_root, yaw, lean, path, tilt, tilt_at, terrain, rigs, h, a, T, o, feet, legs)
     if known_feet.shape[0] > 0:
         known_feet[a:] = feet[a:]
-    plant_targets(feet, contacts, targets, plant_frames)
+    plant_targets(feet, contacts, targets, plant_frames, pins, pinned,
+                  keep_to - 1 if plant_frames < WHOLE_PLANT and known_feet.shape[0] > 0 else -1)
     if terrain:
         ground_targets(targets, contacts, heights, ground_x0, ground_z0, spacing, h, sink)
     reach_sink(targets, legs, bends, path, h, terrain, s, T, sink)
@@ -151,6 +151,7 @@ def _render_all(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, ya
     C = out_rot.shape[0]
     workers = min(C, w_world.shape[0])
     none_known = np.empty((0, 4, 3))
+    no_pins, unpinned = np.empty((4, 3)), np.full(4, NOWHERE)
     for worker in prange(workers):
         world, feet, legs, targets = w_world[worker], w_feet[worker], w_legs[worker], w_targets[worker]
         sink, eased = w_sink[worker], w_eased[worker]
@@ -164,7 +165,7 @@ def _render_all(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, ya
                        contacts[c], parents, offsets, fk_joints, rigs, bends, sink_limit, foot_lock,
                        out_rot[c], out_root[c], world, feet, legs, targets, sink, eased, 0,
                        out_rot.shape[1], none_known, 0, recent, False, own_tilt, 0, heights, ground_x0,
-                       ground_z0, spacing, WHOLE_PLANT)
+                       ground_z0, spacing, WHOLE_PLANT, no_pins, unpinned)
 
 
 @_jit(parallel=True)
@@ -173,14 +174,16 @@ def _render_windows(poses: Any, height: Any, surge: Any, rows: Any, weights: Any
                     rigs: Any, bends: Any, sink_limit: float, foot_lock: bool, workers: int,
                     begin: Any, end: Any, start: int, out_rot: Any, out_root: Any, tilt: Any, heights: Any,
                     ground_x0: float, ground_z0: float, spacing: float, pose: Any, known_feet: Any,
-                    known: Any, known_legs: Any, legs_at: Any, plant_frames: int, c0: int, c1: int) -> None:
+                    known: Any, known_legs: Any, legs_at: Any, pins: Any, pinned: Any, plant_frames: int,
+                    c0: int, c1: int) -> None:
     """Frames ``[start, start + out.shape[1])`` of characters ``[c0, c1)``, each rendered over
     its own context ``[begin[c], end[c])`` of the plan (see :func:`render_window`);
     ``known_feet (T, C, 4, 3)`` (or none: ``(0, C, 4, 3)``), ``known``, ``known_legs``,
-    ``legs_at``: a :class:`Posed`'s, moved on (``known`` to ``end``, ``legs_at`` to the
-    window's end). Calls for disjoint character ranges may run side by side. ``pose (C,)``:
-    the characters posed; the others get their root alone (:func:`_root_only`), their rotations
-    left as they were in ``out_rot`` and nothing of theirs kept."""
+    ``legs_at``, ``pins``, ``pinned``: a :class:`Posed`'s, moved on (``known`` to ``end``,
+    ``legs_at`` to the window's end, the pins to its last frame's plants). Calls for disjoint
+    character ranges may run side by side. ``pose (C,)``: the characters posed; the others get
+    their root alone (:func:`_root_only`), their rotations left as they were in ``out_rot`` and
+    nothing of theirs kept."""
     n, J = out_rot.shape[1], out_rot.shape[2]
     longest = 0
     for c in range(c0, c1):
@@ -195,8 +198,7 @@ def _render_windows(poses: Any, height: Any, surge: Any, rows: Any, weights: Any
         feet = np.empty((longest, 4, 3))
         legs = np.empty((longest, 4, LEG_WIDTH))
         targets = np.empty((longest, 4, 3))
-        sink = np.empty(longest)
-        eased = np.empty(longest)
+        sink, eased = np.empty(longest), np.empty(longest)
         no_recent = np.empty((PAD, 4, LEG_WIDTH))
         for c in range(c0 + worker, c1, workers):
             if not pose[c]:
@@ -211,13 +213,14 @@ def _render_windows(poses: Any, height: Any, surge: Any, rows: Any, weights: Any
             recent_known = keep and legs_at[c] == start and start - b >= PAD and kn >= start - b
             own_tilt = tilt[c] if heights.shape[0] > 0 else tilt[0]
             own_legs = known_legs[c] if keep else no_recent
+            pinned[c] -= b  # in the context's frames
             made = _character(poses, height, surge, rows[c, b:e], weights[c, b:e], yaw[c, b:e], lean[c, b:e],
                               path[c, b:e], scales[c], contacts[c, b:e], parents, offsets, fk_joints, rigs,
                               bends, sink_limit, foot_lock, rot[:k], root[:k], world, feet[:k],
                               legs[:k], targets[:k], sink[:k], eased[:k], start - b, start - b + n,
-                              known_feet[b:e, c], kn, own_legs, recent_known,
-                              own_tilt, b, heights, ground_x0,
-                              ground_z0, spacing, plant_frames)
+                              known_feet[b:e, c], kn, own_legs, recent_known, own_tilt, b, heights,
+                              ground_x0, ground_z0, spacing, plant_frames, pins[c], pinned[c])
+            pinned[c] += b
             out_rot[c] = rot[start - b:start - b + n]
             out_root[c] = root[start - b:start - b + n]
             if keep and foot_lock:
@@ -305,17 +308,24 @@ class Posed(NamedTuple):
     the same plan (see :func:`render_window`): the feet ``(T, C, 4, 3)`` float64, C-contiguous
     (frames first: every view of them is, so the kernel is compiled for one layout), of each
     character's plan frames ``[0, frames[c])``; what the sink reads of the legs on the PAD
-    frames before ``legs_at[c]`` (``(C, PAD, 4, LEG_WIDTH)``; ``NOWHERE``: none kept)."""
+    frames before ``legs_at[c]`` (``(C, PAD, 4, LEG_WIDTH)``; ``NOWHERE``: none kept); where
+    plants are pinned at their first frames (``render_window``'s ``plant_frames``), each foot's
+    plant through plan frame ``pinned[c, f]`` and its target ``pins[c, f]`` as sent
+    (``(C, 4)``, ``(C, 4, 3)``; ``NOWHERE``: none), so that a plant longer than the context kept
+    stays there when its first frames are dropped."""
 
     feet: NDArray[np.float64]
     frames: NDArray[np.int64]
     legs: NDArray[np.float64]
     legs_at: NDArray[np.int64]
+    pins: NDArray[np.float64]
+    pinned: NDArray[np.int64]
 
     @classmethod
     def none(cls, C: int, feet: NDArray[np.float64]) -> Posed:
         """Nothing posed yet, the feet to be kept in ``feet``."""
-        return cls(feet, np.zeros(C, np.int64), np.empty((C, PAD, 4, LEG_WIDTH)), np.full(C, NOWHERE))
+        return cls(feet, np.zeros(C, np.int64), np.empty((C, PAD, 4, LEG_WIDTH)), np.full(C, NOWHERE),
+                   np.zeros((C, 4, 3)), np.full((C, 4), NOWHERE))
 
 
 def _checked(known: Posed | None, plan: Plan) -> Posed:
@@ -323,11 +333,12 @@ def _checked(known: Posed | None, plan: Plan) -> Posed:
     C = plan.yaw.shape[0]
     if known is None:
         return Posed(np.empty((0, C, 4, 3)), np.zeros(C, np.int64), np.empty((0, PAD, 4, LEG_WIDTH)),
-                     np.zeros(C, np.int64))
+                     np.zeros(C, np.int64), np.zeros((C, 4, 3)), np.full((C, 4), NOWHERE))
     assert known.feet.shape == (*plan.yaw.shape[::-1], 4, 3) and known.feet.dtype == np.float64
     assert known.feet.flags.c_contiguous
     assert known.legs.shape == (C, PAD, 4, LEG_WIDTH) and known.legs.flags.c_contiguous
-    for frames in (known.frames, known.legs_at):
+    assert known.pins.shape == (C, 4, 3) and known.pins.flags.c_contiguous and known.pinned.shape == (C, 4)
+    for frames in (known.frames, known.legs_at, known.pinned):
         assert frames.dtype == np.int64 and frames.flags.c_contiguous
     return known
 
@@ -373,7 +384,8 @@ def render_window(bank: Bank, plan: Plan, start: int, stop: int, begin: NDArray[
     and their rows of the rotations are not written.
 
     ``plant_frames``: a plant's target averages its first so many frames only (None: all): what
-    a live session sends of a plant before its end is planned then stays where it was sent.
+    a live session sends of a plant before its end is planned then stays where it was sent (by
+    ``known``'s pins, :class:`Posed`, once its first frames have left the context).
 
     ``compiled``: else the reference (:data:`REFERENCE`, one thread)."""
     kernels = COMPILED if compiled else REFERENCE
@@ -383,9 +395,8 @@ def render_window(bank: Bank, plan: Plan, start: int, stop: int, begin: NDArray[
     # Only the frames some context reads are made contiguous.
     cb, ce = int(np.min(begin)), int(np.max(end))
     posed = _checked(known, plan)
-    # In the window's frames (moved back after).
-    posed.frames[...] -= cb
-    posed.legs_at[...] -= cb
+    for frames in (posed.frames, posed.legs_at, posed.pinned):  # in the window's frames (moved back after)
+        frames[...] -= cb
     out_root = np.empty((C, stop - start, 3), np.float64)
     out_rot = np.empty((C, stop - start, bank.skeleton.n_joints, 4), np.float32) if out is None else out
     assert out_rot.shape == (C, stop - start, bank.skeleton.n_joints, 4) and out_rot.dtype == np.float32
@@ -396,12 +407,12 @@ def render_window(bank: Bank, plan: Plan, start: int, stop: int, begin: NDArray[
             np.asarray(end, np.int64) - cb, start - cb, out_rot, out_root,
             *_terrain_arrays(None if ground is None else ground.window(cb, ce)), pose,
             posed.feet[cb:ce] if known is not None else posed.feet, posed.frames, posed.legs, posed.legs_at,
-            WHOLE_PLANT if plant_frames is None else max(int(plant_frames), 1))
+            posed.pins, posed.pinned, WHOLE_PLANT if plant_frames is None else max(int(plant_frames), 1))
     try:
         _run_windows(kernels, args, C, share)
     finally:
-        posed.frames[...] += cb
-        posed.legs_at[...] += cb
+        for frames in (posed.frames, posed.legs_at, posed.pinned):
+            frames[...] += cb
     return out_root.astype(np.float32), out_rot
 
 
