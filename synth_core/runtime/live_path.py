@@ -132,14 +132,14 @@ class LivePath:
             self._fit(ready)
             return
         if self.sigma > 0:
-            lo = max(self.n_path + self.pad - self.radius, 0)  # in `longer` coordinates
-            hi = ready + self.pad + self.radius
-            part = self.longer[:, lo - self.longer_start:hi - self.longer_start]
             # Only the frames made (half of what scipy would filter); the same numbers. The root
             # follows the points (their timing smoothed); the body faces the way of them smoothed.
-            first, n = self.n_path + self.pad - lo, ready - self.n_path
-            new, facing = gaussian.along_frames(part, self.sigma, first, n), \
-                gaussian.smooth_frames(part, self.sigma, first, n)
+            # `longer` itself, not a slice of it: both read only the Gaussian's radius around the
+            # frames made, and `longer` ends where their windows do (exact mode: ahead == radius),
+            # so a slice changed nothing but cost a copy of every character's window per tick.
+            first, n = self.n_path + self.pad - self.longer_start, ready - self.n_path
+            new, facing = gaussian.along_frames(self.longer, self.sigma, first, n), \
+                gaussian.smooth_frames(self.longer, self.sigma, first, n)
         else:
             new = facing = self.longer[:, self.n_path - self.longer_start:ready - self.longer_start]
         path, face = self.path.reserve(new.shape[1])
