@@ -260,7 +260,7 @@ def _foot_track(feet: Floats, plants: NDArray[np.int64], shift3: Floats, D: Floa
     swing[..., UP_AXIS] = _lift_clear(swing[..., UP_AXIS], plant[:, prev, UP_AXIS], t, lo, hi,
                                       (t >= start[0]) & ~alone)
     track = np.where(inside[None, :, None], plant[:, prev], swing)
-    return _touch_clear(track, plant[:, nxt, UP_AXIS], t, lo, hi, (t >= start[0]) & ~inside, alone)
+    return _touch_clear(track, plant[:, nxt, UP_AXIS], t, lo, hi, (t >= start[0]) & ~alone)
 
 
 def _lift_clear(height: Floats, plant: Floats, t: NDArray[np.int64], lo: NDArray[np.int64],
@@ -270,20 +270,24 @@ def _lift_clear(height: Floats, plant: Floats, t: NDArray[np.int64], lo: NDArray
     where ``may``. Not where the foot lifting leaves one foot alone carrying the body: the real
     dog's pace hands over from one lateral pair to the next with the lifting paw still low, and
     cleared, its walk had one paw down for 2-3 frames each half stride."""
-    early = (t > lo) & (t - lo <= 0.5 * (hi - lo)) & may
-    return np.asarray(np.where(early[None], np.maximum(height, plant + LIFT_CLEAR), height))
+    return _over_plant(height, plant, (t > lo) & (t - lo <= 0.5 * (hi - lo)) & may)
+
+
+def _over_plant(height: Floats, plant: Floats, where: NDArray[np.bool_]) -> Floats:
+    """``height (N, T)`` at least ``LIFT_CLEAR`` over ``plant (N, T)`` on the frames ``where``."""
+    return np.asarray(np.where(where, np.maximum(height, plant + LIFT_CLEAR), height))
 
 
 TOUCH_STEP = 0.002  # m a frame: a paw moving further over the ground than this is not standing
 
 
 def _touch_clear(track: Floats, plant: Floats, t: NDArray[np.int64], lo: NDArray[np.int64],
-                 hi: NDArray[np.int64], may: NDArray[np.bool_], alone: NDArray[np.bool_]) -> Floats:
+                 hi: NDArray[np.int64], may: NDArray[np.bool_]) -> Floats:
     """A foot's ``track (N, T, 3)`` landing from above: through the second half of each swing,
     where ``may`` and the foot still moves over the ground more than :data:`TOUCH_STEP` to its
-    next frame, at least ``LIFT_CLEAR`` over the plant it goes to (``plant (N, T)``). Not where
-    the other feet leave one down (``alone``): landing, this paw is the second support (the real
-    dog's pace hands over with its landing paw low, as with its lifting one: :func:`_lift_clear`).
+    next frame, at least ``LIFT_CLEAR`` over the plant it goes to (``plant (N, T)``). ``may``
+    leaves out, as for :func:`_lift_clear`, where the other feet leave one down: landing, this
+    paw is the second support (the real dog's pace hands over with its landing paw low).
 
     The real dog's paw sweeps in low before touchdown (at a gallop 3-4 cm a frame within 1 cm of
     its plant, some at the plant's height a frame before it is planted): played as is, every
@@ -292,9 +296,9 @@ def _touch_clear(track: Floats, plant: Floats, t: NDArray[np.int64], lo: NDArray
     the source's largest (1.6-4.6 cm, issue 28)."""
     ground = track[..., _HORIZONTAL]
     step = np.linalg.norm(np.diff(ground, axis=1, append=ground[:, -1:]), axis=-1)
-    late = (t < hi) & (t - lo > 0.5 * (hi - lo)) & may & ~alone & (step > TOUCH_STEP)
+    late = (t < hi) & (t - lo > 0.5 * (hi - lo)) & may & (step > TOUCH_STEP)
     out = np.array(track)
-    out[..., UP_AXIS] = np.where(late, np.maximum(out[..., UP_AXIS], plant + LIFT_CLEAR), out[..., UP_AXIS])
+    out[..., UP_AXIS] = _over_plant(out[..., UP_AXIS], plant, late)
     return out
 
 
