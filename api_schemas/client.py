@@ -347,11 +347,15 @@ class LiveSession:
             self._take(msgpack.unpackb(raw), out)
         return out
 
-    def push(self, points: ArrayLike, wait: float = 0.0) -> list[Chunk]:
-        """Send ``points (characters, n, 3)``; the chunks that arrived meanwhile (waiting up to
-        ``wait`` seconds for the first)."""
-        arr = np.ascontiguousarray(points, np.float32)
-        self.ws.send(msgpack.packb({"type": "points", "points": blob(arr)}, use_bin_type=True))
+    def push(self, points: ArrayLike, wait: float = 0.0, velocity: ArrayLike | None = None) -> list[Chunk]:
+        """Send ``points (characters, n, 3)`` (and, if the simulation knows it, each point's
+        ``velocity (characters, n, 2)``: x and z, m/s, which the low-latency mode reads for speed
+        and heading); the chunks that arrived meanwhile (waiting up to ``wait`` seconds for the
+        first)."""
+        message: dict[str, Any] = {"type": "points", "points": blob(np.ascontiguousarray(points, np.float32))}
+        if velocity is not None:
+            message["velocity"] = blob(np.ascontiguousarray(velocity, np.float32))
+        self.ws.send(msgpack.packb(message, use_bin_type=True))
         out = self._receive(wait) if wait > 0 else []
         return out + self._receive(0)
 

@@ -190,7 +190,10 @@ class LiveCharacter(BaseModel):
 
 class LiveRequest(BaseModel):
     """Opens a live session on WebSocket /v1/stream (docs/streaming.md): the characters, then
-    ``points`` messages with every character's next trajectory points."""
+    ``points`` messages with every character's next trajectory points (``points``, a blob
+    (characters, n, 3)) and, optionally, each point's ground velocity (``velocity``, a blob
+    (characters, n, 2): x and z, m/s, at most 5 m a point; the low-latency mode's speeds and
+    headings read it instead of a fit of the points, the exact mode's frames stay the batch's)."""
 
     model_config = _STRICT
     type: str = Field(default="live", pattern="^live$")
@@ -215,7 +218,8 @@ class LiveRequest(BaseModel):
     mode: LiveMode | None = Field(default=None, description="exact (the default, unless latency_ms is "
                                   "given): every frame as the batch would make it (sent seconds after "
                                   "its point: see the start message's latency_s); low_latency: sent at "
-                                  "most latency_ms after its point (docs/streaming.md)")
+                                  "most latency_ms after its point, its gait and heading from the points "
+                                  "so far or from the velocity sent with each (docs/streaming.md)")
     latency_ms: float | None = Field(default=None, ge=LATENCY_MS[0], le=LATENCY_MS[1],
                                      description="low_latency: the most a frame's pose lags its point, "
                                                  f"ms (default {LOW_LATENCY_MS:g}); given alone, "

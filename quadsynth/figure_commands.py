@@ -22,6 +22,8 @@ def _eval(args: argparse.Namespace, extra: list[str]) -> int:
         raise ValueError("--live: only with --suite edge")
     if args.latency_ms is not None and args.live != "low_latency":
         raise ValueError("--latency-ms: only with --live low_latency")
+    if args.velocity and args.live != "low_latency":
+        raise ValueError("--velocity: only with --live low_latency (the exact mode reads no velocity)")
 
     libraries: dict[str, Any] = {}
     for name in args.animal:
@@ -52,7 +54,8 @@ def _eval_edge(args: argparse.Namespace, banks: dict[str, Any]) -> int:
         kept[name] = {}
         budget = (args.latency_ms or LOW_LATENCY_MS) if args.live == "low_latency" else None
         suites[name] = evaluate.edge_suite(bank, args.seed, args.scenario, keep=kept[name],
-                                           live=args.live is not None, latency_ms=budget)
+                                           live=args.live is not None, latency_ms=budget,
+                                           velocity=args.velocity)
         scenarios = suites[name]["scenarios"]
         failed = sum(bool(s["failed"]) for s in scenarios.values())
         print(f"{name}: {failed} of {len(scenarios)} scenarios miss a target", file=sys.stderr)
@@ -115,6 +118,9 @@ def add_figure_commands(sub: Any) -> None:
                     "point a tick (default: the batch)")
     ev.add_argument("--latency-ms", type=float, default=None,
                     help="with --live low_latency: the budget (default: the low_latency profile's)")
+    ev.add_argument("--velocity", action="store_true",
+                    help="with --live low_latency: each scenario's simulator sends every point's velocity "
+                    "(its path's, at the frame the point was sampled at)")
     ev.set_defaults(func=_eval, passthrough=False)
 
     be = sub.add_parser("bench", help="synthesis speed on the built-in horse (JSON)")

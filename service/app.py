@@ -32,7 +32,9 @@ DESCRIPTION = ("Fast motion synthesis for massive herds of quadrupeds (Sung 2011
                "Bodies are msgpack (application/vnd.msgpack) or JSON; arrays travel "
                "as binary blobs -- see docs/wire-format.md. WebSocket /v1/stream (not "
                "listed below: OpenAPI has no WebSockets) streams a batch in chunks "
-               "as it is made -- see docs/streaming.md.")
+               "as it is made, or a live session's frames as its points come (each "
+               "points message may carry the points' ground velocity, m/s, which the "
+               "low-latency mode reads for gait and heading) -- see docs/streaming.md.")
 
 
 def _load(state: State) -> None:

@@ -93,27 +93,37 @@ def new_ground(body: dict[str, Any]) -> HeightField | None:
 
 
 def live_error(exc: TrajectoryError, field: str) -> ApiError:
-    """422 for ``field`` (``points``, ``characters``), at the character the problem is in."""
+    """422 for ``field`` (``points``, ``characters``; ``velocity`` where the reason names it), at
+    the character the problem is in."""
+    if exc.reason.startswith("velocity: "):  # a points message's velocity, checked with its points
+        field = "velocity"
     if exc.character is None:
         return ApiError(422, field, exc.reason)
     return ApiError(422, f"{field}[{exc.character}]", exc.reason.removeprefix(f"{field}: "))
 
 
-def points(body: dict[str, Any], n_characters: int, settings: Settings) -> NDArray[np.float64]:
-    """The ``points`` of a points message: ``(characters, n, 3)`` float32/float64."""
-    raw = body.get("points")
+def _float_blob(body: dict[str, Any], name: str, what: str) -> NDArray[np.floating]:
+    """A points message's float32/float64 blob ``name`` (``what``: its shape, for the error)."""
+    raw = body.get(name)
     if not isinstance(raw, dict):
-        raise ApiError(422, "points", "a points message needs `points`: a blob (characters, n, 3)")
+        raise ApiError(422, name, f"`{name}` must be a blob {what}")
     dtype, shape = raw.get("dtype"), raw.get("shape")
     if not isinstance(shape, list) or not isinstance(raw.get("data"), bytes):
-        raise ApiError(422, "points", "a blob needs `shape` (a list) and `data` (bytes)")
+        raise ApiError(422, name, "a blob needs `shape` (a list) and `data` (bytes)")
     if dtype not in ("<f4", "<f8"):
-        raise ApiError(422, "points.dtype", f"points must be float32 ('<f4') or float64 ('<f8'), "
-                                            f"got {dtype!r}")
+        raise ApiError(422, f"{name}.dtype", f"{name} must be float32 ('<f4') or float64 ('<f8'), "
+                                             f"got {dtype!r}")
     try:
-        arr = unblob(dtype, shape, raw["data"], "points")
+        return unblob(dtype, shape, raw["data"], name)
     except WireError as exc:
         raise ApiError(422, exc.field, exc.reason) from None
+
+
+def points(body: dict[str, Any], n_characters: int, settings: Settings) -> NDArray[np.float64]:
+    """The ``points`` of a points message: ``(characters, n, 3)`` float32/float64."""
+    if not isinstance(body.get("points"), dict):
+        raise ApiError(422, "points", "a points message needs `points`: a blob (characters, n, 3)")
+    arr = _float_blob(body, "points", "(characters, n, 3)")
     if arr.ndim != 3 or arr.shape[0] != n_characters or arr.shape[2] != 3 or arr.shape[1] < 1:
         raise ApiError(422, "points.shape", f"expected ({n_characters}, n >= 1, 3): every character's "
                                             f"next points, got {tuple(arr.shape)}")
@@ -121,6 +131,26 @@ def points(body: dict[str, Any], n_characters: int, settings: Settings) -> NDArr
         raise ApiError(422, "points", f"{arr.shape[1]} points per character is over the limit of "
                                       f"{settings.max_frames} per message (max_frames)")
     return np.asarray(arr, np.float64)
+
+
+def velocity(body: dict[str, Any], shape: tuple[int, ...]) -> NDArray[np.float64] | None:
+    """A points message's optional ``velocity`` (None if not sent): ``(characters, n, 2)``, each
+    point's ground velocity (x, z, m/s); its values are checked with the points (LiveSynth.check)."""
+    if body.get("velocity") is None:
+        return None
+    arr = _float_blob(body, "velocity", "(characters, n, 2)")
+    want = (shape[0], shape[1], 2)
+    if arr.shape != want:
+        raise ApiError(422, "velocity.shape", f"expected {want}: x and z (m/s) of every point sent, "
+                                              f"got {tuple(arr.shape)}")
+    return np.asarray(arr, np.float64)
+
+
+def appending(synth: LiveShards, body: dict[str, Any], n_characters: int,
+              settings: Settings) -> Callable[[], list[Window] | None]:
+    """A points message's step: its points (and velocity, if sent) appended, a window's frames taken."""
+    arr = points(body, n_characters, settings)
+    return functools.partial(synth.append, arr, synth.window_frames, velocity(body, arr.shape))
 
 
 class LiveRun:
@@ -199,7 +229,7 @@ class LiveRun:
                 continue
             finishing = message.get("type") == "finish"
             await self.tick(functools.partial(synth.finish, W) if finishing else
-                            functools.partial(synth.append, points(message, self.C, s.settings), W))
+                            appending(synth, message, self.C, s.settings))
             if finishing:
                 return
 

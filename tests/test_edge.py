@@ -167,6 +167,8 @@ def test_eval_refuses_edge_options_without_the_edge_suite_and_unknown_scenarios(
     assert "--live: only with --suite edge" in capsys.readouterr().err
     assert main(["eval", "--suite", "edge", "--latency-ms", "100"]) == 2
     assert "--latency-ms: only with --live low_latency" in capsys.readouterr().err
+    assert main(["eval", "--suite", "edge", "--live", "exact", "--velocity"]) == 2
+    assert "--velocity: only with --live low_latency" in capsys.readouterr().err
     assert main(["eval", "--suite", "edge", "--animal", "dog", "--scenario", "moonwalk"]) == 2
     assert "scenario: unknown ['moonwalk']" in capsys.readouterr().err
 

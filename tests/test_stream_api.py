@@ -266,6 +266,41 @@ def test_live_refusals_name_the_field(server: str) -> None:
         closed_with(ws, 1007, 422, "points[1]", "NaN or Inf")
 
 
+def test_a_bad_velocity_is_refused_naming_the_field_and_the_limit(server: str) -> None:
+    points = blob(np.cumsum(np.full((3, 4, 3), [0.02, 0.0, 0.0], np.float32), axis=1))
+    nan, fast = np.zeros((3, 4, 2), np.float32), np.zeros((3, 4, 2), np.float32)
+    nan[1, 2] = np.nan
+    fast[2, 3] = [400.0, 0.0]
+    for velocity, field, words in (
+            (blob(np.zeros((3, 4, 3), np.float32)), "velocity.shape", ("expected (3, 4, 2)",)),
+            (blob(np.zeros((3, 4, 2), np.int32)), "velocity.dtype", ("float32",)),
+            ([1, 2], "velocity", ("a blob (characters, n, 2)",)),
+            (blob(nan), "velocity[1]", ("NaN or Inf at its point 2",)),
+            (blob(fast), "velocity[2]", ("400.0 m/s", "over the limit of 300 m/s"))):
+        with live_open(server) as ws:
+            send(ws, {"type": "points", "points": points, "velocity": velocity})
+            closed_with(ws, 1007, 422, field, *words)
+
+
+def test_a_low_latency_session_sends_the_frames_of_the_velocity_sent(server: str, bank: Bank) -> None:
+    herd = crowd.simulate(3, 120, seed=5, fps=30.0).astype(np.float32)
+    velocity = (np.gradient(herd[..., [0, 2]], axis=1) * 30.0).astype(np.float32)
+    chunks = []
+    with Client(server) as client, client.live(["a", "b", "c"], fps=30, seed=4, encoding="f32",
+                                               mode="low_latency") as session:
+        for i in range(0, 120, 6):
+            chunks += session.push(herd[:, i:i + 6], wait=0.2, velocity=velocity[:, i:i + 6])
+        chunks += session.finish()
+    local = LiveSynth(bank, 3, 30.0, seed=4, scale_range=(0.8, 1.2), latency_ms=100.0)
+    windows = [local.append(herd[:, i:i + 6], velocity=velocity[:, i:i + 6]) for i in range(0, 120, 6)]
+    blind = LiveSynth(bank, 3, 30.0, seed=4, scale_range=(0.8, 1.2), latency_ms=100.0)  # none sent
+    other = [blind.append(herd[:, i:i + 6]) for i in range(0, 120, 6)]
+    want = np.concatenate([w.rotations for w in [*windows, local.finish()] if w is not None], axis=1)
+    np.testing.assert_allclose(np.concatenate([c.rotations for c in chunks], axis=1), want, atol=1e-5)
+    assert not np.allclose(np.concatenate([w.rotations for w in [*other, blind.finish()] if w is not None],
+                                          axis=1), want, atol=1e-3)  # the velocity was read
+
+
 def test_a_low_latency_session_sends_each_pose_within_its_budget(server: str) -> None:
     for bad, words in ((20, ("greater than or equal to 50",)), (5000, ("less than or equal to 2000",))):
         with connect(ws_url(server), compression=None) as ws:

@@ -339,7 +339,7 @@ export class LiveSession {
     if (again) {
       this.offset = Math.round(this.historyStart * this.ratio);
       // Message by message as they first went: each was within the service's body limit.
-      for (const { data, n } of this.history) sock.send({ type: 'points', points: blob(data, [this.C, n, 3]) });
+      for (const entry of this.history) sock.send(this.pointsMessage(entry));
       if (this.finishing) sock.send({ type: 'finish' });
     }
     this.sock = sock;
@@ -348,16 +348,27 @@ export class LiveSession {
 
   get latencyFrames() { return this.header.latency_frames; }
 
-  /** Every character's next `n` points: a Float32Array (C x n x 3), metres, in `characters` order. */
-  push(points, n = points.length / (3 * this.C)) {
+  /** Every character's next `n` points: a Float32Array (C x n x 3), metres, in `characters` order;
+   * `velocity` (optional): each point's ground velocity, C x n x 2 (x, z), m/s -- the low-latency
+   * mode's speeds and headings read it instead of a fit of the points. */
+  push(points, n = points.length / (3 * this.C), velocity = undefined) {
     if (!Number.isInteger(n) || n < 1 || points.length !== this.C * n * 3) {
       throw new ServiceError(422, 'points', `expected ${this.C} characters x n x 3 numbers, got ${points.length}`);
     }
-    const data = Float32Array.from(points);
-    this.history.push({ data, n });
+    if (velocity != null && velocity.length !== this.C * n * 2) {
+      throw new ServiceError(422, 'velocity', `expected ${this.C} characters x ${n} x 2 numbers, got ${velocity.length}`);
+    }
+    const entry = { data: Float32Array.from(points), n, velocity: velocity == null ? null : Float32Array.from(velocity) };
+    this.history.push(entry);
     this.historyPoints += n;
     this.pointsSent += n;
-    this.sock.send({ type: 'points', points: blob(data, [this.C, n, 3]) });
+    this.sock.send(this.pointsMessage(entry));
+  }
+
+  pointsMessage({ data, n, velocity }) {
+    const message = { type: 'points', points: blob(data, [this.C, n, 3]) };
+    if (velocity) message.velocity = blob(velocity, [this.C, n, 2]);
+    return message;
   }
 
   /** Forget the points a reconnection would not need: those more than WARM_UP_POINTS before the

@@ -153,8 +153,9 @@ export class LiveSession {
   readonly latencyFrames: number;
   /** Promise of the session's end (resolved after `finish`, rejected on an error not retried). */
   done: Promise<void>;
-  /** Every character's next `n` points, characters x n x 3 floats, metres. */
-  push(points: Float32Array, n?: number): void;
+  /** Every character's next `n` points, characters x n x 3 floats, metres; `velocity`: each
+   * point's ground velocity, characters x n x 2 floats (x, z), m/s (read by the low-latency mode). */
+  push(points: Float32Array, n?: number, velocity?: Float32Array): void;
   /** The ground of the frames rendered from now on (null: the points' y), faded in over 0.4 s;
    * a reconnection opens its new session on it. */
   setGround(ground: Ground | null): void;

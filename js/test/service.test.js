@@ -128,6 +128,41 @@ test('live: points in, contiguous frames out, an end after finish', { skip }, as
   assert.ok(next >= 590, `${next} frames for 600 points at the library's multiple of 30 fps`);
 });
 
+test('live: a low-latency session reads the velocity sent with each point; a bad one is named', { skip }, async () => {
+  const qs = client();
+  const n = 30, fps = 30, T = 300, live = herd(2, T, fps);
+  const open = async () => {
+    const got = [];
+    const session = await qs.live({ animal: 'dog', fps, seed: 1, mode: 'low_latency', characters: [{ id: 'a' }, { id: 'b' }] },
+      { onChunk: (chunk) => { got.push(chunk.frames); } });
+    return { session, got };
+  };
+  const step = (velocity) => {
+    const { session, got } = velocity.session;
+    for (let at = 0; at < T; at += n) {
+      const part = new Float32Array(2 * n * 3), v = new Float32Array(2 * n * 2);
+      for (let c = 0; c < 2; c++) {
+        part.set(live.subarray((c * T + at) * 3, (c * T + at + n) * 3), c * n * 3);
+        for (let i = 0; i < n; i++) { // the points' own velocity: the simulator's
+          const j = Math.min(at + i + 1, T - 1), k = j - 1, o = (c * T) * 3;
+          v[(c * n + i) * 2] = (live[o + j * 3] - live[o + k * 3]) * fps * velocity.scale;
+          v[(c * n + i) * 2 + 1] = (live[o + j * 3 + 2] - live[o + k * 3 + 2]) * fps;
+        }
+      }
+      session.push(part, n, v);
+    }
+    return got;
+  };
+  const good = await open();
+  const got = step({ session: good, scale: 1 });
+  await good.session.finish();
+  assert.ok(got.reduce((a, b) => a + b, 0) >= T - 2, `${got} frames for ${T} points`);
+  const bad = await open(); // a velocity of 100,000 m/s: over the limit (5 m a point)
+  step({ session: bad, scale: 1e5 });
+  await assert.rejects(bad.session.finish(),
+    (e) => e instanceof ServiceError && e.code === 1007 && /^velocity\[[01]\]$/.test(e.field) && /limit/.test(e.message));
+});
+
 test('bad input is an error naming the field, not a hang', { skip }, async () => {
   const qs = client();
   await assert.rejects(qs.synthesize({ animal: 'unicorn', characters: characters(points, C) }),

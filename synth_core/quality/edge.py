@@ -49,6 +49,13 @@ class Scenario:
     reference: NDArray[np.float32]  # (C, F, 3) the path meant (positions without jitter noise)
     about: str
     ground: HeightField | None = None  # the terrain walked on (None: flat, at the paths' y)
+    sampled: NDArray[np.int64] | None = None  # (F,) the frame each point sent was sampled at (held ticks)
+
+    def velocity(self, fps: float) -> Floats:
+        """``(C, F, 2)`` the ground velocity (x, z, m/s) a simulator would send with each point: its
+        path meant's, at the frame the point was sampled at (a held tick holds it too)."""
+        v = np.gradient(self.reference[..., [0, 2]].astype(np.float64), axis=1) * fps
+        return v if self.sampled is None else v[:, self.sampled]
 
 
 GaitSpeeds = Mapping[str, tuple[float, float]]  # gait -> (slowest, fastest) clip speed, m/s at scale 1
@@ -90,9 +97,11 @@ def curve(s: Floats, turns: Sequence[Turn], heading: float = 0.0) -> Floats:
 
 
 def herd(paths: Sequence[Floats], scales: Sequence[float] | None = None, name: str = "",
-         about: str = "", positions: Sequence[Floats] | None = None) -> Scenario:
+         about: str = "", positions: Sequence[Floats] | None = None,
+         sampled: NDArray[np.int64] | None = None) -> Scenario:
     """A scenario from ground paths ``(F, 2)`` each, set side by side ``SPACING`` apart.
-    ``positions``: what the simulator sends, when it differs from the paths (jitter)."""
+    ``positions``: what the simulator sends, when it differs from the paths (jitter), each point
+    the path's at frame ``sampled``."""
     def lift(xz: Sequence[Floats]) -> NDArray[np.float32]:
         out = np.zeros((len(xz), len(xz[0]), 3), np.float32)
         for c, p in enumerate(xz):  # a few characters
@@ -103,7 +112,7 @@ def herd(paths: Sequence[Floats], scales: Sequence[float] | None = None, name: s
     reference = lift(paths)
     sent = reference if positions is None else lift(positions)
     h = np.ones(len(paths)) if scales is None else np.asarray(scales, np.float64)
-    return Scenario(name, sent, h, reference, about)
+    return Scenario(name, sent, h, reference, about, sampled=sampled)
 
 
 def run(frames: int, fps: float, knots: Sequence[tuple[float, float]], turns: Sequence[Turn] = (),
@@ -255,7 +264,7 @@ def jitter_10hz(gaits: GaitSpeeds, fps: float, rng: np.random.Generator) -> Scen
         noise = rng.normal(0.0, JITTER_M, (F // hold + 1, 2))[np.arange(F) // hold]
         clean.append(path)
         sent.append(path[tick] + noise)
-    return herd(clean, name="jitter_10hz", positions=sent,
+    return herd(clean, name="jitter_10hz", positions=sent, sampled=(np.arange(F) // hold) * hold,
                 about="10 Hz sample-and-hold + 2 cm noise on a r 15 m curve (path measured to the "
                       "clean curve)")
 
@@ -304,7 +313,7 @@ def on_terrain(sc: Scenario, heights: Callable[[Floats, Floats], Floats], name: 
         out[..., 1] = field.sample(p[..., 0], p[..., 2])
         return out
 
-    return Scenario(name, grounded(sc.positions), sc.scales, grounded(sc.reference), about, field)
+    return Scenario(name, grounded(sc.positions), sc.scales, grounded(sc.reference), about, field, sc.sampled)
 
 
 def _gaits_straight(gaits: GaitSpeeds, fps: float, seconds: float = 6.0,

@@ -424,13 +424,14 @@ def worst(scenarios: dict[str, dict[str, Any]]) -> dict[str, dict[str, Any]]:
 
 def edge_suite(bank: Bank, seed: int = 0, names: list[str] | None = None, backend: str = "auto",
                keep: dict[str, tuple[edge.Scenario, Result]] | None = None, live: bool = False,
-               latency_ms: float | None = None) -> dict[str, Any]:
+               latency_ms: float | None = None, velocity: bool = False) -> dict[str, Any]:
     """Every edge scenario synthesized for this library and measured (:func:`edge_figures`),
     each figure judged against the issue's targets, and the worst over scenarios. ``keep``:
     filled with each scenario and its result (for previews). ``live``: each scenario played
     through a live session fed a point a tick (:mod:`synth_core.quality.live_run`), in the
     low-latency mode with ``latency_ms`` (None: the exact mode); each scenario's report then has
-    the frames its sent poses lagged its points (``lag_frames_max``)."""
+    the frames its sent poses lagged its points (``lag_frames_max``); ``velocity``: each point
+    sent with its velocity (:meth:`edge.Scenario.velocity`)."""
     ref = library_reference(bank)
     gaits = {HUBS[h]: (float(s[0]), float(s[-1])) for h, s in bank.speeds.items()}
     scenarios: dict[str, dict[str, Any]] = {}
@@ -439,8 +440,9 @@ def edge_suite(bank: Bank, seed: int = 0, names: list[str] | None = None, backen
                                  "frames": int(sc.positions.shape[1])}
         try:
             if live:
+                sends = sc.velocity(bank.fps) if velocity else None
                 run = live_run.play(bank, sc.positions, sc.scales, seed, latency_ms, sc.ground,
-                                    backend=backend)
+                                    backend=backend, velocity=sends)
                 result = run.result
                 entry |= {"lag_frames_max": int(run.lags.max()), "latency_frames": run.latency_frames}
             else:
@@ -463,7 +465,7 @@ def edge_suite(bank: Bank, seed: int = 0, names: list[str] | None = None, backen
     return {
         "seed": seed,
         "mode": ("low_latency" if latency_ms is not None else "exact") if live else "batch",
-        **({"latency_ms": latency_ms} if live and latency_ms is not None else {}),
+        **({"latency_ms": latency_ms, "velocity_sent": velocity} if live and latency_ms is not None else {}),
         "targets": {f: f"{op} {limit:g}" for f, (op, limit) in EDGE_TARGETS.items()},
         "scenarios_passed": sum(not s["failed"] for s in scenarios.values()),
         "scenarios": scenarios,

@@ -29,18 +29,22 @@ class LiveRun:
     latency_frames: int  # the session's bound on them
 
 
-def play(bank: Bank, positions: NDArray[np.floating], scales: NDArray[np.floating] | None = None,
-         seed: int = 0, latency_ms: float | None = None, ground: HeightField | None = None,
-         points_per_tick: int = 1, backend: str = "auto") -> LiveRun:
+# A session's options and what the simulator sends, each its own argument (as LiveSynth's).
+def play(bank: Bank, positions: NDArray[np.floating], scales: NDArray[np.floating] | None = None,  # noqa: PLR0913
+         seed: int = 0, latency_ms: float | None = None, ground: HeightField | None = None, *,
+         points_per_tick: int = 1, backend: str = "auto",
+         velocity: NDArray[np.floating] | None = None) -> LiveRun:
     """``positions (C, T, 3)`` at the library's fps, ``points_per_tick`` points a tick, then
-    finish; ``latency_ms``: the low-latency mode's budget (None: the exact mode)."""
+    finish; ``latency_ms``: the low-latency mode's budget (None: the exact mode); ``velocity
+    (C, T, 2)``: sent with the points, if given (the simulator's ground velocity, m/s)."""
     C, T = positions.shape[:2]
     live = LiveSynth(bank, C, bank.fps, scales=scales, seed=seed, backend=backend, ground=ground,
                      latency_ms=latency_ms)
     windows: list[Window] = []
     lags = np.empty(-(-T // points_per_tick), np.int64)
     for k, i in enumerate(range(0, T, points_per_tick)):
-        window = live.append(positions[:, i:i + points_per_tick])
+        window = live.append(positions[:, i:i + points_per_tick], None,
+                             None if velocity is None else velocity[:, i:i + points_per_tick])
         if window is not None:
             windows.append(window)
         lags[k] = min(i + points_per_tick, T) - live.rendered

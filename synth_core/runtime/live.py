@@ -28,9 +28,10 @@ whole trajectory's, bit for bit (tests/test_plan.py), but for:
 **The low-latency mode** (``latency_ms``, issue 31) drops those look-aheads for a budget of
 ``latency_ms`` (library frames: ``latency_ms * fps / 1000``): the path is a causal local-linear
 fit (:mod:`synth_core.runtime.causal`) reading a few points ahead, a frame's speed the slope of a
-wider one, each gait decision reads the newest speed known (no stride horizon), and the foot lock
-gets the rest of the budget, each plant pinned at the average of its frames known when its first
-frame is sent (``plant_frames``), so no sent frame's plant moves later. What it costs: a plant
+wider one (or the velocity the simulator sent with its point: its speed, and the way faced), each
+gait decision reads the newest speed known (no stride horizon), and the foot lock gets the rest
+of the budget, each plant pinned at the average of its frames known when its first frame is sent
+(``plant_frames``), so no sent frame's plant moves later. What it costs: a plant
 pinned at its first frames leaves its whole drift (up to half a metre on a turn, in the clips as
 placed on the path) to the IK at its end where the batch's average leaves half; the swing after
 it eases that correction out before the next plant is planned (docs/streaming.md has the figures).
@@ -271,12 +272,15 @@ class LiveSynth(LivePath):
 
     # -- input -------------------------------------------------------------------------------
 
-    def append(self, points: ArrayLike, frames: int | None = None) -> Window | None:
+    def append(self, points: ArrayLike, frames: int | None = None,
+               velocity: ArrayLike | None = None) -> Window | None:
         """Points ``(C, n, 3)`` (n >= 1) at ``fps``, the next of every character's trajectory;
         the frames this settles (None: none yet) -- at most ``frames`` of them, the rest left
         for :meth:`take`: so a caller bounds a window's memory (10,000 horses: 6.4 MB of float32
-        rotations a frame)."""
-        return self.append_checked(self.check(points), frames)
+        rotations a frame). ``velocity (C, n, 2)``: each point's ground velocity (x, z, m/s) if
+        the simulator knows it: the low-latency mode's speeds and headings then read it, not a fit
+        of the points (the exact mode's frames are the batch's: it only checks it)."""
+        return self.append_checked(self.check(points, velocity), frames)
 
     def append_checked(self, arr: Floats, frames: int | None = None) -> Window | None:
         """:meth:`append` of points :meth:`check` returned (not checked again)."""
@@ -338,12 +342,13 @@ class LiveSynth(LivePath):
         self.ended = True
         if self.n_raw == 0:  # fewer points than the head needs: the batch's shorter head
             self.pad = self.made - 1
-            self._raw(np.zeros((len(self.scales), 0, 3)))
+            self._raw(np.zeros((len(self.scales), 0, self.width)))
         # As the batch does at the end: the path goes on as it went (point reflection)...
         end = self.n_raw
         last = self.longer[:, -1:]
         k = min(self.pad, self.longer.shape[1] - 1)
         tail = 2 * last - self.longer[:, -2:-2 - k:-1] if k else last[:, :0]
+        tail[..., 3:] = np.nan  # no velocity sent past the end: the fit's of the path as it went
         # ... and on, standing, until every decision that reads it is made.
         hold = np.repeat(tail[:, -1:] if tail.shape[1] else last, self.latency_frames + self.m, axis=1)
         self._raw(np.concatenate([tail, hold], axis=1))

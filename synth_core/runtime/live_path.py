@@ -1,8 +1,9 @@
 """A live session's input side: points arriving a few at a time, retimed to the library's frame
 rate, smoothed into the path the planner follows, and that path's speeds -- the exact mode's as
 the batch makes them (Gaussian, segment speeds), the low-latency mode's by causal fits
-(:mod:`synth_core.runtime.causal`). :class:`synth_core.runtime.live.LiveSynth` is one of these
-with the planner and the render on top; the attributes declared here are set by it."""
+(:mod:`synth_core.runtime.causal`) or, where the simulator sends them, its velocities.
+:class:`synth_core.runtime.live.LiveSynth` is one of these with the planner and the render on top;
+the attributes declared here are set by it."""
 
 from __future__ import annotations
 
@@ -15,6 +16,10 @@ from synth_core.runtime.columns import Columns
 from synth_core.runtime.plan import Floats, Planner
 from synth_core.runtime.terrain import HeightField, laid
 from synth_core.runtime.trajectory import GROUND, TELEPORT_M, TrajectoryError
+
+# A low-latency session's input columns after each point's (x, y, z): the ground velocity (x, z,
+# m/s) the simulator sent with it, NaN where it sent none (then the fit's is used).
+VELOCITY = slice(3, 5)
 
 
 class LivePath:
@@ -45,19 +50,56 @@ class LivePath:
 
     def _start_input(self, C: int) -> None:
         """Input (at fps) and the library-rate points made from it, none yet."""
-        self.inputs = np.zeros((C, 0, 3))
+        # The exact mode's frames are the batch's, which has no velocities: only the points kept.
+        self.width = 3 if self.latency_ms is None else VELOCITY.stop
+        self.inputs = np.zeros((C, 0, self.width))
         self.inputs_start = 0  # global index of inputs[:, 0]
         self.n_inputs = 0
         self.made = 0  # library-rate points made from the inputs
-        self.first_points = np.zeros((C, 0, 3))  # until the head can be made from them
-        self.longer = np.zeros((C, 0, 3))  # head reflection + raw points at the library's rate
+        self.first_points = np.zeros((C, 0, self.width))  # until the head can be made from them
+        self.longer = np.zeros((C, 0, self.width))  # head reflection + raw points at the library's rate
         self.longer_start = 0
         self.n_raw = 0  # raw points in `longer` (after its head)
+        self.face_apart = False  # the faced path stepped by a velocity sent (see _fit)
         self.ended = False
 
-    def check(self, points: ArrayLike) -> Floats:
-        """The points :meth:`append` would take, as float64 -- or :class:`TrajectoryError` for
-        the first character they are unusable for; nothing is changed either way."""
+    def check(self, points: ArrayLike, velocity: ArrayLike | None = None) -> Floats:
+        """The points :meth:`append` would take, as float64 (a low-latency session's with the
+        ``velocity`` columns after them, NaN if none) -- or :class:`TrajectoryError` for the first
+        character they or the velocities are unusable for; nothing is changed either way."""
+        arr = self._checked_points(points)
+        v = None if velocity is None else self._checked_velocity(velocity, arr.shape[1])
+        if self.latency_ms is None:  # checked all the same: a client's error is one in either mode
+            return arr
+        out = np.full(arr.shape[:2] + (self.width,), np.nan)
+        out[..., :3] = arr
+        if v is not None:
+            out[..., VELOCITY] = v
+        return out
+
+    def _checked_velocity(self, velocity: ArrayLike, n: int) -> Floats:
+        """``velocity (C, n, 2)``: each point's ground velocity (x, z), m/s, as float64."""
+        v = np.asarray(velocity, np.float64)
+        C = len(self.scales)
+        if v.shape != (C, n, 2):
+            raise TrajectoryError(f"velocity: expected shape ({C}, {n}, 2) (x and z, m/s, of every "
+                                  f"point sent), got {v.shape}")
+        finite = np.isfinite(v).all(axis=(1, 2))
+        if not finite.all():
+            c = int(np.flatnonzero(~finite)[0])
+            frame = int(np.flatnonzero(~np.isfinite(v[c]).all(axis=-1))[0])
+            raise TrajectoryError(f"velocity: NaN or Inf at its point {frame} of this message", c)
+        speed = np.hypot(v[..., 0], v[..., 1])
+        limit = TELEPORT_M * self.fps  # the points' own: a teleport a frame
+        if speed.max() > limit:
+            c = int(speed.max(axis=1).argmax())
+            raise TrajectoryError(f"velocity: {speed[c].max():.1f} m/s is over the limit of {limit:g} m/s "
+                                  f"({TELEPORT_M:g} m a point at {self.fps:g} fps: a teleport, not "
+                                  "locomotion)", c)
+        return v
+
+    def _checked_points(self, points: ArrayLike) -> Floats:
+        """:meth:`check`'s points."""
         if self.ended:
             raise TrajectoryError("points: the trajectories have ended (finish was called)")
         arr = np.asarray(points, np.float64)
@@ -65,7 +107,7 @@ class LivePath:
         if arr.ndim != 3 or arr.shape[0] != C or arr.shape[2] != 3 or arr.shape[1] < 1:
             raise TrajectoryError(f"points: expected shape ({C}, n >= 1, 3), got {arr.shape}")
         if self.compiled:  # a fast pass (its numpy took a millisecond of a 2,000-horse tick's serial part)
-            last = self.inputs[:, -1] if self.inputs.shape[1] else np.full((C, 3), np.nan)
+            last = self.inputs[:, -1, :3] if self.inputs.shape[1] else np.full((C, 3), np.nan)
             # Contiguous: one compiled signature for every call (none compiled mid-session).
             if self.planner.kernels.points_fine(np.ascontiguousarray(last), np.ascontiguousarray(arr),
                                                 float(TELEPORT_M)):
@@ -75,7 +117,7 @@ class LivePath:
             c = int(np.flatnonzero(~finite)[0])
             frame = int(np.flatnonzero(~np.isfinite(arr[c]).all(axis=-1))[0])
             raise TrajectoryError(f"points: NaN or Inf at its point {frame} of this message", c)
-        joined = np.concatenate([self.inputs[:, -1:], arr], axis=1)
+        joined = np.concatenate([self.inputs[:, -1:, :3], arr], axis=1)
         jump = np.linalg.norm(np.diff(joined, axis=1), axis=-1)
         if jump.size and jump.max() > TELEPORT_M:
             c = int(jump.max(axis=1).argmax())
@@ -171,15 +213,40 @@ class LivePath:
         value, _ = causal.fit_weights(self.sigma, self.behind, self.ahead)
         _, slope = causal.fit_weights(self.speed_sigma, self.behind, self.ahead)
         path, face = self.path.reserve(n)
-        path[...] = face[...] = causal.apply(part, value, self.behind, self.behind, n)
+        # Contiguous (the velocity columns left out): the fit's dot products sum as they did
+        # before there were any, so a session sent no velocity makes the same frames, bit for bit.
+        points = np.ascontiguousarray(part[..., :3])
+        path[...] = face[...] = causal.apply(points, value, self.behind, self.behind, n)
         velocity = causal.apply(part[..., GROUND], slope, self.behind, self.behind, n)
         speed = np.hypot(velocity[..., 0], velocity[..., 1]) * self.bank.fps / self.pace[:, None]
+        # The simulator's velocity where it sent one (smoothed as the path is; NaN where a point
+        # read has none): its speed and way, not a fit's reading of held ticks and noise.
+        sent = causal.apply(part[..., VELOCITY], value, self.behind, self.behind, n)
+        given = ~np.isnan(sent[..., 0])
+        if given.any():
+            speed = np.where(given, np.hypot(sent[..., 0], sent[..., 1]) / self.pace[:, None], speed)
+        # Once a velocity was sent, the faced path is apart from the followed one: stepped on from
+        # its own last frame, by the path's steps where no velocity comes (not back to the path:
+        # the headings would read the jump).
+        self.face_apart = self.face_apart or bool(given.any())
+        if self.face_apart:
+            self._face_sent(face, path, sent, given)
         self.frame_speed = np.concatenate([self.frame_speed, speed], axis=1)
         self.n_path = ready
         drop = self.n_path + self.pad - self.behind - 1 - self.longer_start
         if drop > 0:
             self.longer = self.longer[:, drop:]
             self.longer_start += drop
+
+    def _face_sent(self, face: Floats, path: Floats, sent: Floats, given: NDArray[np.bool_]) -> None:
+        """The path the body faces the way of, over the new frames ``face (C, n, 3)``: stepping
+        by the velocity ``sent (C, n, 2)`` where ``given``, by the followed ``path``'s steps
+        elsewhere, on from the last frame's (the headings read its steps only)."""
+        before = self._facing(self.n_path - 1, self.n_path) if self.n_path else path[:, :1]
+        steps = np.diff(np.concatenate([self._path(self.n_path - 1, self.n_path) if self.n_path
+                                        else path[:, :1], path], axis=1)[..., GROUND], axis=1)
+        steps = np.where(given[..., None], sent / self.bank.fps, steps)
+        face[..., GROUND] = before[..., GROUND] + np.cumsum(steps, axis=1)
 
     def _path(self, a: int, b: int) -> Floats:
         """The followed path's frames [a, b) (a view)."""

@@ -93,15 +93,21 @@ class LiveShards:
             return [jobs[0]()]
         return render_pool.side_by_side(jobs)
 
-    def append(self, points: ArrayLike, frames: int | None = None) -> list[Window] | None:
-        """:meth:`LiveSynth.append` for every shard: points ``(C, n, 3)``; nothing is taken
-        unless every shard can take its characters' points."""
+    def append(self, points: ArrayLike, frames: int | None = None,
+               velocity: ArrayLike | None = None) -> list[Window] | None:
+        """:meth:`LiveSynth.append` for every shard: points ``(C, n, 3)`` (and their velocity
+        ``(C, n, 2)``, if sent); nothing is taken unless every shard can take its characters'."""
         arr = np.asarray(points)
         C = self.n_characters
         if arr.ndim != 3 or arr.shape[0] != C or arr.shape[2] != 3 or arr.shape[1] < 1:
             raise TrajectoryError(f"points: expected shape ({C}, n >= 1, 3), got {arr.shape}")
+        v = None if velocity is None else np.asarray(velocity)
+        if v is not None and v.shape != (C, arr.shape[1], 2):
+            raise TrajectoryError(f"velocity: expected shape ({C}, {arr.shape[1]}, 2) (x and z, m/s, of "
+                                  f"every point sent), got {v.shape}")
         cuts = self.cuts.tolist()
-        checked = [self._each_shard(functools.partial(part.check, arr[cuts[i]:cuts[i + 1]]), cuts[i])
+        checked = [self._each_shard(functools.partial(part.check, arr[cuts[i]:cuts[i + 1]],
+                                                      None if v is None else v[cuts[i]:cuts[i + 1]]), cuts[i])
                    for i, part in enumerate(self.parts)]  # all checked before any shard moves on
         return self._windows(self._run(lambda i, p: p.append_checked(checked[i], frames)))
 
