@@ -59,7 +59,7 @@ from synth_core.runtime.bank import Bank
 from synth_core.runtime.columns import Columns, PlannedColumns
 from synth_core.runtime.draws import SCHEDULE_STREAM, character_keys, uniform
 from synth_core.runtime.footlock import EASE_FRAMES, PAD
-from synth_core.runtime.live_path import LivePath
+from synth_core.runtime.live_path import VELOCITY, LivePath
 from synth_core.runtime.plan import (
     MARGIN,
     N_HUBS,
@@ -286,6 +286,8 @@ class LiveSynth(LivePath):
         """:meth:`append` of points :meth:`check` returned (not checked again)."""
         self.inputs = np.concatenate([self.inputs, arr], axis=1)
         self.n_inputs += arr.shape[1]
+        if self.width > 3 and not self.velocity_sent:
+            self.velocity_sent = not np.isnan(arr[..., VELOCITY]).all()
         self._retime()
         self._advance()
         return self.take(frames)

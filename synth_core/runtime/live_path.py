@@ -61,6 +61,7 @@ class LivePath:
         self.longer_start = 0
         self.n_raw = 0  # raw points in `longer` (after its head)
         self.face_apart = False  # the faced path stepped by a velocity sent (see _fit)
+        self.velocity_sent = False  # any point appended with its velocity (see _fit)
         self.ended = False
 
     def check(self, points: ArrayLike, velocity: ArrayLike | None = None) -> Floats:
@@ -221,16 +222,18 @@ class LivePath:
         speed = np.hypot(velocity[..., 0], velocity[..., 1]) * self.bank.fps / self.pace[:, None]
         # The simulator's velocity where it sent one (smoothed as the path is; NaN where a point
         # read has none): its speed and way, not a fit's reading of held ticks and noise.
-        sent = causal.apply(part[..., VELOCITY], value, self.behind, self.behind, n)
-        given = ~np.isnan(sent[..., 0])
-        if given.any():
-            speed = np.where(given, np.hypot(sent[..., 0], sent[..., 1]) / self.pace[:, None], speed)
-        # Once a velocity was sent, the faced path is apart from the followed one: stepped on from
-        # its own last frame, by the path's steps where no velocity comes (not back to the path:
-        # the headings would read the jump).
-        self.face_apart = self.face_apart or bool(given.any())
-        if self.face_apart:
-            self._face_sent(face, path, sent, given)
+        # Not fitted at all until a velocity has been sent: its columns are NaN till then.
+        if self.velocity_sent:
+            sent = causal.apply(part[..., VELOCITY], value, self.behind, self.behind, n)
+            given = ~np.isnan(sent[..., 0])
+            if given.any():
+                speed = np.where(given, np.hypot(sent[..., 0], sent[..., 1]) / self.pace[:, None], speed)
+            # Once a velocity was sent, the faced path is apart from the followed one: stepped on
+            # from its own last frame, by the path's steps where no velocity comes (not back to the
+            # path: the headings would read the jump).
+            self.face_apart = self.face_apart or bool(given.any())
+            if self.face_apart:
+                self._face_sent(face, path, sent, given)
         self.frame_speed = np.concatenate([self.frame_speed, speed], axis=1)
         self.n_path = ready
         drop = self.n_path + self.pad - self.behind - 1 - self.longer_start
