@@ -74,6 +74,18 @@ class Spliced:
     parts: Template
 
 
+@dataclass(frozen=True)
+class Items:
+    """A list of ``n`` items that are not known yet: its template holds the list's own bytes
+    (msgpack's array header, JSON's brackets) around ``ITEMS``, where they go."""
+
+    n: int
+
+
+ITEMS = Hole(-1)  # where an Items' items go in a template
+END = object()  # the end of an answer whose length was not known when it started (None)
+
+
 def json_template(value: Any) -> Template:
     """``value``'s JSON text as :func:`service.body.encode` writes it (compact, blobs' data as
     base64) with a text :class:`Hole` inside the quotes where each :class:`Hole` leaf's data goes."""
@@ -84,6 +96,8 @@ def json_template(value: Any) -> Template:
             parts.extend((b'"', Hole(v.nbytes, text=True), b'"'))
         elif isinstance(v, Spliced):
             parts.extend(v.parts)
+        elif isinstance(v, Items):
+            parts.extend((b"[", ITEMS, b"]"))
         elif isinstance(v, dict):
             parts.append(b"{")
             for i, (key, item) in enumerate(v.items()):
@@ -126,6 +140,8 @@ def template(value: Any, header: bool = True) -> Template:
             parts.extend((bin_header(v.nbytes), v))
         elif isinstance(v, Spliced):
             parts.extend(v.parts)
+        elif isinstance(v, Items):
+            parts.extend((packer.pack_array_header(v.n), ITEMS))
         elif isinstance(v, dict):
             if header:
                 parts.append(packer.pack_map_header(len(v)))
@@ -301,39 +317,44 @@ def _packed_rotations(chunk: Rendered, frames: list[int], p: encode.Packing
 def produce_detailed(job: jobs.Job, bank: Bank, meta: dict[str, Any], emit: Callable[[Any], None],
                      as_json: bool, batch: _Batch, p: encode.Packing) -> int:
     """:func:`produce` of an answer whose size is known only once it is packed (delta) or that
-    leaves frames or joints out (a level of detail): every chunk rendered and packed first --
-    the packed answer is a fraction of the float32 one -- then its length and bytes sent."""
+    leaves frames or joints out (a level of detail): ``emit(None)`` (no length: the answer goes
+    out chunked), then the answer's head, each chunk's characters as soon as they are rendered
+    and packed (the same bytes as the whole answer packed at once), its tail, and ``END``."""
     prep, h, keys, options, frames = batch
     C, T = prep.positions.shape[:2]
     J = bank.skeleton.n_joints
     k = p.frame_step
+    head = {**meta, "fps": meta["fps"] / k, "frame_step": k, "joints": J}
+    whole = {**head, "resample_rate": prep.resample_rate, "characters": Items(C),
+             "skipped": jobs.skipped(job, prep), "warnings": jobs.warned(job, prep)}
+    parts = json_template(whole) if as_json else template(whole)
+    at = parts.index(ITEMS)
+    comma = b"," if as_json else b""
 
-    def piece(chunk: Rendered, scratch: Scratch) -> list[tuple[dict[str, Any], list[np.ndarray]]]:
+    def piece(chunk: Rendered, scratch: Scratch) -> bytes:
         sl = chunk.characters
         bits = contact_bits(chunk.plan.contacts)
-        out = []
+        out: list[bytes | memoryview] = []
         for i, (packed, rot) in enumerate(_packed_rotations(chunk, frames, p)):
             c = sl.start + i
             sent = slice(0, frames[c], k)
             n = len(range(*sent.indices(T)))
-            # Copies: the chunk lives in this thread's scratch pages, which its next chunk reuses.
-            arrays = [np.array(a, order="C") for a in (chunk.root[i, sent], packed,
+            arrays = [np.ascontiguousarray(a) for a in (chunk.root[i, sent], packed,
                                                         chunk.plan.gait[i, sent], bits[i, sent])]
             rot["data"] = Hole(arrays[1].nbytes)
-            out.append(({"id": job.ids[prep.kept[c]], "scale": float(h[c]), "frames": n,
-                         "root": hole_blob("<f4", [n, 3], 4), "rotations": rot,
-                         "gait": hole_blob("|i1", [n], 1), "contacts": hole_blob("|u1", [n], 1)}, arrays))
-        return out
+            one = {"id": job.ids[prep.kept[c]], "scale": float(h[c]), "frames": n,
+                   "root": hole_blob("<f4", [n, 3], 4), "rotations": rot,
+                   "gait": hole_blob("|i1", [n], 1), "contacts": hole_blob("|u1", [n], 1)}
+            out += [comma] if c else []
+            out += filled(json_template(one) if as_json else template(one), arrays)
+        return b"".join(out)  # a copy: the chunk lives in this thread's scratch pages, reused next
 
-    made = [one for part in render_in_order(bank, prep, h, keys, options, characters_per_piece(T, J),
-                                            piece, job.cancel)
-            for one in part]
+    emit(None)
+    emit(b"".join(parts[:at]))  # type: ignore[arg-type]
+    for made in render_in_order(bank, prep, h, keys, options, characters_per_piece(T, J), piece, job.cancel):
+        emit(made)
     if job.cancel.is_set():
         raise jobs.Cancelled
-    head = {**meta, "fps": meta["fps"] / k, "frame_step": k, "joints": J}
-    whole = {**head, "resample_rate": prep.resample_rate, "characters": [m[0] for m in made],
-             "skipped": jobs.skipped(job, prep), "warnings": jobs.warned(job, prep)}
-    parts = json_template(whole) if as_json else template(whole)
-    emit(sum(q.size if isinstance(q, Hole) else len(q) for q in parts))
-    emit(b"".join(filled(parts, [a for m in made for a in m[1]])))
+    emit(b"".join(parts[at + 1:]))  # type: ignore[arg-type]
+    emit(END)
     return sum(frames)

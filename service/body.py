@@ -78,7 +78,8 @@ SEND_SLICE = 1024 * 1024  # bytes handed to the server per send: what a stalled 
 
 
 class PiecesResponse(StreamingResponse):
-    """A 200 answer of a known ``length`` sent piece by piece as ``pieces`` yields them;
+    """A 200 answer of a known ``length`` (None: sent chunked) piece by piece as ``pieces``
+    yields them (``whole()`` once they all came);
     ``sent(n)`` is told of each piece once it has left (:class:`service.pipe.Pipe`'s room).
 
     Each piece goes to the server in slices of ``SEND_SLICE`` bytes: the server's ``send``
@@ -91,12 +92,12 @@ class PiecesResponse(StreamingResponse):
     disconnect: the server's ``send`` to a closed connection just returns). ``close(complete)``
     runs at the end in every case."""
 
-    def __init__(self, pieces: AsyncIterator[bytes], length: int, media_type: str,
+    def __init__(self, pieces: AsyncIterator[bytes], length: int | None, media_type: str,  # noqa: PLR0913
                  close: Callable[[bool], Awaitable[None]], sent: Callable[[int], None],
-                 send_timeout_s: float) -> None:
-        super().__init__(pieces, 200, {"content-length": str(length)}, media_type)
+                 send_timeout_s: float, whole: Callable[[], bool]) -> None:
+        super().__init__(pieces, 200, {} if length is None else {"content-length": str(length)}, media_type)
         self.pieces, self.length, self.close = pieces, length, close
-        self.sent, self.send_timeout_s = sent, send_timeout_s
+        self.sent, self.send_timeout_s, self.whole = sent, send_timeout_s, whole
 
     async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
         async def disconnected() -> None:
@@ -119,11 +120,14 @@ class PiecesResponse(StreamingResponse):
                                     "more_body": True})
                 total += len(view)
                 self.sent(len(view))
-            if total == self.length and not gone.done():
+            if self.complete(total) and not gone.done():
                 await send({"type": "http.response.body", "body": b"", "more_body": False})
         except TimeoutError:
             log.warning("answer cut short: the client took nothing for %g s (send_timeout_s)",
                         self.send_timeout_s)
         finally:
             gone.cancel()
-            await self.close(total == self.length and not gone.done())
+            await self.close(self.complete(total) and not gone.done())
+
+    def complete(self, total: int) -> bool:
+        return self.whole() and (self.length is None or total == self.length)

@@ -6,7 +6,9 @@ the network carries the one before, and waits when the client is not taking them
 the worker is busy or its memory budget (:mod:`service.budget`) has no room for this answer, 422
 for a bad trajectory or too many frames after resampling, 504 past the deadline. After, the
 deadline, a failure or a client that takes nothing for ``send_timeout_s`` can only cut the
-answer short (the connection closes before its Content-Length). The admission slot and the
+answer short (the connection closes before its Content-Length, or before a chunked answer's last
+chunk: a delta or level-of-detail answer, whose length is known only once it is all packed, goes
+out chunked as its characters are made). The admission slot and the
 memory reserved are given back when the work is done and the last byte has left, not before.
 """
 
@@ -46,6 +48,7 @@ class Answer:
             buffer_bytes=state.settings.answer_buffer_bytes, input_bytes=input_bytes)
         self.reservation = state.memory.reserve(self.estimate(len(job.lengths), job.out_frames))
         self.pipe = Pipe(self.loop, state.settings.answer_buffer_bytes)
+        self.whole = False  # every piece of the answer handed to the server
         self.left = 2  # the work and the sending: both end before the slot and the memory are free
         self.release: Callable[[], None] = lambda: None
 
@@ -105,12 +108,13 @@ class Answer:
             self.reservation.release()
             raise
 
-    async def start(self) -> int:
-        """The work started; the answer's length once the batch is prepared."""
+    async def start(self) -> int | None:
+        """The work started; the answer's length once the batch is prepared (None: known only
+        once it is all packed, :func:`service.answer.produce_detailed`)."""
         self.state.pipes.add(self.pipe)
         self.loop.run_in_executor(self.state.pool, self.work).add_done_callback(self.worked)
         try:
-            length: int = await self.next_item()
+            length: int | None = await self.next_item()
         except BaseException:
             self.job.cancel.set()
             self.pipe.close()
@@ -118,13 +122,18 @@ class Answer:
             raise
         return length
 
-    async def pieces(self, length: int) -> AsyncIterator[bytes]:
+    async def pieces(self, length: int | None) -> AsyncIterator[bytes]:
+        """The answer's pieces: ``length`` bytes of them, or (None) up to ``answer.END``;
+        :attr:`whole` once they are all here."""
         got = 0
         try:
-            while got < length:
+            while length is None or got < length:
                 item = await self.next_item()
+                if item is answer.END:
+                    break
                 got += len(item)
                 yield item
+            self.whole = True
         except Exception as exc:  # noqa: BLE001 - the answer has started: it can only be cut short
             log.warning("answer to a synthesize request cut short: %s: %s", type(exc).__name__, exc)
 
@@ -142,4 +151,4 @@ async def respond(state: State, job: jobs.Job, meta: dict[str, Any], as_json: bo
     await run.admit()
     length = await run.start()
     return PiecesResponse(run.pieces(length), length, JSON if as_json else MSGPACK, run.close,
-                          run.pipe.sent, state.settings.send_timeout_s)
+                          run.pipe.sent, state.settings.send_timeout_s, lambda: run.whole)

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from api_schemas.wire import blob
-from service import answer, jobs
+from service import answer, encode, jobs
 from service.packing import characters_out
 from service.settings import Settings
 from synth_core.quality import herd_sim as crowd
@@ -76,6 +76,43 @@ def test_the_answer_in_pieces_is_the_whole_answer_byte_for_byte(bank: Bank, enco
     emitted.clear()
     answer.produce(job, bank, meta, emitted.append, as_json)
     assert b"".join(emitted[1:]) == expected
+
+
+def whole_delta(job: jobs.Job, bank: Bank, meta: dict[str, Any]) -> dict[str, Any]:
+    """A delta answer built whole: synthesize, then each character's rotations encoded alone."""
+    req = job.request
+    scales, seeds = jobs.character_scales_and_seeds(req)
+    result = synthesize(bank, job.positions, req.fps, scales, jobs.options(req), ids=job.ids, seeds=seeds)
+    frames = jobs.output_frames(job, result.root_pos.shape[1], result.kept)
+    p = encode.packing("delta", 1, "full", [None] * len(frames), bank.skeleton, result.scales)
+    characters = characters_out(result, [job.ids[c] for c in result.kept], frames, "f32")
+    for c, (one, n) in enumerate(zip(characters, frames, strict=True)):
+        packed, rot = encode.rotations_each(result.rotations[c:c + 1, :n], p, np.array([c]), None)[0]
+        one["rotations"] = rot | {"data": packed.tobytes()}
+        for key in ("root", "gait", "contacts"):
+            one[key]["data"] = bytes(one[key]["data"])
+    return {**meta, "frame_step": 1, "joints": bank.skeleton.n_joints,
+            "resample_rate": result.resample_rate, "characters": characters,
+            "skipped": jobs.skipped(job, result), "warnings": jobs.warned(job, result)}
+
+
+@pytest.mark.parametrize("as_json", [False, True])
+def test_a_delta_answer_goes_out_chunk_by_chunk_as_the_whole_answer(
+        bank: Bank, as_json: bool, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Its length is known only once packed: no length first, each chunk's characters as soon as
+    they are made, then the tail and the end."""
+    monkeypatch.setattr(answer, "PIECE_BYTES", 3 * 140 * bank.skeleton.n_joints * 16)  # 3 a chunk
+    job = jobs.parse(body("delta"), Settings(), {"horse": bank})
+    meta = {"animal": "horse", "skeleton_id": "horse-x", "fps": bank.fps, "encoding": "delta"}
+    emitted: list[Any] = []
+    sent = answer.produce(job, bank, meta, emitted.append, as_json)
+    assert emitted[0] is None and emitted[-1] is answer.END
+    pieces = emitted[1:-1]
+    assert len(pieces) == 1 + 2 + 1  # the head, 6 kept characters 3 at a time, the tail
+    got = json.loads(b"".join(pieces)) if as_json else msgpack.unpackb(b"".join(pieces))
+    expected = whole_delta(job, bank, meta)
+    assert got == (json.loads(json.dumps(_base64(expected))) if as_json else expected)
+    assert sent == sum(c["frames"] for c in got["characters"])
 
 
 def test_a_cancelled_answer_stops_between_chunks(bank: Bank, monkeypatch: pytest.MonkeyPatch) -> None:

@@ -289,18 +289,23 @@ def test_past_the_deadline_gets_504_and_the_worker_is_free_again(tmp_path: Path,
         assert metric(url, "quadsynth_cancelled_total") == 1  # the held one; the queued one never ran
 
 
-def test_a_client_leaving_mid_answer_stops_the_work(tmp_path: Path) -> None:
+@pytest.mark.parametrize("encoding", ["s48", "delta"])
+def test_a_client_leaving_mid_answer_stops_the_work(tmp_path: Path, encoding: str) -> None:
     """The answer goes out while it is made: a client that reads its first bytes and hangs up
     stops the synthesis at its next chunk of characters (counted as cancelled, not as
-    character-frames made), nothing is left running, and the worker takes the next request."""
+    character-frames made), nothing is left running, and the worker takes the next request.
+    delta too, whose length is known only once it is all packed: it goes out chunked."""
     big = crowd.simulate(600, 1000, seed=2).astype(np.float32)  # a 7.2 MB body: ~45 chunks of work
     with running(tmp_path, {"QUADSYNTH_MAX_IN_FLIGHT": "1", "QUADSYNTH_MAX_QUEUED": "1"}) as (url, _):
-        raw = msgpack.packb(batch(big), use_bin_type=True)
+        raw = msgpack.packb({**batch(big), "encoding": encoding}, use_bin_type=True)
         with httpx.Client(timeout=60) as client, client.stream(
                 "POST", f"{url}/v1/synthesize", content=raw, headers={"content-type": MSGPACK}) as response:
             assert response.status_code == 200
             first = next(response.iter_raw())
-            assert 0 < len(first) < int(response.headers["content-length"])
+            if encoding == "delta":
+                assert 0 < len(first) and response.headers["transfer-encoding"] == "chunked"
+            else:
+                assert 0 < len(first) < int(response.headers["content-length"])
         # gone: the connection closed with most of the answer still to come
         deadline = time.monotonic() + 30
         while metric(url, "quadsynth_cancelled_total") < 1 and time.monotonic() < deadline:

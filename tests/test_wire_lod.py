@@ -62,6 +62,9 @@ def test_rest_delta_is_the_f32_motion_within_a_tenth_of_a_mm(server: str, herd: 
                             "characters": [{"id": "a", "points": blob(herd[0])}]}, accept="application/json")
     text = as_json.json()["characters"][0]["rotations"]
     assert base64.b64decode(text["data"]) == rot["delta"]["data"]  # JSON: the same bytes, base64
+    # Its length is known only once it is packed: it goes out chunked, as its characters are made.
+    for r in (delta, as_json):
+        assert "content-length" not in r.headers and r.headers["transfer-encoding"] == "chunked"
 
 
 def test_rest_levels_of_detail(server: str, herd: np.ndarray, bank: Bank) -> None:
