@@ -10,7 +10,15 @@ import base64
 import binascii
 from typing import Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationInfo, field_serializer, field_validator
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    ValidationInfo,
+    field_serializer,
+    field_validator,
+    model_validator,
+)
 
 from api_schemas.wire import DTYPES, ENCODINGS, Encoding
 
@@ -55,6 +63,16 @@ class Blob(BaseModel):
     shape: list[int] = Field(description="array shape", examples=[[2, 3]])
     data: bytes = Field(description="the array's bytes: msgpack bin, or base64 text in JSON",
                         json_schema_extra={"format": "base64"})
+
+    @model_validator(mode="before")
+    @classmethod
+    def _a_map(cls, value: Any) -> Any:
+        """Arrays never travel as lists of numbers: say what a blob is to a client that sent one."""
+        if not isinstance(value, dict | BaseModel):
+            raise ValueError(f"expected a blob, a map {{dtype: '<f4', shape: [n, 3], data: the array's bytes "
+                             f"(msgpack bin, or base64 text in JSON)}}, got a {type(value).__name__} "
+                             f"(docs/wire-format.md, Arrays; api_schemas.wire.blob makes one)")
+        return value
 
     @field_validator("data", mode="before")
     @classmethod

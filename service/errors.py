@@ -37,14 +37,28 @@ def field_path(loc: Sequence[int | str], prefix: str = "") -> str:
     return out
 
 
+NAMED = 3  # further problems named after the first (there may be thousands)
+
+
+def problems_error(problems: Sequence[Any], prefix: str = "", first_index: int = 0) -> ApiError:
+    """The 422 of pydantic's ``problems``: the first one's field and message, then the next
+    ``NAMED`` named by field and message and the count of the rest. ``first_index``: added to a
+    leading list index (the problems of a slice of a list)."""
+    def where(problem: Any) -> str:
+        loc = [p for p in problem["loc"] if p not in ("body", "query", "path")]
+        if loc and isinstance(loc[0], int):
+            loc[0] += first_index
+        return field_path(loc, prefix)
+
+    named = [f"{where(p)}: {p['msg']}" for p in problems[1:1 + NAMED]]
+    rest = len(problems) - 1 - len(named)
+    more = "; ".join(named + ([f"{rest} more"] if rest else []))
+    return ApiError(422, where(problems[0]), problems[0]["msg"] + (f" (also {more})" if more else ""))
+
+
 def from_validation(exc: ValidationError | RequestValidationError, prefix: str = "") -> ApiError:
-    """The first problem pydantic found, with where it is (there may be thousands; one is enough
-    to fix, and the count says how many)."""
-    problems = exc.errors()
-    first = problems[0]
-    loc = [p for p in first["loc"] if p not in ("body", "query", "path")]
-    more = f" (and {len(problems) - 1} more problems)" if len(problems) > 1 else ""
-    return ApiError(422, field_path(loc, prefix), f"{first['msg']}{more}")
+    """The problems pydantic found (:func:`problems_error`)."""
+    return problems_error(exc.errors(), prefix)
 
 
 async def handle_api_error(request: Request, exc: Exception) -> JSONResponse:

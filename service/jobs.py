@@ -16,7 +16,7 @@ from pydantic import BaseModel, TypeAdapter, ValidationError
 from api_schemas import CharacterIn, LiveCharacter, LiveRequest, SynthesizeRequest
 from api_schemas.models import GroundIn
 from api_schemas.wire import WireError, unblob
-from service.errors import ApiError, field_path, from_validation
+from service.errors import ApiError, from_validation, problems_error
 from service.settings import Settings
 from synth_core.runtime.bank import Bank
 from synth_core.runtime.parallel_render import Cancelled as Cancelled  # deadline passed, client left
@@ -65,11 +65,7 @@ def validated_characters(model: type[BaseModel], characters: list[Any]) -> list[
         try:
             out += adapter.validate_python(characters[start:start + VALIDATE_SLICE])
         except ValidationError as exc:
-            problems = exc.errors()
-            index, *rest = problems[0]["loc"]
-            more = f" (and {len(problems) - 1} more problems)" if len(problems) > 1 else ""
-            raise ApiError(422, field_path([start + int(index), *rest], "characters"),
-                           f"{problems[0]['msg']}{more}") from None
+            raise problems_error(exc.errors(), "characters", start) from None
     return out
 
 

@@ -117,3 +117,21 @@ def test_any_msgpack_structure_is_parsed_or_refused_with_422(body: dict) -> None
     except (TypeError, AttributeError) as exc:  # pragma: no cover - would be a 500
         pytest.fail(f"parse crashed: {exc!r}")
     assert refused is None or (refused.status == 422 and refused.message), refused
+
+
+def test_a_refusal_names_what_a_blob_is_and_the_next_problems_by_field() -> None:
+    """A client that sends points as a list of numbers is told what a blob is; problems after the
+    first are named by field (up to errors.NAMED), the rest counted."""
+    body = {"characters": [{"id": "a", "points": [[0, 0, 0], [1, 0, 0]]}]}
+    with pytest.raises(ApiError) as exc:
+        parse(body, Settings(), {"horse": None})  # type: ignore[dict-item]
+    assert exc.value.status == 422 and exc.value.field == "characters[0].points"
+    assert "expected a blob" in exc.value.message and "got a list" in exc.value.message
+    points = blob(np.zeros((3, 3), np.float32))
+    many = {"characters": [{"id": f"c{i}", "points": points, "colour": i} for i in range(6)]}
+    with pytest.raises(ApiError) as exc:
+        parse(many, Settings(), {"horse": None})  # type: ignore[dict-item]
+    assert exc.value.field == "characters[0].colour"
+    for i in (1, 2, 3):
+        assert f"characters[{i}].colour: Extra inputs are not permitted" in exc.value.message
+    assert "characters[4]" not in exc.value.message and "2 more" in exc.value.message
