@@ -160,7 +160,8 @@ GROUND_DOC = ("the terrain the herd walks on: planted feet on it, bodies pitched
 class SynthesizeRequest(BaseModel):
     model_config = _STRICT
     animal: str = Field(default="horse", description="a library from GET /v1/libraries")
-    fps: float = Field(default=60.0, gt=0, le=1000, description="frame rate of the trajectory points")
+    fps: float = Field(default=60.0, gt=0, le=1000, description=(
+        "frame rate of the trajectory points (the answer comes at the library's fps, lasting as long)"))
     seed: int = Field(default=0, ge=0, le=2**63 - 1, description="same input and seed: same bytes out")
     sigma: float = Field(default=4.0, ge=0, le=100, description=(
         "Gaussian smoothing, frames: of the timing along the points sent (the root stays on them) "
@@ -184,9 +185,9 @@ class SynthesizeRequest(BaseModel):
     resample: bool = Field(default=False,
                            description="the paper's global resampling: where a character is faster than "
                                        "the library, every path is resampled (more frames, the herd's "
-                                       "clock slowed). Default: the clock is kept (output frames = input "
-                                       "frames at the library's fps) and a character too fast even at its "
-                                       "fastest stride rate is listed in 'warnings'")
+                                       "clock slowed). Default: the clock is kept (the answer lasts as long "
+                                       "as the points, at the library's fps) and a character too fast even "
+                                       "at its fastest stride rate is listed in 'warnings'")
     size_matching: SizeMatching = Field(default="froude", description=SIZE_MATCHING_DOC)
     tempo_spread: float = Field(default=0.06, ge=0, le=0.25, description=TEMPO_SPREAD_DOC)
     ground: GroundIn | None = Field(default=None, description=GROUND_DOC)
