@@ -203,3 +203,26 @@ def test_a_big_dogs_steady_canter_carries_it_no_longer_alone_than_its_tempo_give
     figures = evaluate.edge_figures(bank, result, sc.reference, F, library_reference(bank))
     assert figures["gait_frames"]["canter"] > 4 * 60  # it does canter, seconds of it
     assert figures["single_support_ratio_max"] <= 1.0
+
+
+def test_a_path_moving_at_frame_0_starts_in_its_gait_not_from_standing() -> None:
+    """An agent spawned at speed: each character plays its speed's gait from frame 0 (standing,
+    it shuffled through every transition up to it while its body glided: the dog's glide 0.137,
+    a paw jump 8.8 cm), and the dog then meets the issue's glide, jump and support targets
+    after FK. A path standing at frame 0 still starts standing."""
+    from synth_core.build.library_store import builtin_library
+    from synth_core.runtime.bank import build_bank
+    from synth_core.runtime.synthesis import Options, synthesize
+
+    bank = build_bank(builtin_library("dog"))
+    gaits = {g: (float(bank.speeds[h][0]), float(bank.speeds[h][-1]))
+             for h, g in enumerate(("static", "walk", "trot", "canter", "gallop")) if h}
+    sc = edge.scenarios(gaits, FPS, 0, ["moving_start"])[0]
+    result = synthesize(bank, sc.positions, FPS, scales=sc.scales, options=Options(seed=0))
+    assert result.gait[:, 0].tolist() == [1, 2, 3, 4]  # walk, trot, canter, gallop at once
+    figures = evaluate.edge_figures(bank, result, sc.reference, sc.positions.shape[1], library_reference(bank))
+    for name in ("glide_ratio", "jump_cm_max", "walk_support_share", "limb_flips"):
+        assert evaluate.passes(name, figures[name]), (name, figures[name])
+    standing = edge.scenarios(gaits, FPS, 0, ["cruise_straight"])[0]
+    still = synthesize(bank, standing.positions[:, :120], FPS, scales=standing.scales, options=Options(seed=0))
+    assert (still.gait[:, 0] == 0).all()

@@ -117,9 +117,10 @@ def _rate(v: float, hub: int, high: Any, max_rate: float, slowest: int, slow: fl
 
 
 @jit(inline="always")
-def _choose(current: int, speed: float, draws: Any, low: Any, high: Any, slowest: int, fastest: int) -> int:
-    """The next hub for ``speed``: stay while covered (``low``, ``high``: each hub's range), else
-    one step toward a covering gait (the one with the highest draw where several cover it)."""
+def _covering(current: int, speed: float, draws: Any, low: Any, high: Any, slowest: int,
+              fastest: int) -> tuple[int, bool]:
+    """The hub covering ``speed`` (``low``, ``high``: each hub's range; the one with the highest
+    draw where several cover it; the fastest above them all) and whether ``current`` covers it."""
     best, pick, any_cover = -1.0, 0, False
     cover_current = False
     for hub in range(len(low)):
@@ -133,12 +134,31 @@ def _choose(current: int, speed: float, draws: Any, low: Any, high: Any, slowest
         if covered and draws[hub] > best:
             best, pick = draws[hub], hub
     if not any_cover:  # faster than the fastest gait
-        if current == fastest:
-            return current
-        pick = fastest  # the only one covered
-    if cover_current:
-        return current
-    return current + (1 if pick > current else (-1 if pick < current else 0))
+        return fastest, current == fastest
+    return pick, cover_current
+
+
+@jit(inline="always")
+def _choose(current: int, speed: float, draws: Any, low: Any, high: Any, slowest: int, fastest: int) -> int:
+    """The next hub for ``speed``: stay while covered, else one step toward the covering gait."""
+    pick, cover_current = _covering(current, speed, draws, low, high, slowest, fastest)
+    return current if cover_current else current + (1 if pick > current else (-1 if pick < current else 0))
+
+
+@jit(inline="always")
+def _moving_start(s: Any, f: Any, speed: float, pts: Any, still: float, draws: Any, low: Any, high: Any,
+                  slowest: int, fastest: int, slow: float, frames_of: Any) -> None:
+    """A path moving at frame 0 (spawned at speed: first step over ``still``, speed at least the
+    slowest clip's, ``slow``; a creep or a noisy stand starts standing) starts in the gait covering
+    its speed at a drawn phase, not from standing through every transition (a horse at 5 m/s
+    shuffled on the spot 1.3 s). The draw is standing's, which a moving speed never reads."""
+    dx, dz = pts[1, 0] - pts[0, 0], pts[1, 2] - pts[0, 2]
+    if speed < max(low[slowest], slow) or dx * dx + dz * dz < still * still:
+        return
+    hub = _covering(STATIC, speed, draws, low, high, slowest, fastest)[0]
+    s[CURRENT], s[KIND], s[START] = hub, hub, 0
+    s[FIRST] = min(int(draws[STATIC] * frames_of[hub]), frames_of[hub] - 1)
+    f[CLOCK0], f[TRAV0] = f[CLOCKS + hub], 0.0
 
 
 @jit(inline="always")
@@ -376,6 +396,8 @@ def _character(t0: int, v: Any, pts: Any, h: float, tempo: float, lead: int, ask
     ask = -(-t0 // step) * step  # the next decision's frame (counted on: no division a frame)
     k = ask // step - k0
     sent, o = t0 + (-t0) % out_step, 0  # the next frame sent, its row in the outputs
+    if t0 == 0 and k0 == 0 and pts.shape[0] > 1 and draws.shape[0] > 0:
+        _moving_start(s, f, v[0], pts, still_step * h, draws[0], low, high, slowest, fastest, slow, frames_of)
     for i in range(v.shape[0]):
         t = t0 + i
         walked = f[WALKED]

@@ -292,6 +292,16 @@ def mixed_sizes(gaits: GaitSpeeds, fps: float, rng: np.random.Generator) -> Scen
                 about=f"scales {scales} on one path up to {fast:.2f} m/s and back to {slow:.2f}")
 
 
+def moving_start(gaits: GaitSpeeds, fps: float, rng: np.random.Generator) -> Scenario:
+    """Paths already moving at frame 0 -- an agent spawned, or taken over, at speed -- at each
+    gait's middle speed on a gentle curve, each heading its own way."""
+    order = [g for g in ("walk", "trot", "canter", "gallop") if g in gaits]
+    F = frames_for(5.0, fps)
+    paths = [run(F, fps, [(0.0, cruise(gaits, g))], [(0.0, float(rng.choice([-1, 1])) * 0.5, 20.0)],
+                 heading=float(rng.uniform(-np.pi, np.pi))) for g in order]
+    return herd(paths, name="moving_start", about="at each gait's middle speed from frame 0, r 20 m curves")
+
+
 # --- ground that is not flat (issue 33) ---------------------------------------------------------
 
 TERRAIN_SPACING = 0.05  # m between the scenarios' height-field points
@@ -385,6 +395,7 @@ MAKERS: dict[str, Callable[[GaitSpeeds, float, np.random.Generator], Scenario]] 
     "jitter_10hz": jitter_10hz,
     "too_fast": too_fast,
     "mixed_sizes": mixed_sizes,
+    "moving_start": moving_start,
     **TERRAIN_MAKERS,
 }
 
