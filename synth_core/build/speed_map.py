@@ -44,7 +44,7 @@ from synth_core import UP_AXIS
 from synth_core.build import ik
 from synth_core.build.straight_crossings import solve_eased
 from synth_core.motion.clip import Motion
-from synth_core.motion.contacts import runs
+from synth_core.motion.contacts import hold_down, runs
 from synth_core.motion.skeleton import Skeleton
 
 Floats = NDArray[np.float64]
@@ -364,6 +364,25 @@ def sink_for_reach(source: Motion, new_root: Floats, rotations: NDArray[np.float
     return lowered
 
 
+# Feet a gait keeps down in every frame: a walk always has two (issue 27), where its source hands
+# over with one (the real dog's pace: :func:`synth_core.motion.contacts.hold_down`).
+LEAST_DOWN = {"walk": 2}
+
+
+def held_feet(feet: NDArray[np.floating], contacts: NDArray[np.bool_], held: NDArray[np.bool_]) -> Floats:
+    """A cyclic clip's ``feet (F, K, 3)`` with each frame ``held`` but not in ``contacts`` at its
+    plant's last frame: a plant held past the source's lift-off stays where the foot stood."""
+    out = np.array(feet, dtype=np.float64)
+    F = len(out)
+    t = np.arange(2 * F)
+    for k in np.flatnonzero((held & ~contacts).any(axis=0)):
+        down = np.tile(contacts[:, k], 2)
+        last = np.maximum.accumulate(np.where(down, t, -1))[F:] % F  # last frame down, cyclic
+        extra = held[:, k] & ~contacts[:, k]
+        out[extra, k] = out[last[extra], k]
+    return out
+
+
 def build_speed_map(source: Motion, speeds: Sequence[float] | Floats,
                     rigs: tuple[ik.LimbRig, ...] | None = None) -> SpeedMap:
     """A cyclic clip (with its contact annotation) at every speed in ``speeds`` (m/s)."""
@@ -374,7 +393,10 @@ def build_speed_map(source: Motion, speeds: Sequence[float] | Floats,
         raise ValueError(f"{source.name}: every foot must be planted somewhere in the cycle")
     ratio = speeds / source.speed_mps()
     new_root = relocate_root(source.root_pos, ratio)
-    targets = foot_targets(source.foot_positions(), source.root_pos, new_root, source.contacts)
+    contacts = hold_down(source.contacts, LEAST_DOWN.get(source.gait or "", 0))
+    feet = held_feet(source.foot_positions(), source.contacts, contacts)
+    source = source.with_contacts(contacts)
+    targets = foot_targets(feet, source.root_pos, new_root, contacts)
     ground = float(source.foot_positions()[..., UP_AXIS].min())
     rotations = np.broadcast_to(source.rotations, (len(speeds), *source.rotations.shape))
     # Each frame's hinge side from the source's own pose, kept continuous around the loop.
