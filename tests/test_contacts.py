@@ -143,3 +143,17 @@ def test_plant_level_is_the_lowest_feet_median_plant_bottom() -> None:
     # foot 0: plants bottoming at 2.0 and 2.5 -> 2.25; foot 1: 0.8 and 0.6 -> 0.7
     assert C.plant_level(contacts, h) == pytest.approx(0.007)
     assert C.plant_level(np.zeros((5, 2), bool), h) is None
+
+
+def test_hold_down_keeps_the_foot_lifted_last_until_another_lands() -> None:
+    """A walk keeps two feet down (issue 27): a frame with one extends the plant that ended last,
+    and only that; in a clip that does not loop, never before the clip's first lift-off."""
+    rows = ["###.....", ".....###", "#####...", "......##"]  # frames 3, 4, 5: one foot down
+    contacts = np.array([[c == "#" for c in r] for r in rows]).T
+    held = C.hold_down(contacts, 2)
+    assert ["".join("#" if x else "." for x in held[:, k]) for k in range(4)] == \
+        ["#####...", ".....###", "######..", "......##"]
+    start = np.array([[False, True], [False, True], [True, True]])  # nothing lifted yet at 0, 1
+    assert np.array_equal(C.hold_down(start, 2, cyclic=False), start)
+    where = np.array([False] * 5 + [True] * 3)
+    assert np.array_equal(C.hold_down(contacts, 2, where=where)[:5], contacts[:5])

@@ -10,7 +10,15 @@ from numpy.typing import NDArray
 
 from synth_core import UP_AXIS
 from synth_core.build import ik
-from synth_core.build.speed_map import SpeedMap, cycle_displacement, foot_targets, reach_limit, sink_for_reach
+from synth_core.build.speed_map import (
+    LEAST_DOWN,
+    SpeedMap,
+    cycle_displacement,
+    foot_targets,
+    held_feet,
+    reach_limit,
+    sink_for_reach,
+)
 from synth_core.build.straight_crossings import solve_eased
 from synth_core.motion import contacts as C
 from synth_core.motion import quat
@@ -134,12 +142,28 @@ def _crossfade(first: Motion, second: Motion, name: str, strides: int = 2) -> Mo
     # plant ends just before the other starts) stands in one plant: two would be pinned apart,
     # and the foot would jump between them (11 cm in the real dog's canter2gallop).
     contacts = C.fill_gaps(contacts, SWITCH_GAP)
-    return hold_plants(Motion(first.skeleton, root, rotations, first.fps, contacts, name, None))
+    return hold_plants(Motion(first.skeleton, root, rotations, first.fps, contacts, name, None),
+                       walk_frames(name, len(contacts)))
 
 
-def hold_plants(motion: Motion) -> Motion:
-    """Every plant held at its average place, swings eased between (as in the speed map), by IK."""
+def walk_frames(name: str, frames: int) -> NDArray[np.bool_]:
+    """The frames of transition ``name`` ("walk2trot", ...) that play as the walk: the synthesis
+    counts a transition as the hub it leaves over its first half, the one it reaches over its
+    second (``plan_kernels``' ``first_half``)."""
+    source, target = name.split("2")
+    first = np.arange(frames) < frames // 2
+    return np.asarray((first & (source == "walk")) | (~first & (target == "walk")))
+
+
+def hold_plants(motion: Motion, walk: NDArray[np.bool_] | None = None) -> Motion:
+    """Every plant held at its average place, swings eased between (as in the speed map), by IK.
+    ``walk``: frames played as the walk, which keep two feet down as the walk's speed map does
+    (a lifting foot held where it stood until another lands)."""
     feet = motion.foot_positions()
+    if walk is not None:
+        held = C.hold_down(motion.contacts, LEAST_DOWN["walk"], cyclic=False, where=walk)
+        feet = held_feet(feet, motion.contacts, held)
+        motion = motion.with_contacts(held)
     root = np.asarray(motion.root_pos, np.float64)
     targets = foot_targets(feet, root, root[None], motion.contacts, cyclic=False)[0]
     rigs = ik.limb_rigs(motion.skeleton)

@@ -44,7 +44,7 @@ from synth_core import UP_AXIS
 from synth_core.build import ik
 from synth_core.build.straight_crossings import solve_eased
 from synth_core.motion.clip import Motion
-from synth_core.motion.contacts import runs
+from synth_core.motion.contacts import hold_down, runs
 from synth_core.motion.skeleton import Skeleton
 
 Floats = NDArray[np.float64]
@@ -260,7 +260,7 @@ def _foot_track(feet: Floats, plants: NDArray[np.int64], shift3: Floats, D: Floa
     swing[..., UP_AXIS] = _lift_clear(swing[..., UP_AXIS], plant[:, prev, UP_AXIS], t, lo, hi,
                                       (t >= start[0]) & ~alone)
     track = np.where(inside[None, :, None], plant[:, prev], swing)
-    return _touch_clear(track, plant[:, nxt, UP_AXIS], t, lo, hi, (t >= start[0]) & ~alone)
+    return _touch_clear(track, plant[:, nxt, UP_AXIS], t, lo, hi, t >= start[0])
 
 
 def _lift_clear(height: Floats, plant: Floats, t: NDArray[np.int64], lo: NDArray[np.int64],
@@ -285,9 +285,10 @@ def _touch_clear(track: Floats, plant: Floats, t: NDArray[np.int64], lo: NDArray
                  hi: NDArray[np.int64], may: NDArray[np.bool_]) -> Floats:
     """A foot's ``track (N, T, 3)`` landing from above: through the second half of each swing,
     where ``may`` and the foot still moves over the ground more than :data:`TOUCH_STEP` to its
-    next frame, at least ``LIFT_CLEAR`` over the plant it goes to (``plant (N, T)``). ``may``
-    leaves out, as for :func:`_lift_clear`, where the other feet leave one down: landing, this
-    paw is the second support (the real dog's pace hands over with its landing paw low).
+    next frame, at least ``LIFT_CLEAR`` over the plant it goes to (``plant (N, T)``), where ``may``
+    (every swing after the clip's first plant). Every gait's: a landing paw that is the second
+    support was once left low (the pace's handover, before the walk kept two down); in the
+    trot and on slopes it then slid in along the ground (strict skate uturn_trot 7.2 -> 3.1 mm).
 
     The real dog's paw sweeps in low before touchdown (at a gallop 3-4 cm a frame within 1 cm of
     its plant, some at the plant's height a frame before it is planted): played as is, every
@@ -364,6 +365,43 @@ def sink_for_reach(source: Motion, new_root: Floats, rotations: NDArray[np.float
     return lowered
 
 
+# Feet a gait keeps down in every frame: a walk always has two (issue 27), where its source hands
+# over with one (the real dog's pace: :func:`synth_core.motion.contacts.hold_down`).
+LEAST_DOWN = {"walk": 2}
+
+
+def held_feet(feet: NDArray[np.floating], contacts: NDArray[np.bool_], held: NDArray[np.bool_],
+              advance: Floats | None = None) -> Floats:
+    """``feet (F, K, 3)`` where ``held`` extends plants of ``contacts``: each held frame at its
+    plant's last frame (the foot stays where it stood), and the swing after it the source's,
+    catching up from the plant over as many frames as the foot was held. Starting where the
+    source was, 1-4 frames into its swing, the real dog's held hind paw jumped off (2.7 cm a
+    frame^2 at the walk's loop, paw jumps 9.9 -> 11.6 cm in the scaled herd, trot2walk's wrists
+    flipped); played from the plant to the touchdown slower, the leg reached 2 % further back.
+    ``advance``: a cyclic clip's cycle displacement (None: the clip does not loop)."""
+    cyclic = advance is not None
+    copies = 3 if cyclic else 1
+    shift = np.zeros(3) if advance is None else np.asarray(advance, np.float64)
+    F = len(feet)
+    tiled = np.concatenate([np.asarray(feet, np.float64) + (c - copies // 2) * shift
+                            for c in range(copies)])  # (copies F, K, 3), a loop each
+    out = tiled.copy()
+    for k in np.flatnonzero((held & ~contacts).any(axis=0)):
+        down, kept = np.tile(held[:, k], copies), np.tile(contacts[:, k], copies)
+        plants = runs(down)
+        for (a, b), nxt in zip(plants, np.append(plants[1:, 0], -1), strict=True):
+            lifted = a + int(np.flatnonzero(kept[a:b]).max()) + 1  # the source's lift-off
+            out[lifted:b, k] = tiled[lifted - 1, k]
+            if lifted == b or nxt < 0:  # not held, or no touchdown after it in the clip
+                continue
+            # The swing catches up with the source's over as many frames as it was held.
+            u = np.arange(b, min(b + (b - lifted), nxt))
+            lag = _smoothstep(1.0 - (u - b + 1) / (b - lifted + 1))
+            out[u, k] += lag[:, None] * (tiled[lifted - 1, k] - tiled[b - 1, k])
+    first = F * (copies // 2)
+    return np.asarray(out[first:first + F])
+
+
 def build_speed_map(source: Motion, speeds: Sequence[float] | Floats,
                     rigs: tuple[ik.LimbRig, ...] | None = None) -> SpeedMap:
     """A cyclic clip (with its contact annotation) at every speed in ``speeds`` (m/s)."""
@@ -374,7 +412,11 @@ def build_speed_map(source: Motion, speeds: Sequence[float] | Floats,
         raise ValueError(f"{source.name}: every foot must be planted somewhere in the cycle")
     ratio = speeds / source.speed_mps()
     new_root = relocate_root(source.root_pos, ratio)
-    targets = foot_targets(source.foot_positions(), source.root_pos, new_root, source.contacts)
+    contacts = hold_down(source.contacts, LEAST_DOWN.get(source.gait or "", 0))
+    feet = held_feet(source.foot_positions(), source.contacts, contacts,
+                     cycle_displacement(source.root_pos))
+    source = source.with_contacts(contacts)
+    targets = foot_targets(feet, source.root_pos, new_root, contacts)
     ground = float(source.foot_positions()[..., UP_AXIS].min())
     rotations = np.broadcast_to(source.rotations, (len(speeds), *source.rotations.shape))
     # Each frame's hinge side from the source's own pose, kept continuous around the loop.

@@ -157,6 +157,33 @@ def settle_plants(contacts: NDArray[np.bool_], foot_heights: NDArray[np.floating
     return np.asarray((labels > 0) & (t >= first[labels]) & (t <= last[labels]))
 
 
+def hold_down(contacts: NDArray[np.bool_], least: int, cyclic: bool = True,
+              where: NDArray[np.bool_] | None = None) -> NDArray[np.bool_]:
+    """``contacts (F, K)`` with at least ``least`` feet down in every frame (of ``where``, default
+    all; where that many ever are): a frame with fewer extends the plant that ended last in
+    ``contacts`` (the foot lifted most recently stays down until another lands). ``cyclic``: the clip loops (a
+    plant over its end counts); else a frame before any lift-off is left as it is.
+
+    The real dog's pace hands over from one lateral pair to the next with a gap: a hind paw
+    lifts 1-4 frames before its partner lands, one paw carries the body, and a walk must
+    always have two down (issue 27)."""
+    source = np.asarray(contacts, bool)
+    held = source.copy()
+    F, K = held.shape
+    if least <= 0 or F == 0 or held.any(axis=0).sum() < least:
+        return held
+    short = held.sum(axis=1) < least
+    for t in np.flatnonzero(short if where is None else short & where):
+        # frames since each lifted foot's own plant ended, counted back from t (F: never)
+        back = np.arange(1, F if cyclic else t + 1)
+        since = [F if held[t, k] else next((int(b) for b in back if source[(t - b) % F, k]), F)
+                 for k in range(K)]
+        for k in np.argsort(since, kind="stable")[: least - int(held[t].sum())]:
+            if since[k] < F:
+                held[(t - np.arange(since[k])) % F, k] = True
+    return held
+
+
 def plant_level(contacts: NDArray[np.bool_], foot_heights: NDArray[np.floating]) -> float | None:
     """The height a clip's planted feet stand at: per foot, the median of its plants' lowest
     points; of the feet, the lowest (None: nothing planted). ``contacts``, ``foot_heights (F, K)``.
