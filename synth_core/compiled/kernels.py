@@ -35,7 +35,14 @@ from numpy.typing import NDArray
 
 from synth_core import UP_AXIS
 from synth_core.build.ik import leg_ranges, limb_rigs
-from synth_core.compiled import foot_kernels, ground_kernels, limb_kernels, pose_kernels, vec_kernels
+from synth_core.compiled import (
+    foot_kernels,
+    ground_kernels,
+    limb_kernels,
+    pose_kernels,
+    replant_kernels,
+    vec_kernels,
+)
 from synth_core.compiled.foot_kernels import (
     LEG_WIDTH,
     NOWHERE,
@@ -57,7 +64,7 @@ from synth_core.compiled.vec_kernels import (
     q4,
     qmul,
 )
-from synth_core.runtime.footlock import MAX_SINK, PAD, TERRAIN_MAX_SINK
+from synth_core.runtime.footlock import MAX_SINK, PAD, STEP_S, TERRAIN_MAX_SINK
 
 if TYPE_CHECKING:
     from synth_core.runtime.bank import Bank
@@ -91,7 +98,6 @@ def _character(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, yaw
     array: none kept). ``recent (PAD, 4, LEG_WIDTH)``: what the sink reads of the PAD frames
     before ``keep_from``, if ``recent_known`` (then ``known >= keep_from``): those are not posed
     either. On return it holds the same of the PAD frames before ``keep_to``: True if it does.
-
     ``heights (Nz, Nx)``: the terrain (``(0, 0)``: none), grid origin, spacing; the body tilted by
     ``tilt[tilt_at + t]`` (``(T', 4)``) on frame t, its feet planted on the terrain (measure_feet).
     ``plant_frames``: plant_targets' ``most``; short of all, with feet kept: its pins too."""
@@ -120,8 +126,9 @@ def _character(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, yaw
     measure_feet(world, out_root, yaw, lean, path, tilt, tilt_at, terrain, rigs, h, a, T, o, feet, legs)
     if known_feet.shape[0] > 0:
         known_feet[a:] = feet[a:]
-    plant_targets(feet, contacts, targets, plant_frames, pins, pinned,
-                  keep_to - 1 if plant_frames < WHOLE_PLANT and known_feet.shape[0] > 0 else -1)
+    last = -1 if plant_frames == WHOLE_PLANT or known_feet.shape[0] == 0 else keep_to - 1
+    body = (bends, legs, sink_limit, a, path, terrain / h, yaw, out_root, h)  # what a foot can reach
+    plant_targets(feet, contacts, targets, plant_frames, pins, pinned, last, body)
     if terrain:
         ground_targets(targets, contacts, heights, ground_x0, ground_z0, spacing, h, sink)
     reach_sink(targets, legs, bends, path, h, terrain, s, T, sink)
@@ -269,8 +276,9 @@ def _bank_tables(bank: Bank) -> tuple[tuple[Any, Any, Any], tuple[Any, Any, Any,
     """The bank's arrays as the kernels take them (made once per bank: a small batch's call
     would otherwise spend a third of its time here): (pose table, heights, surges) and (parents,
     offsets, the joints above the feet (FK needs no others), the legs' rig table, bend axes and
-    ranges (``(4, 5)``: the axis for limb_kernels.solve_legs, the furthest fold's cosine and the
-    longest reach (ik.leg_ranges) for the sink and the IK's reach), the sink limit)."""
+    ranges (``(4, 6)``: the axis for limb_kernels.solve_legs, the furthest fold's cosine and the
+    longest reach (ik.leg_ranges) for the sink and the IK's reach, the frames of a step replanting a
+    foot the body carries out of reach: foot_kernels._replant), the sink limit)."""
     sk = bank.skeleton
     rigs = limb_rigs(sk)
     rig_table = np.array([[r.upper, r.hinge, r.ankle, r.effector] for r in rigs], np.int64)
@@ -284,7 +292,8 @@ def _bank_tables(bank: Bank) -> tuple[tuple[Any, Any, Any], tuple[Any, Any, Any,
     return ((poses, bank.height.astype(np.float64), bank.surge.astype(np.float64)),
             (sk.parents.astype(np.int64), sk.offsets.astype(np.float64),
              np.flatnonzero(needed).astype(np.int64), rig_table,
-             np.concatenate([bank.bends, leg_ranges(sk, bank.poses, rigs)], axis=1),
+             np.concatenate([bank.bends, leg_ranges(sk, bank.poses, rigs),
+                             np.full((4, 1), max(round(STEP_S * bank.fps), 1))], axis=1),
              MAX_SINK * sk.leg_length()))
 
 
@@ -466,7 +475,7 @@ class RenderKernels(NamedTuple):
 # interpreter, as the planner's (synth_core.compiled.plan_kernels.REFERENCE). Here at the end, so
 # every kernel of the module is in the scope it runs in.
 _HELPERS = (vars(foot_kernels), vars(pose_kernels), vars(limb_kernels), vars(vec_kernels),
-            vars(ground_kernels))
+            vars(ground_kernels), vars(replant_kernels))
 _PLAIN = {**interpreted(vars(foot_kernels), *_HELPERS[1:]), **interpreted(globals(), *_HELPERS)}
 REFERENCE = RenderKernels("numpy", *(_PLAIN.get(name, globals()[name])
                                      for name in ("_render_all", "_render_windows", "lock_contexts")))
