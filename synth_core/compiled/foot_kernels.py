@@ -57,7 +57,7 @@ def plant_targets(feet: Any, contacts: Any, out: Any, most: int, pins: Any, pinn
     needing more is out of reach), the first frame posed (earlier ones count as in reach), the
     path ``(T, 3)`` and the share of its height added to a foot's for the legs (on a terrain the
     feet's heights are over the body's ground: 1 / h; else 0), the body's yaw ``(T,)`` and root
-    ``(T, 3)`` (world) and the scale h.
+    ``(T, 3)`` (world), the scale h and whether to step at all (kernels.render_window's ``steps``).
 
     ``pins (4, 3)``, ``pinned (4,)``: foot f's plant through frame ``pinned[f]`` (if that is one
     of its planted frames) is at ``pins[f]`` over the ground, whatever its frames here average:
@@ -71,12 +71,12 @@ def plant_targets(feet: Any, contacts: Any, out: Any, most: int, pins: Any, pinn
     air = np.empty((feet.shape[0], 4), np.bool_)  # each foot off the ground (steps too, once made)
     for f in range(4):
         air[:, f] = ~contacts[:, f]
-    bends, legs, limit, posed, path, lift, yaw, root, h = body
+    bends, legs, limit, posed, path, lift, yaw, root, h, steps = body
     for f in range(4):
         out[:, f, :] = feet[:, f, :]
         down[:] = contacts[:, f]
         reach = (legs, bends[f], limit, posed, path, lift, yaw, root, 1.0 / h)
-        _plants(feet, down, f, out, most, pins[f], pinned[f], reach, air)
+        _plants(feet, down, f, out, most, pins[f], pinned[f], reach, air, steps)
         _swings(feet, down, contacts[:, f], out, f, most, STEP_HEIGHT * bends[f, 4])
         u = last
         while u >= 0 and not down[u]:
@@ -88,13 +88,13 @@ def plant_targets(feet: Any, contacts: Any, out: Any, most: int, pins: Any, pinn
 
 @_jit()
 def _plants(feet: Any, down: Any, f: int, out: Any, most: int, pin: Any, pinned: int, reach: Any,
-            air: Any) -> None:
+            air: Any, steps: bool) -> None:
     """Foot f's plants at their average positions over their first ``most`` frames at most; the
     one through frame ``pinned`` at ``pin`` over the ground; one the body carries out of reach,
     stepped (:func:`~synth_core.compiled.replant_kernels.replant`; ``reach``: plant_targets'
     legs, the foot's bends, limit, posed, path and its height's share, yaw, root and 1 / h).
     ``down (T,)``: its planted frames, those it lifts off early from unmarked; ``air (T, 4)``:
-    each foot's frames off the ground, its steps marked as they are made."""
+    each foot's frames off the ground, its steps marked as they are made; ``steps``: else none."""
     T = feet.shape[0]
     t = 0
     while t < T:
@@ -115,7 +115,7 @@ def _plants(feet: Any, down: Any, f: int, out: Any, most: int, pin: Any, pinned:
             x, z = pin[0], pin[2]
         for u in range(s, t):
             out[u, f, 0], out[u, f, 1], out[u, f, 2] = x, y, z
-        if reach[1][5] > 0 and strays(x, y, z, reach, f, s, max(s, reach[3]), t):
+        if steps and reach[1][5] > 0 and strays(x, y, z, reach, f, s, max(s, reach[3]), t):
             replant(feet, down, f, s, t, out, most, reach, s <= pinned < t, air)
 
 

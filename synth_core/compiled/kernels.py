@@ -89,7 +89,8 @@ def _character(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, yaw
                     world: Any, feet: Any, legs: Any, targets: Any, sink: Any, eased: Any,
                     keep_from: int, keep_to: int, known_feet: Any, known: int, recent: Any,
                     recent_known: bool, tilt: Any, tilt_at: int, heights: Any, ground_x0: float,
-                    ground_z0: float, spacing: float, plant_frames: int, pins: Any, pinned: Any) -> bool:
+                    ground_z0: float, spacing: float, plant_frames: int, pins: Any, pinned: Any,
+                    steps: bool) -> bool:
     """All four passes for one character (scratch arrays given). Only frames ``[keep_from, keep_to)``
     are wanted (a window over its foot lock's context): the legs' IK is solved for those alone.
 
@@ -100,7 +101,8 @@ def _character(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, yaw
     either. On return it holds the same of the PAD frames before ``keep_to``: True if it does.
     ``heights (Nz, Nx)``: the terrain (``(0, 0)``: none), grid origin, spacing; the body tilted by
     ``tilt[tilt_at + t]`` (``(T', 4)``) on frame t, its feet planted on the terrain (measure_feet).
-    ``plant_frames``: plant_targets' ``most``; short of all, with feet kept: its pins too."""
+    ``plant_frames``: plant_targets' ``most``; short of all, with feet kept: its pins too.
+    ``steps``: a plant the body carries out of reach is stepped (see :func:`render_window`)."""
     terrain = heights.shape[0] > 0
     T = out_rot.shape[0]
     if not foot_lock:
@@ -127,7 +129,7 @@ def _character(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, yaw
     if known_feet.shape[0] > 0:
         known_feet[a:] = feet[a:]
     last = -1 if plant_frames == WHOLE_PLANT or known_feet.shape[0] == 0 else keep_to - 1
-    body = (bends, legs, sink_limit, a, path, terrain / h, yaw, out_root, h)  # what a foot can reach
+    body = (bends, legs, sink_limit, a, path, terrain / h, yaw, out_root, h, steps)  # what a foot can reach
     plant_targets(feet, contacts, targets, plant_frames, pins, pinned, last, body)
     if terrain:
         ground_targets(targets, contacts, heights, ground_x0, ground_z0, spacing, h, sink)
@@ -172,7 +174,7 @@ def _render_all(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, ya
                        contacts[c], parents, offsets, fk_joints, rigs, bends, sink_limit, foot_lock,
                        out_rot[c], out_root[c], world, feet, legs, targets, sink, eased, 0,
                        out_rot.shape[1], none_known, 0, recent, False, own_tilt, 0, heights, ground_x0,
-                       ground_z0, spacing, WHOLE_PLANT, no_pins, unpinned)
+                       ground_z0, spacing, WHOLE_PLANT, no_pins, unpinned, True)
 
 
 @_jit(parallel=True)
@@ -182,7 +184,7 @@ def _render_windows(poses: Any, height: Any, surge: Any, rows: Any, weights: Any
                     begin: Any, end: Any, start: int, out_rot: Any, out_root: Any, tilt: Any, heights: Any,
                     ground_x0: float, ground_z0: float, spacing: float, pose: Any, known_feet: Any,
                     known: Any, known_legs: Any, legs_at: Any, pins: Any, pinned: Any, plant_frames: int,
-                    c0: int, c1: int) -> None:
+                    steps: bool, c0: int, c1: int) -> None:
     """Frames ``[start, start + out.shape[1])`` of characters ``[c0, c1)``, each rendered over
     its own context ``[begin[c], end[c])`` of the plan (see :func:`render_window`);
     ``known_feet (T, C, 4, 3)`` (or none: ``(0, C, 4, 3)``), ``known``, ``known_legs``,
@@ -226,7 +228,7 @@ def _render_windows(poses: Any, height: Any, surge: Any, rows: Any, weights: Any
                               bends, sink_limit, foot_lock, rot[:k], root[:k], world, feet[:k],
                               legs[:k], targets[:k], sink[:k], eased[:k], start - b, start - b + n,
                               known_feet[b:e, c], kn, own_legs, recent_known, own_tilt, b, heights,
-                              ground_x0, ground_z0, spacing, plant_frames, pins[c], pinned[c])
+                              ground_x0, ground_z0, spacing, plant_frames, pins[c], pinned[c], steps)
             pinned[c] += b
             out_rot[c] = rot[start - b:start - b + n]
             out_root[c] = root[start - b:start - b + n]
@@ -368,7 +370,7 @@ def render_window(bank: Bank, plan: Plan, start: int, stop: int, begin: NDArray[
                   out: NDArray[np.float32] | None = None,
                   share: Callable[[list[Callable[[], None]]], None] | None = None,
                   ground: Grounding | None = None, pose: NDArray[np.bool_] | None = None,
-                  compiled: bool = True, plant_frames: int | None = None
+                  compiled: bool = True, plant_frames: int | None = None, steps: bool = True
                   ) -> tuple[NDArray[np.float32], NDArray[np.float32]]:
     """Root ``(C, stop - start, 3)`` and rotations of frames ``[start, stop)`` only, each
     character rendered over its context ``[begin, end)`` of ``plan`` (from
@@ -396,6 +398,12 @@ def render_window(bank: Bank, plan: Plan, start: int, stop: int, begin: NDArray[
     a live session sends of a plant before its end is planned then stays where it was sent (by
     ``known``'s pins, :class:`Posed`, once its first frames have left the context).
 
+    ``steps``: a plant the body carries out of its leg's reach is stepped
+    (:func:`~synth_core.compiled.replant_kernels.replant`), as :func:`render` does: for a plan
+    whose contexts hold its plants whole (a batch's windows). A live session's do not (a plant
+    runs on past what is planned) and what it has sent stays sent, so where a plant is split
+    would be decided anew each window: False (each plant held whole, as sent).
+
     ``compiled``: else the reference (:data:`REFERENCE`, one thread)."""
     kernels = COMPILED if compiled else REFERENCE
     C = plan.yaw.shape[0]
@@ -416,7 +424,8 @@ def render_window(bank: Bank, plan: Plan, start: int, stop: int, begin: NDArray[
             np.asarray(end, np.int64) - cb, start - cb, out_rot, out_root,
             *_terrain_arrays(None if ground is None else ground.window(cb, ce)), pose,
             posed.feet[cb:ce] if known is not None else posed.feet, posed.frames, posed.legs, posed.legs_at,
-            posed.pins, posed.pinned, WHOLE_PLANT if plant_frames is None else max(int(plant_frames), 1))
+            posed.pins, posed.pinned, WHOLE_PLANT if plant_frames is None else max(int(plant_frames), 1),
+            steps)
     try:
         _run_windows(kernels, args, C, share)
     finally:

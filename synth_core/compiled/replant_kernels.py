@@ -48,7 +48,7 @@ def no_steps(T: int) -> tuple[Any, ...]:
     """plant_targets' ``body`` for ``T`` frames where no plant is stepped (its targets the
     plants' averages alone): no step frames, legs never out of reach."""
     return (np.zeros((4, 6)), np.zeros((T, 4, LEG_WIDTH)), np.inf, 0, np.zeros((T, 3)), 0.0, np.zeros(T),
-            np.zeros((T, 3)), 1.0)
+            np.zeros((T, 3)), 1.0, False)
 
 
 @_jit()
