@@ -220,9 +220,11 @@ def test_a_path_moving_at_frame_0_starts_in_its_gait_not_from_standing() -> None
     sc = edge.scenarios(gaits, FPS, 0, ["moving_start"])[0]
     result = synthesize(bank, sc.positions, FPS, scales=sc.scales, options=Options(seed=0))
     assert result.gait[:, 0].tolist() == [1, 2, 3, 4]  # walk, trot, canter, gallop at once
-    figures = evaluate.edge_figures(bank, result, sc.reference, sc.positions.shape[1], library_reference(bank))
+    F = sc.positions.shape[1]
+    figures = evaluate.edge_figures(bank, result, sc.reference, F, library_reference(bank))
     for name in ("glide_ratio", "jump_cm_max", "walk_support_share", "limb_flips"):
         assert evaluate.passes(name, figures[name]), (name, figures[name])
     standing = edge.scenarios(gaits, FPS, 0, ["cruise_straight"])[0]
-    still = synthesize(bank, standing.positions[:, :120], FPS, scales=standing.scales, options=Options(seed=0))
+    still = synthesize(bank, standing.positions[:, :120], FPS, scales=standing.scales,
+                       options=Options(seed=0))
     assert (still.gait[:, 0] == 0).all()
