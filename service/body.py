@@ -79,7 +79,7 @@ SEND_SLICE = 1024 * 1024  # bytes handed to the server per send: what a stalled 
 
 class PiecesResponse(StreamingResponse):
     """A 200 answer of a known ``length`` (None: sent chunked) piece by piece as ``pieces``
-    yields them (``whole()`` once they all came);
+    yields them (``whole()``: they all came -- ``length`` bytes, or the producer's end);
     ``sent(n)`` is told of each piece once it has left (:class:`service.pipe.Pipe`'s room).
 
     Each piece goes to the server in slices of ``SEND_SLICE`` bytes: the server's ``send``
@@ -96,7 +96,7 @@ class PiecesResponse(StreamingResponse):
                  close: Callable[[bool], Awaitable[None]], sent: Callable[[int], None],
                  send_timeout_s: float, whole: Callable[[], bool]) -> None:
         super().__init__(pieces, 200, {} if length is None else {"content-length": str(length)}, media_type)
-        self.pieces, self.length, self.close = pieces, length, close
+        self.pieces, self.close = pieces, close
         self.sent, self.send_timeout_s, self.whole = sent, send_timeout_s, whole
 
     async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
@@ -105,7 +105,6 @@ class PiecesResponse(StreamingResponse):
                 pass
 
         gone = asyncio.ensure_future(disconnected())
-        total = 0
         try:
             async with asyncio.timeout(self.send_timeout_s):
                 await send({"type": "http.response.start", "status": self.status_code,
@@ -118,16 +117,12 @@ class PiecesResponse(StreamingResponse):
                     async with asyncio.timeout(self.send_timeout_s):
                         await send({"type": "http.response.body", "body": view[start:start + SEND_SLICE],
                                     "more_body": True})
-                total += len(view)
                 self.sent(len(view))
-            if self.complete(total) and not gone.done():
+            if self.whole() and not gone.done():
                 await send({"type": "http.response.body", "body": b"", "more_body": False})
         except TimeoutError:
             log.warning("answer cut short: the client took nothing for %g s (send_timeout_s)",
                         self.send_timeout_s)
         finally:
             gone.cancel()
-            await self.close(self.complete(total) and not gone.done())
-
-    def complete(self, total: int) -> bool:
-        return self.whole() and (self.length is None or total == self.length)
+            await self.close(self.whole() and not gone.done())
