@@ -72,6 +72,32 @@ def test_live_frames_are_the_batch_plans_frames(bank: Bank, herd: np.ndarray) ->
     assert len(set(gait.ravel().tolist())) == 5  # standing and every gait: the test covers them
 
 
+def test_a_ticks_kernels_run_on_the_calling_thread_alone(bank: Bank, herd: np.ndarray,
+                                                         monkeypatch: pytest.MonkeyPatch) -> None:
+    """A tick's kernels are small: fanned out to every core, each would wait for the slowest
+    thread, on a busy machine a scheduler slice per call (render_pool.one_thread). The
+    caller's own setting is back after every call."""
+    numba = pytest.importorskip("numba")
+    if numba.config.NUMBA_NUM_THREADS < 2:
+        pytest.skip("one thread here: nothing to show")
+    from synth_core.compiled import kernels
+    from synth_core.runtime import live as live_module
+
+    seen: list[int] = []
+    render = kernels.render_window
+
+    def spy(*args: object, **kwargs: object) -> tuple[np.ndarray, np.ndarray]:
+        seen.append(numba.get_num_threads())
+        return render(*args, **kwargs)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(live_module.kernels, "render_window", spy)
+    numba.set_num_threads(2)
+    live = LiveSynth(bank, 3, 60.0, seed=1)
+    feed(live, herd[:3, :200])
+    assert seen and set(seen) == {1}
+    assert numba.get_num_threads() == 2
+
+
 def test_points_at_30_fps_come_back_at_30_fps(bank: Bank) -> None:
     herd = crowd.simulate(8, 400, seed=4, fps=30.0)
     batch = synthesize(bank, herd, 30.0, options=Options(seed=1, foot_lock=False))

@@ -109,3 +109,14 @@ def test_shared_raises_a_parts_error_after_the_others_ended() -> None:
     count = len(ended)
     time.sleep(0.1)
     assert len(ended) == count  # none was still running when it raised
+
+
+def test_one_thread_holds_inside_and_restores_after_even_on_an_error() -> None:
+    numba = pytest.importorskip("numba")
+    before = numba.get_num_threads()
+    with render_pool.one_thread():
+        assert numba.get_num_threads() == 1
+    assert numba.get_num_threads() == before
+    with pytest.raises(RuntimeError), render_pool.one_thread():
+        raise RuntimeError("a kernel failed")
+    assert numba.get_num_threads() == before

@@ -10,6 +10,7 @@ kernels release the GIL).
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import os
 from collections import deque
@@ -31,6 +32,31 @@ def _one_render_thread() -> None:
         import numba
 
         numba.set_num_threads(1)  # per thread: other threads keep every core
+
+
+@contextlib.contextmanager
+def one_thread() -> Iterator[None]:
+    """The kernels called inside run on the calling thread alone (numba's setting is the
+    thread's own), as before after.
+
+    For work cut small, as a live tick's (a few frames of a session's characters): a kernel
+    fanned out to every core ends by waiting for the slowest of its threads, and on a busy
+    machine (other sessions, the service's packing, another process) that one waits for a
+    scheduler slice at every kernel call -- the low-latency edge suite, a tick at a time, went
+    from half a minute to over five with three other busy processes on the two cores, against
+    a minute and a quarter on one thread. Such work gets its cores from side-by-side parts
+    instead: a session's shards, the service's sessions."""
+    if not kernels.AVAILABLE:
+        yield
+        return
+    import numba
+
+    before = numba.get_num_threads()
+    numba.set_num_threads(1)
+    try:
+        yield
+    finally:
+        numba.set_num_threads(before)
 
 
 def size() -> int:

@@ -121,6 +121,9 @@ class LiveSynth(LivePath):
     ``share_render``: each window's render is cut into parts that idle render-pool threads may
     take (:func:`synth_core.compiled.render_pool.shared`): for a session cut into shards, each advanced
     by a pool thread (see :mod:`synth_core.runtime.live_shards`).
+
+    A call's kernels run on the calling thread alone (:func:`synth_core.compiled.render_pool.one_thread`:
+    a tick's are small); a session's characters reach every core as shards instead.
     """
 
     # The session's options are keywords that callers pass through (service, live_shards, tests).
@@ -282,6 +285,7 @@ class LiveSynth(LivePath):
         of the points (the exact mode's frames are the batch's: it only checks it)."""
         return self.append_checked(self.check(points, velocity), frames)
 
+    @render_pool.one_thread()  # a tick's kernels are small: see one_thread
     def append_checked(self, arr: Floats, frames: int | None = None) -> Window | None:
         """:meth:`append` of points :meth:`check` returned (not checked again)."""
         self.inputs = np.concatenate([self.inputs, arr], axis=1)
@@ -313,6 +317,7 @@ class LiveSynth(LivePath):
                                   f"got shape {arr.shape}")
         self.pose = arr.copy()
 
+    @render_pool.one_thread()  # a tick's kernels are small: see one_thread
     def take(self, frames: int | None = None) -> Window | None:
         """The next frames settled and not yet given, at most ``frames`` of them (None: all);
         None when there are none."""
@@ -325,6 +330,7 @@ class LiveSynth(LivePath):
         self.rendered = stop
         return self._emit(start, stop)
 
+    @render_pool.one_thread()  # a tick's kernels are small: see one_thread
     def finish(self, frames: int | None = None) -> Window | None:
         """The trajectories end with the points given: the rest of the frames (at most
         ``frames`` of them, the rest left for :meth:`take`: the rest of a 10,000-horse session,
