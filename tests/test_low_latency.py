@@ -106,7 +106,7 @@ def _targets(feet: np.ndarray, contacts: np.ndarray, most: int, compiled: bool =
     out = np.empty(feet.shape)
     pins = np.zeros((4, 3)) if pins is None else pins
     pinned = np.full(4, foot_kernels.NOWHERE) if pinned is None else pinned
-    run(feet, contacts, out, most, pins, pinned, last)
+    run(feet, contacts, out, most, pins, pinned, last, foot_kernels.no_steps(len(feet)))
     return out
 
 

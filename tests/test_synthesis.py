@@ -107,7 +107,7 @@ def test_plant_targets_hold_each_plant_in_one_place() -> None:
     targets = np.empty_like(feet)
     for c in range(2):
         foot_kernels.plant_targets(feet[c], contacts[c], targets[c], kernels.WHOLE_PLANT, np.zeros((4, 3)),
-                                   np.full(4, foot_kernels.NOWHERE), -1)
+                                   np.full(4, foot_kernels.NOWHERE), -1, foot_kernels.no_steps(60))
     for a, b in ((10, 25), (40, 55)):
         assert np.allclose(targets[:, a:b], feet[:, a:b].mean(axis=1, keepdims=True))
     # Swings: no jump where a plant starts or ends (over the ground).

@@ -19,20 +19,45 @@ from synth_core.compiled.ground_kernels import ground_at
 from synth_core.compiled.jit import render_jit
 from synth_core.compiled.limb_kernels import unit4, world_position
 from synth_core.compiled.pose_kernels import lean_tilt
+from synth_core.compiled.replant_kernels import (
+    LEG_REACH,
+    LEG_THIGH,
+    LEG_TOE,
+    LEG_UP,
+    from_hip,
+    replant,
+    sink_within,
+    step_over,
+    strays,
+)
+from synth_core.compiled.replant_kernels import LEG_WIDTH as LEG_WIDTH  # (callers ask foot_kernels)
+from synth_core.compiled.replant_kernels import NOWHERE as NOWHERE
+from synth_core.compiled.replant_kernels import no_steps as no_steps
 from synth_core.compiled.vec_kernels import conj, norm3, q4, qmul, qrot, v3, vadd, vscale, vsub
-from synth_core.runtime.footlock import EASE_FRAMES, LONGEST_OVER, REACH
+from synth_core.runtime.footlock import EASE_FRAMES, LONGEST_OVER, REACH, STEP_HEIGHT
 
 _jit = render_jit
 
 
 @_jit()
-def plant_targets(feet: Any, contacts: Any, out: Any, most: int, pins: Any, pinned: Any, last: int) -> None:
+def plant_targets(feet: Any, contacts: Any, out: Any, most: int, pins: Any, pinned: Any, last: int,
+                  body: Any) -> None:
     """Foot targets ``out (T, 4, 3)`` of one character from its feet ``(T, 4, 3)`` and ``contacts
     (T, 4)``: each plant at the foot's average over it; a swinging foot on its own path plus a
     correction eased (smoothstep) from the one its last plant needed at lift-off to the one its
     next plant needs at touchdown, over the ground only (x and z: swing heights are the clip's).
     ``most``: a plant's position averages its first so many frames at most (and, ``most`` < T, a
     swing before no plant eases its correction out as there).
+
+    A plant the body's turn carries out of its leg's reach (a body turning on the spot over a
+    standing foot: :func:`~synth_core.compiled.replant_kernels.replant`) is stepped instead: split
+    into plants each within reach, the foot lifted between them. ``body``: ``bends (4, 6)`` (per
+    leg its longest reach, column 4, the unit's, and a step's frames, column 5: 0, no steps),
+    ``legs (T, 4, LEG_WIDTH)`` (what the sink reads of each leg), the sink's bound (a target
+    needing more is out of reach), the first frame posed (earlier ones count as in reach), the
+    path ``(T, 3)`` and the share of its height added to a foot's for the legs (on a terrain the
+    feet's heights are over the body's ground: 1 / h; else 0), the body's yaw ``(T,)`` and root
+    ``(T, 3)`` (world), the scale h and whether to step at all (kernels.render_window's ``steps``).
 
     ``pins (4, 3)``, ``pinned (4,)``: foot f's plant through frame ``pinned[f]`` (if that is one
     of its planted frames) is at ``pins[f]`` over the ground, whatever its frames here average:
@@ -42,14 +67,19 @@ def plant_targets(feet: Any, contacts: Any, out: Any, most: int, pins: Any, pinn
     pinned it would hover the whole stand. Then, for
     ``last`` >= 0, the same of each foot's last plant up to frame ``last``: the one it is in, or
     the one before its swing (whose lift-off correction the swing eases out)."""
-    T = feet.shape[0]
-    avg = np.empty((T, 3))  # per plant, indexed by its first frame
+    down = np.empty(feet.shape[0], np.bool_)
+    air = np.empty((feet.shape[0], 4), np.bool_)  # each foot off the ground (steps too, once made)
+    for f in range(4):
+        air[:, f] = ~contacts[:, f]
+    bends, legs, limit, posed, path, lift, yaw, root, h, steps = body
     for f in range(4):
         out[:, f, :] = feet[:, f, :]
-        _plants(feet, contacts, f, avg, out, most, pins[f], pinned[f])
-        _swings(feet, contacts, f, avg, out, most)
+        down[:] = contacts[:, f]
+        reach = (legs, bends[f], limit, posed, path, lift, yaw, root, 1.0 / h)
+        _plants(feet, down, f, out, most, pins[f], pinned[f], reach, air, steps)
+        _swings(feet, down, contacts[:, f], out, f, most, STEP_HEIGHT * bends[f, 4])
         u = last
-        while u >= 0 and not contacts[u, f]:
+        while u >= 0 and not down[u]:
             u -= 1
         if u >= 0:
             pins[f, :] = out[u, f, :]
@@ -57,18 +87,22 @@ def plant_targets(feet: Any, contacts: Any, out: Any, most: int, pins: Any, pinn
 
 
 @_jit()
-def _plants(feet: Any, contacts: Any, f: int, avg: Any, out: Any, most: int, pin: Any, pinned: int) -> None:
-    """Foot f's plants at their average positions over their first ``most`` frames at most (also
-    into ``avg``, at each plant's first frame); the one through frame ``pinned`` at ``pin`` over
-    the ground."""
+def _plants(feet: Any, down: Any, f: int, out: Any, most: int, pin: Any, pinned: int, reach: Any,
+            air: Any, steps: bool) -> None:
+    """Foot f's plants at their average positions over their first ``most`` frames at most; the
+    one through frame ``pinned`` at ``pin`` over the ground; one the body carries out of reach,
+    stepped (:func:`~synth_core.compiled.replant_kernels.replant`; ``reach``: plant_targets'
+    legs, the foot's bends, limit, posed, path and its height's share, yaw, root and 1 / h).
+    ``down (T,)``: its planted frames, those it lifts off early from unmarked; ``air (T, 4)``:
+    each foot's frames off the ground, its steps marked as they are made; ``steps``: else none."""
     T = feet.shape[0]
     t = 0
     while t < T:
-        if not contacts[t, f]:
+        if not down[t]:
             t += 1
             continue
         s = t
-        while t < T and contacts[t, f]:
+        while t < T and down[t]:
             t += 1
         n = min(t - s, most)
         acc0 = acc1 = acc2 = 0.0
@@ -76,43 +110,52 @@ def _plants(feet: Any, contacts: Any, f: int, avg: Any, out: Any, most: int, pin
             acc0 += feet[u, f, 0]
             acc1 += feet[u, f, 1]
             acc2 += feet[u, f, 2]
-        avg[s, 0], avg[s, 1], avg[s, 2] = acc0 / n, acc1 / n, acc2 / n
+        x, y, z = acc0 / n, acc1 / n, acc2 / n
         if s <= pinned < t:
-            avg[s, 0], avg[s, 2] = pin[0], pin[2]
+            x, z = pin[0], pin[2]
         for u in range(s, t):
-            out[u, f, 0], out[u, f, 1], out[u, f, 2] = avg[s, 0], avg[s, 1], avg[s, 2]
+            out[u, f, 0], out[u, f, 1], out[u, f, 2] = x, y, z
+        if steps and reach[1][5] > 0 and strays(x, y, z, reach, f, s, max(s, reach[3]), t):
+            replant(feet, down, f, s, t, out, most, reach, s <= pinned < t, air)
 
 
 @_jit()
-def _swings(feet: Any, contacts: Any, f: int, avg: Any, out: Any, most: int) -> None:
-    """Foot f's swings: eased from the last plant's lift-off correction to the next one's
-    touchdown one (``avg``: the plants' averages, by :func:`_plants`)."""
+def _swings(feet: Any, down: Any, planted: Any, out: Any, f: int, most: int, height: float) -> None:
+    """Foot f's swings (``down (T,)``: its planted frames): eased from the last plant's lift-off
+    correction to the next one's touchdown one (``out``: the plants' targets, by :func:`_plants`).
+    A swing a plant lifted off early into (its first frame ``planted``, as the clip has it: see
+    replant_kernels.replant) is a step instead, ``height`` high, from the one plant to the next:
+    the clip's own swing, a few frames of it at the plant's end, moved a foot the body had carried
+    far 20-40 cm a frame (replant_kernels.step_over)."""
     T = feet.shape[0]
     t = 0
     last_start = -1
     last_end = -1
     while t < T:
-        if contacts[t, f]:
-            if t == 0 or not contacts[t - 1, f]:
+        if down[t]:
+            if t == 0 or not down[t - 1]:
                 last_start = t
-            if t == T - 1 or not contacts[t + 1, f]:
+            if t == T - 1 or not down[t + 1]:
                 last_end = t
             t += 1
             continue
         s = t
-        while t < T and not contacts[t, f]:
+        while t < T and not down[t]:
             t += 1
         has_before = last_start >= 0
         has_after = t < T
         if not (has_before or has_after):
+            continue
+        if planted[s] and has_before and has_after:  # lifted off early: one step to the next plant
+            step_over(out, f, s, t, height)
             continue
         for u in range(s, t):
             x = _eased(u, last_start, last_end, t, has_before, has_after, most < T)
             for k in range(3):
                 if k == 1:
                     continue
-                lift = avg[last_start, k] - feet[last_end, f, k] if has_before else 0.0
-                touch = avg[t, k] - feet[t, f, k] if has_after else 0.0
+                lift = out[last_end, f, k] - feet[last_end, f, k] if has_before else 0.0
+                touch = out[t, f, k] - feet[t, f, k] if has_after else 0.0
                 out[u, f, k] = feet[u, f, k] + (1 - x) * lift + x * touch
 
 
@@ -156,15 +199,6 @@ def ease_sink(sink: Any, limit: float, out: Any) -> None:
         for i in range(-radius, radius + 1):
             acc += kernel[i + radius] * spread[min(max(t + i, 0), T - 1)]
         out[t] = acc / total
-
-
-# What the sink of a frame reads of its pose, per foot (see ``kernels._character``): the ankle-to-toe
-# vector, the upper joint's position, the leg's reach (thigh and shin) and its thigh (fold_room). A
-# live window keeps them for its last PAD frames, whose sink the next window's first frames read:
-# those are then not posed again.
-LEG_TOE, LEG_UP, LEG_REACH, LEG_THIGH = 0, 3, 6, 7
-LEG_WIDTH = 8
-NOWHERE = -(1 << 62)  # Posed.legs_at of a character whose last window kept no legs
 
 
 @_jit()
@@ -299,21 +333,6 @@ def measure_feet(world: Any, out_root: Any, yaw: Any, lean: Any, path: Any, tilt
 
 
 @_jit(inline="always")
-def _from_hip(target: Any, leg: Any) -> tuple[float, float]:
-    """A foot's target from its leg's upper joint, the ankle-to-toe vector taken off: its height
-    (up) and its squared distance across the ground."""
-    to_ankle = vsub(vsub(v3(target), v3(leg[LEG_TOE:])), v3(leg[LEG_UP:]))
-    return to_ankle[1], to_ankle[0] ** 2 + to_ankle[2] ** 2
-
-
-@_jit(inline="always")
-def _sink_within(up: float, across2: float, allowed: float) -> float:
-    """How far the root must come down for a leg to reach a target ``up`` above its upper joint
-    and ``sqrt(across2)`` across within ``allowed`` (reach_sink's and fold_room's rule)."""
-    return -up - math.sqrt(max(allowed * allowed - across2, 0.0))
-
-
-@_jit(inline="always")
 def reach_sink(targets: Any, legs: Any, bends: Any, path: Any, h: float, terrain: bool, s: int, T: int,
                sink: Any) -> None:
     """Pass 3's sink of frames ``[s, T)``: how far the root must come down for the leg furthest
@@ -326,9 +345,9 @@ def reach_sink(targets: Any, legs: Any, bends: Any, path: Any, h: float, terrain
         for f in range(4):
             if not terrain and targets[t, f, 1] < floor:
                 targets[t, f, 1] = floor
-            up, across2 = _from_hip(targets[t, f], legs[t, f])
+            up, across2 = from_hip(targets[t, f], legs[t, f])
             allowed = min(REACH * legs[t, f, LEG_REACH], (1.0 + LONGEST_OVER) * bends[f, 4])
-            worst = max(worst, _sink_within(up, across2, allowed))
+            worst = max(worst, sink_within(up, across2, allowed))
         sink[t] = worst
 
 
@@ -353,8 +372,8 @@ def fold_room(targets: Any, legs: Any, bends: Any, limit: float, s: int, T: int,
         room, need = np.inf, -np.inf
         for f in range(4):
             leg = legs[t, f]
-            up, across2 = _from_hip(targets[t, f], leg)
-            need = max(need, _sink_within(up, across2, min(REACH * leg[LEG_REACH], bends[f, 4])))
+            up, across2 = from_hip(targets[t, f], leg)
+            need = max(need, sink_within(up, across2, min(REACH * leg[LEG_REACH], bends[f, 4])))
             thigh, shin = leg[LEG_THIGH], leg[LEG_REACH] - leg[LEG_THIGH]
             gap2 = thigh * thigh + shin * shin + 2.0 * thigh * shin * bends[f, 3] - across2
             if gap2 > 0.0:  # folded that far, the hip is sqrt(gap2) above the target; sunk by s,

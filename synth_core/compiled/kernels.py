@@ -35,7 +35,14 @@ from numpy.typing import NDArray
 
 from synth_core import UP_AXIS
 from synth_core.build.ik import leg_ranges, limb_rigs
-from synth_core.compiled import foot_kernels, ground_kernels, limb_kernels, pose_kernels, vec_kernels
+from synth_core.compiled import (
+    foot_kernels,
+    ground_kernels,
+    limb_kernels,
+    pose_kernels,
+    replant_kernels,
+    vec_kernels,
+)
 from synth_core.compiled.foot_kernels import (
     LEG_WIDTH,
     NOWHERE,
@@ -57,7 +64,7 @@ from synth_core.compiled.vec_kernels import (
     q4,
     qmul,
 )
-from synth_core.runtime.footlock import MAX_SINK, PAD, TERRAIN_MAX_SINK
+from synth_core.runtime.footlock import MAX_SINK, PAD, STEP_S, TERRAIN_MAX_SINK
 
 if TYPE_CHECKING:
     from synth_core.runtime.bank import Bank
@@ -82,7 +89,8 @@ def _character(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, yaw
                     world: Any, feet: Any, legs: Any, targets: Any, sink: Any, eased: Any,
                     keep_from: int, keep_to: int, known_feet: Any, known: int, recent: Any,
                     recent_known: bool, tilt: Any, tilt_at: int, heights: Any, ground_x0: float,
-                    ground_z0: float, spacing: float, plant_frames: int, pins: Any, pinned: Any) -> bool:
+                    ground_z0: float, spacing: float, plant_frames: int, pins: Any, pinned: Any,
+                    steps: bool) -> bool:
     """All four passes for one character (scratch arrays given). Only frames ``[keep_from, keep_to)``
     are wanted (a window over its foot lock's context): the legs' IK is solved for those alone.
 
@@ -91,10 +99,10 @@ def _character(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, yaw
     array: none kept). ``recent (PAD, 4, LEG_WIDTH)``: what the sink reads of the PAD frames
     before ``keep_from``, if ``recent_known`` (then ``known >= keep_from``): those are not posed
     either. On return it holds the same of the PAD frames before ``keep_to``: True if it does.
-
     ``heights (Nz, Nx)``: the terrain (``(0, 0)``: none), grid origin, spacing; the body tilted by
     ``tilt[tilt_at + t]`` (``(T', 4)``) on frame t, its feet planted on the terrain (measure_feet).
-    ``plant_frames``: plant_targets' ``most``; short of all, with feet kept: its pins too."""
+    ``plant_frames``: plant_targets' ``most``; short of all, with feet kept: its pins too.
+    ``steps``: a plant the body carries out of reach is stepped (see :func:`render_window`)."""
     terrain = heights.shape[0] > 0
     T = out_rot.shape[0]
     if not foot_lock:
@@ -120,8 +128,9 @@ def _character(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, yaw
     measure_feet(world, out_root, yaw, lean, path, tilt, tilt_at, terrain, rigs, h, a, T, o, feet, legs)
     if known_feet.shape[0] > 0:
         known_feet[a:] = feet[a:]
-    plant_targets(feet, contacts, targets, plant_frames, pins, pinned,
-                  keep_to - 1 if plant_frames < WHOLE_PLANT and known_feet.shape[0] > 0 else -1)
+    last = -1 if plant_frames == WHOLE_PLANT or known_feet.shape[0] == 0 else keep_to - 1
+    body = (bends, legs, sink_limit, a, path, terrain / h, yaw, out_root, h, steps)  # what a foot can reach
+    plant_targets(feet, contacts, targets, plant_frames, pins, pinned, last, body)
     if terrain:
         ground_targets(targets, contacts, heights, ground_x0, ground_z0, spacing, h, sink)
     reach_sink(targets, legs, bends, path, h, terrain, s, T, sink)
@@ -165,7 +174,7 @@ def _render_all(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, ya
                        contacts[c], parents, offsets, fk_joints, rigs, bends, sink_limit, foot_lock,
                        out_rot[c], out_root[c], world, feet, legs, targets, sink, eased, 0,
                        out_rot.shape[1], none_known, 0, recent, False, own_tilt, 0, heights, ground_x0,
-                       ground_z0, spacing, WHOLE_PLANT, no_pins, unpinned)
+                       ground_z0, spacing, WHOLE_PLANT, no_pins, unpinned, True)
 
 
 @_jit(parallel=True)
@@ -175,7 +184,7 @@ def _render_windows(poses: Any, height: Any, surge: Any, rows: Any, weights: Any
                     begin: Any, end: Any, start: int, out_rot: Any, out_root: Any, tilt: Any, heights: Any,
                     ground_x0: float, ground_z0: float, spacing: float, pose: Any, known_feet: Any,
                     known: Any, known_legs: Any, legs_at: Any, pins: Any, pinned: Any, plant_frames: int,
-                    c0: int, c1: int) -> None:
+                    steps: bool, c0: int, c1: int) -> None:
     """Frames ``[start, start + out.shape[1])`` of characters ``[c0, c1)``, each rendered over
     its own context ``[begin[c], end[c])`` of the plan (see :func:`render_window`);
     ``known_feet (T, C, 4, 3)`` (or none: ``(0, C, 4, 3)``), ``known``, ``known_legs``,
@@ -219,7 +228,7 @@ def _render_windows(poses: Any, height: Any, surge: Any, rows: Any, weights: Any
                               bends, sink_limit, foot_lock, rot[:k], root[:k], world, feet[:k],
                               legs[:k], targets[:k], sink[:k], eased[:k], start - b, start - b + n,
                               known_feet[b:e, c], kn, own_legs, recent_known, own_tilt, b, heights,
-                              ground_x0, ground_z0, spacing, plant_frames, pins[c], pinned[c])
+                              ground_x0, ground_z0, spacing, plant_frames, pins[c], pinned[c], steps)
             pinned[c] += b
             out_rot[c] = rot[start - b:start - b + n]
             out_root[c] = root[start - b:start - b + n]
@@ -269,8 +278,9 @@ def _bank_tables(bank: Bank) -> tuple[tuple[Any, Any, Any], tuple[Any, Any, Any,
     """The bank's arrays as the kernels take them (made once per bank: a small batch's call
     would otherwise spend a third of its time here): (pose table, heights, surges) and (parents,
     offsets, the joints above the feet (FK needs no others), the legs' rig table, bend axes and
-    ranges (``(4, 5)``: the axis for limb_kernels.solve_legs, the furthest fold's cosine and the
-    longest reach (ik.leg_ranges) for the sink and the IK's reach), the sink limit)."""
+    ranges (``(4, 6)``: the axis for limb_kernels.solve_legs, the furthest fold's cosine and the
+    longest reach (ik.leg_ranges) for the sink and the IK's reach, the frames of a step replanting a
+    foot the body carries out of reach: foot_kernels._replant), the sink limit)."""
     sk = bank.skeleton
     rigs = limb_rigs(sk)
     rig_table = np.array([[r.upper, r.hinge, r.ankle, r.effector] for r in rigs], np.int64)
@@ -284,7 +294,8 @@ def _bank_tables(bank: Bank) -> tuple[tuple[Any, Any, Any], tuple[Any, Any, Any,
     return ((poses, bank.height.astype(np.float64), bank.surge.astype(np.float64)),
             (sk.parents.astype(np.int64), sk.offsets.astype(np.float64),
              np.flatnonzero(needed).astype(np.int64), rig_table,
-             np.concatenate([bank.bends, leg_ranges(sk, bank.poses, rigs)], axis=1),
+             np.concatenate([bank.bends, leg_ranges(sk, bank.poses, rigs),
+                             np.full((4, 1), max(round(STEP_S * bank.fps), 1))], axis=1),
              MAX_SINK * sk.leg_length()))
 
 
@@ -359,7 +370,7 @@ def render_window(bank: Bank, plan: Plan, start: int, stop: int, begin: NDArray[
                   out: NDArray[np.float32] | None = None,
                   share: Callable[[list[Callable[[], None]]], None] | None = None,
                   ground: Grounding | None = None, pose: NDArray[np.bool_] | None = None,
-                  compiled: bool = True, plant_frames: int | None = None
+                  compiled: bool = True, plant_frames: int | None = None, steps: bool = True
                   ) -> tuple[NDArray[np.float32], NDArray[np.float32]]:
     """Root ``(C, stop - start, 3)`` and rotations of frames ``[start, stop)`` only, each
     character rendered over its context ``[begin, end)`` of ``plan`` (from
@@ -387,6 +398,12 @@ def render_window(bank: Bank, plan: Plan, start: int, stop: int, begin: NDArray[
     a live session sends of a plant before its end is planned then stays where it was sent (by
     ``known``'s pins, :class:`Posed`, once its first frames have left the context).
 
+    ``steps``: a plant the body carries out of its leg's reach is stepped
+    (:func:`~synth_core.compiled.replant_kernels.replant`), as :func:`render` does: for a plan
+    whose contexts hold its plants whole (a batch's windows). A live session's do not (a plant
+    runs on past what is planned) and what it has sent stays sent, so where a plant is split
+    would be decided anew each window: False (each plant held whole, as sent).
+
     ``compiled``: else the reference (:data:`REFERENCE`, one thread)."""
     kernels = COMPILED if compiled else REFERENCE
     C = plan.yaw.shape[0]
@@ -407,7 +424,8 @@ def render_window(bank: Bank, plan: Plan, start: int, stop: int, begin: NDArray[
             np.asarray(end, np.int64) - cb, start - cb, out_rot, out_root,
             *_terrain_arrays(None if ground is None else ground.window(cb, ce)), pose,
             posed.feet[cb:ce] if known is not None else posed.feet, posed.frames, posed.legs, posed.legs_at,
-            posed.pins, posed.pinned, WHOLE_PLANT if plant_frames is None else max(int(plant_frames), 1))
+            posed.pins, posed.pinned, WHOLE_PLANT if plant_frames is None else max(int(plant_frames), 1),
+            steps)
     try:
         _run_windows(kernels, args, C, share)
     finally:
@@ -466,7 +484,7 @@ class RenderKernels(NamedTuple):
 # interpreter, as the planner's (synth_core.compiled.plan_kernels.REFERENCE). Here at the end, so
 # every kernel of the module is in the scope it runs in.
 _HELPERS = (vars(foot_kernels), vars(pose_kernels), vars(limb_kernels), vars(vec_kernels),
-            vars(ground_kernels))
+            vars(ground_kernels), vars(replant_kernels))
 _PLAIN = {**interpreted(vars(foot_kernels), *_HELPERS[1:]), **interpreted(globals(), *_HELPERS)}
 REFERENCE = RenderKernels("numpy", *(_PLAIN.get(name, globals()[name])
                                      for name in ("_render_all", "_render_windows", "lock_contexts")))

@@ -40,6 +40,18 @@ MAX_SINK = 0.05  # of the leg length, the most the root is lowered
 # stretches (issue 33).
 TERRAIN_MAX_SINK = 0.2
 EASE_FRAMES = 9
+# A body turning on the spot carries a standing foot round with it: held where it stood, the foot
+# went out of the leg's reach (issue 27, turn_on_spot: a horse pivoting 180 deg on its hips over
+# standing forefeet reared, the hooves hanging 35-50 cm up, then jumped 37 cm in a frame as they
+# let go). An animal turning in place steps instead: a plant its leg can no longer reach (the
+# sink's rule, reach_sink) ends there and the foot steps to the next, over STEP_S, lifted
+# STEP_HEIGHT of the leg (the horse's walk swings its hooves 12 cm up, 0.08 of its leg), rising
+# (and setting down) over STEP_LIFT of the step before it moves over the ground (a foot moving
+# near the ground glides).
+TURN_CARRY = 4.0
+STEP_S = 0.2
+STEP_HEIGHT = 0.08
+STEP_LIFT = 0.15
 # Frames either side of a frame that its eased sink reads: the running max's half width plus the
 # Gaussian's radius (ease_sink: sigma EASE_FRAMES / 6, truncated at 4 sigma), twice: fold_room's
 # raise is eased again over the eased sink.

@@ -437,13 +437,17 @@ class LiveSynth(LivePath):
     def _render(self, buf: Plan, lo: int, hi: int, begin: NDArray[np.int64], end: NDArray[np.int64],
                 field: HeightField | None, keep: bool) -> tuple[NDArray[np.float32], NDArray[np.float32]]:
         """Root and rotations of buffered frames [lo, hi) on ``field``; ``keep``: the feet posed are
-        kept for the next windows (else they are not read either: a crossfade's other motion)."""
+        kept for the next windows (else they are not read either: a crossfade's other motion).
+        No plant is stepped (render_window's ``steps``): one still going on at the last frame
+        planned was split anew by each window, the feet of frames sent pinned back or stepped
+        again (low-latency horse jitter_10hz: strict skate p95 0.003 -> 77 mm)."""
         ground = None
         if field is not None:
             buf, ground = on_ground(self.bank, buf, field, int(begin.min()), int(end.max()))
         if not keep:
             return kernels.render_window(self.bank, buf, lo, hi, begin, end, self.foot_lock, None, None,
-                                         self.share, ground, self.pose, self.compiled, self.plant_frames)
+                                         self.share, ground, self.pose, self.compiled, self.plant_frames,
+                                         steps=False)
         # The feet of frames posed by earlier windows, by frame sent (from 0), kept for later ones.
         o0, n = self.buffer.start, buf.yaw.shape[1]
         self.feet.reserve(max(o0 + n - self.feet.stop, 0))
@@ -452,7 +456,8 @@ class LiveSynth(LivePath):
         out = None if self.scratch is None else self.scratch.array(
             "live.rotations", (len(self.scales), hi - lo, self.bank.skeleton.n_joints, 4), np.float32)
         root, rot = kernels.render_window(self.bank, buf, lo, hi, begin, end, self.foot_lock, posed, out,
-                                          self.share, ground, self.pose, self.compiled, self.plant_frames)
+                                          self.share, ground, self.pose, self.compiled, self.plant_frames,
+                                          steps=False)
         self.known_feet, self.legs_at, self.pinned = posed.frames + o0, posed.legs_at + o0, posed.pinned + o0
         return root, rot
 
