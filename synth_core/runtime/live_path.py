@@ -140,7 +140,9 @@ class LivePath:
             base = self.inputs_start
             a = self.inputs[:, i0 - base]
             b = self.inputs[:, np.minimum(i0 + 1, self.n_inputs - 1) - base]
-            new = a * (1 - w) + b * w
+            # In C order: a slice-then-index result is laid out frames first, and `longer`, joined
+            # from these, would have been copied whole by each smoothing kernel every tick.
+            new = np.ascontiguousarray(a * (1 - w) + b * w)
         self.made += new.shape[1]
         self._raw(new)
         keep = max(self.n_inputs - 2, 0)  # the inputs the next points may interpolate from
