@@ -93,16 +93,14 @@ def _character(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, yaw
                     steps: bool) -> bool:
     """All four passes for one character (scratch arrays given). Only frames ``[keep_from, keep_to)``
     are wanted (a window over its foot lock's context): the legs' IK is solved for those alone.
-
     ``known_feet (T, 4, 3)``: the feet of frames ``[0, known)`` made already (a live session's
     earlier windows), read there, not posed again, and written for the frames posed (an empty
-    array: none kept). ``recent (PAD, 4, LEG_WIDTH)``: what the sink reads of the PAD frames
-    before ``keep_from``, if ``recent_known`` (then ``known >= keep_from``): those are not posed
-    either. On return it holds the same of the PAD frames before ``keep_to``: True if it does.
+    array: none kept). ``recent (PAD, 4, LEG_WIDTH)``: what the sink reads of the PAD frames before
+    ``keep_from``, if ``recent_known`` (then ``known >= keep_from``; not posed either); on return
+    the same of the PAD frames before ``keep_to``: True if it does.
     ``heights (Nz, Nx)``: the terrain (``(0, 0)``: none), grid origin, spacing; the body tilted by
     ``tilt[tilt_at + t]`` (``(T', 4)``) on frame t, its feet planted on the terrain (measure_feet).
-    ``plant_frames``: plant_targets' ``most``; short of all, with feet kept: its pins too.
-    ``steps``: a plant the body carries out of reach is stepped (see :func:`render_window`)."""
+    ``plant_frames``: plant_targets' ``most`` (with feet kept: its pins too); ``steps``: render_window's."""
     terrain = heights.shape[0] > 0
     T = out_rot.shape[0]
     if not foot_lock:
@@ -374,35 +372,28 @@ def render_window(bank: Bank, plan: Plan, start: int, stop: int, begin: NDArray[
                   ) -> tuple[NDArray[np.float32], NDArray[np.float32]]:
     """Root ``(C, stop - start, 3)`` and rotations of frames ``[start, stop)`` only, each
     character rendered over its context ``[begin, end)`` of ``plan`` (from
-    :func:`lock_context`): the same numbers as :func:`render` of the whole
-    (with ``known``: to rounding, see tests/test_live.py).
+    :func:`lock_context`): :func:`render`'s numbers (with ``known``: to rounding, tests/test_live.py).
 
     ``known``: what earlier windows over the same plan posed (a live session's windows share
-    most of their context: posing it again was two-fifths of their render). Frames whose feet
-    are known are not posed again but where wanted; nor, after a window that ended at ``start``,
-    the PAD frames before it (their sink read from ``known.legs``: a third of the posing left).
-    What the frames posed give is written there, ``frames`` and ``legs_at`` moved on.
+    most of their context). Frames whose feet are known are not posed again but where wanted;
+    nor, after a window that ended at ``start``, the PAD frames before it (their sink read from
+    ``known.legs``). What the frames posed give is written there, ``frames`` and ``legs_at`` moved on.
 
     ``out``: the rotations are written there (C-contiguous ``(C, stop - start, J, 4)`` float32).
-
     ``share``: SHARED_PARTS one-thread parts, which ``share`` runs (render_pool.shared: idle threads
-    take some), so renders side by side finish together though one has more to pose.
+    take some), so renders side by side finish together though one has more to pose. ``ground``:
+    the plan stands on a terrain (:func:`synth_core.runtime.terrain.ground_plan`).
 
-    ``ground``: the plan stands on a terrain (:func:`synth_core.runtime.terrain.ground_plan`).
-
-    ``pose (C,)``: the characters whose rotations are wanted (None: all). The others (a live
-    session's far characters, at root_gait) get the plan's root alone (no foot lock, so no sink)
-    and their rows of the rotations are not written.
-
+    ``pose (C,)``: the characters whose rotations are wanted (None: all); the others (far, at
+    root_gait) get the plan's root alone (no foot lock, no sink), their rotations not written.
     ``plant_frames``: a plant's target averages its first so many frames only (None: all): what
     a live session sends of a plant before its end is planned then stays where it was sent (by
     ``known``'s pins, :class:`Posed`, once its first frames have left the context).
 
-    ``steps``: a plant the body carries out of its leg's reach is stepped
-    (:func:`~synth_core.compiled.replant_kernels.replant`), as :func:`render` does: for a plan
-    whose contexts hold its plants whole (a batch's windows). A live session's do not (a plant
-    runs on past what is planned) and what it has sent stays sent, so where a plant is split
-    would be decided anew each window: False (each plant held whole, as sent).
+    ``steps``: a plant the body carries out of its leg's reach is stepped (``replant_kernels``),
+    as :func:`render` does, where the contexts hold the plants whole (a batch's windows). False
+    for a live session's: a plant runs on past what is planned and what was sent stays sent, so
+    where it is split would be decided anew each window (each plant held whole, as sent).
 
     ``compiled``: else the reference (:data:`REFERENCE`, one thread)."""
     kernels = COMPILED if compiled else REFERENCE

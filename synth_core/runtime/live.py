@@ -8,9 +8,7 @@ Every step of the batch plan is causal but for a bounded look-ahead, which is th
 - smoothing reads ``radius`` points ahead (4 sigma);
 - a frame's speed is interpolated between segment centres, so it waits for the segment after
   its own (up to 1.5 segments ahead), and a gait is chosen on the speed ``LOOKAHEAD`` segments
-  ahead of its decision (decided once the speeds up to a stride past that are known, ``horizon``:
-  so the windows come as they did when the entry phase was searched ahead; the planner, stepping
-  frame by frame, no longer needs them);
+  ahead of its decision, decided once the speeds a stride past that are known (``horizon``);
 - a transition ends where the character has covered its distance -- found as the path arrives.
 
 So a frame is planned about ``horizon + 1.5 m + radius`` frames after its point arrived and
@@ -31,17 +29,15 @@ fit (:mod:`synth_core.runtime.causal`) reading a few points ahead, a frame's spe
 wider one (or the velocity the simulator sent with its point: its speed, and the way faced), each
 gait decision reads the newest speed known (no stride horizon), and the foot lock gets the rest
 of the budget, each plant pinned at the average of its frames known when its first frame is sent
-(``plant_frames``), so no sent frame's plant moves later. What it costs: a plant
-pinned at its first frames leaves its whole drift (up to half a metre on a turn, in the clips as
-placed on the path) to the IK at its end where the batch's average leaves half; the swing after
-it eases that correction out before the next plant is planned (docs/streaming.md has the figures).
+(``plant_frames``), so no sent frame's plant moves later. A plant pinned at its first frames
+leaves its whole drift (up to half a metre on a turn) to the IK at its end where the batch's
+average leaves half; the swing after it eases that correction out over a step's frames
+(``STEP_S``: docs/streaming.md).
 
 The foot lock pins a plant at its average position, which needs the plant's end: frames are
-sent ``lock_lag`` frames after they are planned (``LOCK_LAG``, a third of a second) and locked over
-every frame planned so far, so most plants a frame is in have ended; one still going on is pinned
-at its average so far and moves by the difference in the next block. Measured on 24 horses
-(tests/test_live.py): 95th-percentile skate as the batch's (0.01 mm), mean 1.6 mm against the
-batch's 1.1 (no lag: 0.7 mm p95, 2.0 mm mean).
+sent ``lock_lag`` frames (``LOCK_LAG``, a third of a second) after they are planned, locked over
+every frame planned so far; a plant still going on is pinned at its average so far and moves by
+the difference in the next block (tests/test_live.py holds the skate near the batch's).
 """
 
 from __future__ import annotations
@@ -113,17 +109,14 @@ class LiveSynth(LivePath):
 
     ``reuse_windows``: each window's rotations are rendered over the last's (the compiled render;
     on pages kept from window to window): a window's arrays then hold only until the next
-    :meth:`append`, :meth:`take` or :meth:`finish`. Fresh memory is dear
-    (:mod:`synth_core.compiled.scratch`): the pages of a 2,000-horse window's 36 MB, zeroed by the OS as
-    they were first written, were 6% of a live session's CPU here (perf). Without it, every
-    window is new arrays.
+    :meth:`append`, :meth:`take` or :meth:`finish` (fresh pages, zeroed by the OS as first
+    written, are dear: :mod:`synth_core.compiled.scratch`). Without it, every window is new arrays.
 
     ``share_render``: each window's render is cut into parts that idle render-pool threads may
     take (:func:`synth_core.compiled.render_pool.shared`): for a session cut into shards, each advanced
     by a pool thread (see :mod:`synth_core.runtime.live_shards`).
 
-    A call's kernels run on the calling thread alone (:func:`synth_core.compiled.render_pool.one_thread`:
-    a tick's are small); a session's characters reach every core as shards instead.
+    A call's kernels run on its thread alone (a tick's are small: ``render_pool.one_thread``).
     """
 
     # The session's options are keywords that callers pass through (service, live_shards, tests).
@@ -285,7 +278,7 @@ class LiveSynth(LivePath):
         of the points (the exact mode's frames are the batch's: it only checks it)."""
         return self.append_checked(self.check(points, velocity), frames)
 
-    @render_pool.one_thread()  # a tick's kernels are small: see one_thread
+    @render_pool.one_thread()
     def append_checked(self, arr: Floats, frames: int | None = None) -> Window | None:
         """:meth:`append` of points :meth:`check` returned (not checked again)."""
         self.inputs = np.concatenate([self.inputs, arr], axis=1)
@@ -317,7 +310,7 @@ class LiveSynth(LivePath):
                                   f"got shape {arr.shape}")
         self.pose = arr.copy()
 
-    @render_pool.one_thread()  # a tick's kernels are small: see one_thread
+    @render_pool.one_thread()
     def take(self, frames: int | None = None) -> Window | None:
         """The next frames settled and not yet given, at most ``frames`` of them (None: all);
         None when there are none."""
@@ -330,7 +323,7 @@ class LiveSynth(LivePath):
         self.rendered = stop
         return self._emit(start, stop)
 
-    @render_pool.one_thread()  # a tick's kernels are small: see one_thread
+    @render_pool.one_thread()
     def finish(self, frames: int | None = None) -> Window | None:
         """The trajectories end with the points given: the rest of the frames (at most
         ``frames`` of them, the rest left for :meth:`take`: the rest of a 10,000-horse session,
