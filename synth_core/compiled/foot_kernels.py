@@ -77,7 +77,7 @@ def plant_targets(feet: Any, contacts: Any, out: Any, most: int, pins: Any, pinn
         down[:] = contacts[:, f]
         reach = (legs, bends[f], limit, posed, path, lift, yaw, root, 1.0 / h)
         _plants(feet, down, f, out, most, pins[f], pinned[f], reach, air, steps)
-        _swings(feet, down, contacts[:, f], out, f, most, STEP_HEIGHT * bends[f, 4])
+        _swings(feet, down, contacts[:, f], out, f, most, STEP_HEIGHT * bends[f, 4], int(bends[f, 5]))
         u = last
         while u >= 0 and not down[u]:
             u -= 1
@@ -120,9 +120,12 @@ def _plants(feet: Any, down: Any, f: int, out: Any, most: int, pin: Any, pinned:
 
 
 @_jit()
-def _swings(feet: Any, down: Any, planted: Any, out: Any, f: int, most: int, height: float) -> None:
+def _swings(feet: Any, down: Any, planted: Any, out: Any, f: int, most: int, height: float,
+            step: int) -> None:
     """Foot f's swings (``down (T,)``: its planted frames): eased from the last plant's lift-off
-    correction to the next one's touchdown one (``out``: the plants' targets, by :func:`_plants`).
+    correction to the next one's touchdown one (``out``: the plants' targets, by :func:`_plants`;
+    ``step``: a step's frames, the most a swing not planned yet takes to ease its lift-off
+    correction out, see :func:`_eased`).
     A swing a plant lifted off early into (its first frame ``planted``, as the clip has it: see
     replant_kernels.replant) is a step instead, ``height`` high, from the one plant to the next:
     the clip's own swing, a few frames of it at the plant's end, moved a foot the body had carried
@@ -150,7 +153,7 @@ def _swings(feet: Any, down: Any, planted: Any, out: Any, f: int, most: int, hei
             step_over(out, f, s, t, height)
             continue
         for u in range(s, t):
-            x = _eased(u, last_start, last_end, t, has_before, has_after, most < T)
+            x = _eased(u, last_start, last_end, t, has_before, has_after, most < T, step)
             for k in range(3):
                 if k == 1:
                     continue
@@ -161,17 +164,30 @@ def _swings(feet: Any, down: Any, planted: Any, out: Any, f: int, most: int, hei
 
 @_jit()
 def _eased(u: int, last_start: int, last_end: int, nxt: int, has_before: bool, has_after: bool,
-           unplanned: bool) -> float:
+           unplanned: bool, step: int) -> float:
     """The touchdown correction's share on frame u of a swing from the plant ``[last_start,
     last_end]`` to the plant starting at ``nxt`` (smoothstep; all of it, or none, where a plant is
-    missing). ``unplanned``: a swing whose next plant is not planned yet (a live window in the
-    low-latency mode) eases its lift-off correction out over half its plant's length, a guess at
-    the swing's: when the next plant comes, little is left to snap."""
-    if has_before and (has_after or unplanned):
-        span = max(nxt - last_end if has_after else (last_end - last_start + 1) // 2, 1)
-        x = min(max((u - last_end) / span, 0.0), 1.0)
+    missing). ``unplanned``: the swing's next plant may not be planned yet when its first frames
+    are sent (a live window in the low-latency mode: planned a few frames before it is sent), so
+    its lift-off correction is eased out over a guess at the swing's length, the same whether the
+    next plant is known or not: half its plant's length (a gait's swing is about that), at most
+    ``step`` frames (a standing plant's half was a second: a body turning on the spot over it
+    left the foot 1.3 m off, which the swing still carried when the plant came and let go of in
+    one frame, low-latency horse turn_on_spot: a 95 cm jump); and at most the swing, once known.
+    Sent frames keep their shares: when the plant comes, only its touchdown correction (its first
+    frames' place, a few cm from where the clip sets the foot down) is left to ease in."""
+    if not has_before:
+        return 1.0 if has_after else 0.0
+    if not unplanned:
+        if not has_after:
+            return 0.0
+        x = min(max((u - last_end) / max(nxt - last_end, 1), 0.0), 1.0)
         return float(x * x * (3 - 2 * x))
-    return 1.0 if has_after else 0.0
+    span = min(max((last_end - last_start + 1) // 2, 1), max(step, 1))
+    if has_after:
+        span = min(span, max(nxt - last_end, 1))
+    x = min(max((u - last_end) / span, 0.0), 1.0)
+    return float(x * x * (3 - 2 * x))
 
 
 @_jit()
