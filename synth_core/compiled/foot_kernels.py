@@ -77,7 +77,8 @@ def plant_targets(feet: Any, contacts: Any, out: Any, most: int, pins: Any, pinn
         down[:] = contacts[:, f]
         reach = (legs, bends[f], limit, posed, path, lift, yaw, root, 1.0 / h)
         _plants(feet, down, f, out, most, pins[f], pinned[f], reach, air, steps)
-        _swings(feet, down, contacts[:, f], out, f, most, STEP_HEIGHT * bends[f, 4])
+        _swings(feet, down, contacts[:, f], out, f, most, STEP_HEIGHT * bends[f, 4], int(bends[f, 5]),
+                pinned[f])
         u = last
         while u >= 0 and not down[u]:
             u -= 1
@@ -120,9 +121,14 @@ def _plants(feet: Any, down: Any, f: int, out: Any, most: int, pin: Any, pinned:
 
 
 @_jit()
-def _swings(feet: Any, down: Any, planted: Any, out: Any, f: int, most: int, height: float) -> None:
+def _swings(feet: Any, down: Any, planted: Any, out: Any, f: int, most: int, height: float,
+            step: int, pinned: int) -> None:
     """Foot f's swings (``down (T,)``: its planted frames): eased from the last plant's lift-off
-    correction to the next one's touchdown one (``out``: the plants' targets, by :func:`_plants`).
+    correction to the next one's touchdown one (``out``: the plants' targets, by :func:`_plants`;
+    the shares: :func:`_eased`, ``step`` a step's frames). A plant whose swing in had not eased
+    its lift-off correction out by its touchdown, where its next plant is planned late (``most``
+    < T, the low-latency mode), keeps what is left (over the ground) unless it was sent already
+    (its frame ``pinned``): the foot lands where its swing took it, the next swing eases it out.
     A swing a plant lifted off early into (its first frame ``planted``, as the clip has it: see
     replant_kernels.replant) is a step instead, ``height`` high, from the one plant to the next:
     the clip's own swing, a few frames of it at the plant's end, moved a foot the body had carried
@@ -149,29 +155,57 @@ def _swings(feet: Any, down: Any, planted: Any, out: Any, f: int, most: int, hei
         if planted[s] and has_before and has_after:  # lifted off early: one step to the next plant
             step_over(out, f, s, t, height)
             continue
+        e = t
+        while e < T and down[e]:
+            e += 1
+        # What is left of the lift-off correction at touchdown, kept by a plant not sent yet.
+        keep = has_before and has_after and most < T and not t <= pinned < e
+        _swing(feet, out, f, s, t, e if keep else t, (last_start, last_end, has_before, has_after, most < T,
+                                                       step))
+
+
+@_jit()
+def _swing(feet: Any, out: Any, f: int, s: int, t: int, e: int, plants: Any) -> None:
+    """Foot f's swing [s, t) (:func:`_swings`; ``plants``: :func:`_eased`'s arguments but u and
+    the next plant's start t), and the lift-off correction's share left at t added to its next
+    plant's frames [t, e)."""
+    last_start, last_end, has_before, has_after, unplanned, step = plants
+    left = 1.0 - _eased(t, last_start, last_end, t, has_before, has_after, unplanned, step)[0]
+    for k in range(3):
+        if k == 1:
+            continue
+        lift = out[last_end, f, k] - feet[last_end, f, k] if has_before else 0.0
+        touch = out[t, f, k] - feet[t, f, k] if has_after else 0.0
         for u in range(s, t):
-            x = _eased(u, last_start, last_end, t, has_before, has_after, most < T)
-            for k in range(3):
-                if k == 1:
-                    continue
-                lift = out[last_end, f, k] - feet[last_end, f, k] if has_before else 0.0
-                touch = out[t, f, k] - feet[t, f, k] if has_after else 0.0
-                out[u, f, k] = feet[u, f, k] + (1 - x) * lift + x * touch
+            eased, landed = _eased(u, last_start, last_end, t, has_before, has_after, unplanned, step)
+            out[u, f, k] = feet[u, f, k] + (1 - eased) * lift + landed * touch
+        for u in range(t, e):
+            out[u, f, k] += left * lift
 
 
 @_jit()
 def _eased(u: int, last_start: int, last_end: int, nxt: int, has_before: bool, has_after: bool,
-           unplanned: bool) -> float:
-    """The touchdown correction's share on frame u of a swing from the plant ``[last_start,
-    last_end]`` to the plant starting at ``nxt`` (smoothstep; all of it, or none, where a plant is
-    missing). ``unplanned``: a swing whose next plant is not planned yet (a live window in the
-    low-latency mode) eases its lift-off correction out over half its plant's length, a guess at
-    the swing's: when the next plant comes, little is left to snap."""
-    if has_before and (has_after or unplanned):
-        span = max(nxt - last_end if has_after else (last_end - last_start + 1) // 2, 1)
-        x = min(max((u - last_end) / span, 0.0), 1.0)
-        return float(x * x * (3 - 2 * x))
-    return 1.0 if has_after else 0.0
+           unplanned: bool, step: int) -> tuple[float, float]:
+    """The shares on frame u of a swing from the plant ``[last_start, last_end]`` to the plant
+    starting at ``nxt`` of the corrections these plants need: the lift-off one eased out, the
+    touchdown one eased in (smoothstep over the swing; all of it, or none, where a plant is
+    missing). ``unplanned``: the swing's next plant may not be planned yet when its first frames
+    are sent (a live window in the low-latency mode: planned a few frames before it is sent), so
+    its lift-off correction is eased out over a span that does not depend on it: ``step`` frames
+    (0: half its plant's). Eased over the swing, the frames sent before the plant came had eased
+    it out over a guess (half the plant before: a second for a standing plant, whose correction
+    a body turning on the spot over it made 1.3 m) and let go of the rest in one frame once it
+    came (low-latency horse turn_on_spot: a 95 cm jump). What a swing shorter than that leaves,
+    its plant keeps (:func:`_swings`)."""
+    x = 1.0 if has_after else 0.0
+    if has_before and has_after:
+        x = min(max((u - last_end) / max(nxt - last_end, 1), 0.0), 1.0)
+        x = x * x * (3 - 2 * x)
+    if not (unplanned and has_before):
+        return float(x), float(x)
+    span = step if step > 0 else max((last_end - last_start + 1) // 2, 1)
+    y = min(max((u - last_end) / span, 0.0), 1.0)
+    return float(y * y * (3 - 2 * y)), float(x)
 
 
 @_jit()
