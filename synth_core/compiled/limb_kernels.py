@@ -1,8 +1,8 @@
 """Compiled forward kinematics and limb IK of the render, 16 frames at a time in SIMD lanes.
 
 Pass 1's FK of the joints above the feet and pass 4's limb IK (:func:`synth_core.build.ik.solve`,
-without the ground tipping) on the upper joint, hinge and ankle of each leg, for
-``synth_core.compiled.kernels._character``.
+without the ground tipping) on the upper joint, hinge and ankle of each leg, then each ankle's bend
+side kept from frame to frame, for ``synth_core.compiled.kernels._character``.
 """
 
 from __future__ import annotations
@@ -15,9 +15,10 @@ import numpy as np
 from synth_core.build.ik import HINGE_AXIS_MIN_SIN
 from synth_core.compiled.jit import render_jit
 from synth_core.compiled.vec_kernels import conj, cross, dot3, qmul, qrot, v3, vadd, vscale, vsub
-from synth_core.runtime.footlock import LONGEST_OVER
+from synth_core.runtime.footlock import LONGEST_OVER, SIDE_DEG
 
 _jit = render_jit
+SIDE_TRIES = 3  # see the ankle's side below
 
 _EPS = 1e-9
 
@@ -202,46 +203,115 @@ def fk(rot: Any, root: Any, h: float, parents: Any, offsets: Any, joints: Any, w
                 block[q + 4, t], block[q + 5, t], block[q + 6, t] = x
 
 
+@_jit(inline="always")  # into the function allocating B (see the IK section's comment)
+def _solve_leg(B: Any, world: Any, targets: Any, sink: Any, rigs: Any, parents: Any, offsets: Any,
+               bends: Any, out_rot: Any, f: int, a: int, T: int, o: int) -> None:
+    """Leg f's IK on frames ``[a, T)``: see :func:`solve_legs`."""
+    up, hi, an, ef = 7 * rigs[f, 0], 7 * rigs[f, 1], 7 * rigs[f, 2], 7 * rigs[f, 3]
+    pup, pan = 7 * parents[rigs[f, 0]], 7 * parents[rigs[f, 2]]
+    toe_offset = v3(offsets[rigs[f, 3]])
+    bend = v3(bends[f])
+    furthest = (1.0 + LONGEST_OVER) * bends[f, 4]  # bends[:, 4]: its longest reach in the poses
+    for b in range((a - o) // LANES, (T - o + LANES - 1) // LANES):
+        block, b0 = world[b], o + b * LANES
+        for t in range(LANES):
+            u = min(max(b0 + t, a), T - 1)
+            for k in range(3):
+                B[_TARGET + k, t] = targets[u, f, k]
+            B[_SINK, t] = sink[u]
+        for k in range(3):
+            for t in range(LANES):
+                B[_P_UP + k, t] = block[up + 4 + k, t]
+                B[_P_HI + k, t] = block[hi + 4 + k, t]
+                B[_P_AN + k, t] = block[an + 4 + k, t]
+                B[_P_TOE + k, t] = block[ef + 4 + k, t]
+        for k in range(4):
+            for t in range(LANES):
+                B[_R_PUP + k, t] = block[pup + k, t]
+                B[_R_UP + k, t] = block[up + k, t]
+                B[_R_HI + k, t] = block[hi + k, t]
+                B[_R_PAN + k, t] = block[pan + k, t]
+                B[_R_AN + k, t] = block[an + k, t]
+                B[_R_ROOT + k, t] = block[k, t]
+        _solve_block(B, toe_offset, bend, furthest)
+        for t in range(max(a - b0, 0), min(T - b0, LANES)):
+            for k in range(4):
+                out_rot[b0 + t, rigs[f, 0], k] = B[_OUT + k, t]
+                out_rot[b0 + t, rigs[f, 1], k] = B[_OUT + 4 + k, t]
+                out_rot[b0 + t, rigs[f, 2], k] = B[_OUT + 8 + k, t]
+
+
 @_jit()
 def solve_legs(world: Any, targets: Any, sink: Any, rigs: Any, parents: Any, offsets: Any,
-                bends: Any, out_rot: Any, a: int, T: int, o: int) -> None:
+               bends: Any, out_rot: Any, a: int, T: int, o: int) -> None:
     """Each leg's IK on frames ``[a, T)`` (``world`` from origin ``o``: see :func:`fk`), the root lowered by
-    ``sink``: the upper joint's, hinge's and ankle's local rotations of ``out_rot`` replaced.
-    Solved a block of ``world`` at a time: lanes outside the frames are solved too (on the
-    nearest frame's target), not written."""
-    B = np.empty((_ROWS, LANES))  # here, not passed in: see the section's comment
+    ``sink``: the upper joint's, hinge's and ankle's local rotations of ``out_rot`` replaced, each
+    ankle then keeping its bend side from frame to frame (see the section below). Solved a block
+    of ``world`` at a time: lanes outside the frames are solved too (on the nearest frame's
+    target), not written."""
+    B = np.empty((_ROWS, LANES))  # here, not passed in: see the IK section's comment
     for f in range(4):
-        up, hi, an, ef = 7 * rigs[f, 0], 7 * rigs[f, 1], 7 * rigs[f, 2], 7 * rigs[f, 3]
-        pup, pan = 7 * parents[rigs[f, 0]], 7 * parents[rigs[f, 2]]
-        toe_offset = v3(offsets[rigs[f, 3]])
-        bend = v3(bends[f])
-        furthest = (1.0 + LONGEST_OVER) * bends[f, 4]  # bends[:, 4]: its longest reach in the poses
-        for b in range((a - o) // LANES, (T - o + LANES - 1) // LANES):
-            block, b0 = world[b], o + b * LANES
-            for t in range(LANES):
-                u = min(max(b0 + t, a), T - 1)
-                for k in range(3):
-                    B[_TARGET + k, t] = targets[u, f, k]
-                B[_SINK, t] = sink[u]
-            for k in range(3):
-                for t in range(LANES):
-                    B[_P_UP + k, t] = block[up + 4 + k, t]
-                    B[_P_HI + k, t] = block[hi + 4 + k, t]
-                    B[_P_AN + k, t] = block[an + 4 + k, t]
-                    B[_P_TOE + k, t] = block[ef + 4 + k, t]
-            for k in range(4):
-                for t in range(LANES):
-                    B[_R_PUP + k, t] = block[pup + k, t]
-                    B[_R_UP + k, t] = block[up + k, t]
-                    B[_R_HI + k, t] = block[hi + k, t]
-                    B[_R_PAN + k, t] = block[pan + k, t]
-                    B[_R_AN + k, t] = block[an + k, t]
-                    B[_R_ROOT + k, t] = block[k, t]
-            _solve_block(B, toe_offset, bend, furthest)
-            for t in range(max(a - b0, 0), min(T - b0, LANES)):
-                for k in range(4):
-                    out_rot[b0 + t, rigs[f, 0], k] = B[_OUT + k, t]
-                    out_rot[b0 + t, rigs[f, 1], k] = B[_OUT + 4 + k, t]
-                    out_rot[b0 + t, rigs[f, 2], k] = B[_OUT + 8 + k, t]
+        _solve_leg(B, world, targets, sink, rigs, parents, offsets, bends, out_rot, f, a, T, o)
+        an, ef = rigs[f, 2], rigs[f, 3]
+        before, before_angle = _ankle_bend(world, out_rot, offsets, an, ef, a, o)[:2]
+        for t in range(a + 1, T):
+            axis, angle = _ankle_bend(world, out_rot, offsets, an, ef, t, o)[:2]
+            if min(angle, before_angle) >= SIDE_DEG and dot3(axis, before) < 0.0:
+                _straighten(B, world, targets, sink, rigs, parents, offsets, bends, out_rot, f,
+                            t if angle <= before_angle else t - 1, o)
+                axis, angle = _ankle_bend(world, out_rot, offsets, an, ef, t, o)[:2]
+            before, before_angle = axis, angle
 
 
+# --- the ankle's bend side kept over time ------------------------------------------------------
+#
+# The IK keeps the paw's world orientation and moves the forearm (shin) above it, so the ankle's
+# bend -- forearm to paw: the real dog's wrist, hyperextended in stance and flexed in the swing --
+# is whatever the two give. Where the lock holds a paw behind a body running ahead (a transition
+# played by distance at 2-3x its clip), the elbow straightens and the forearm leans back over
+# the held paw; at lift-off it swings forward again, and the wrist goes from 38 deg one way to
+# 35 deg the other in one frame (issue 28's limb flip, the edge suite's: 50 of the real dog's 73
+# shown only with the lock). A passage through straight takes frames: where two frames' bends,
+# both SIDE_DEG or more, point to opposite sides (in the body's frame, as metrics.limb_flips
+# reads them), the one nearer straight has its paw turned in line with the forearm and the leg
+# solved again around it (the toe stays on its target) -- the passage goes through straight
+# there instead of turning round in one frame. Solved again, the parent bone moves and the paw is no
+# longer quite in line: again, up to SIDE_TRIES times, until it is bent less than SIDE_DEG (it then
+# has no side, to either neighbour; the real dog's mixed_sizes: a leg locked straight the frame
+# before left the wrist 15.9 deg bent after one).
+
+
+@_jit()
+def _ankle_bend(world: Any, out_rot: Any, offsets: Any, an: int, ef: int, t: int, o: int) -> Any:
+    """The ankle's bend on frame t after the IK: the bend axis (parent bone x its bone, in the
+    root's frame, unnormalized), the angle (deg), and the paw's world rotation that would put it
+    straight (its parent bone kept)."""
+    block, lane = world[(t - o) // LANES], (t - o) % LANES
+    kept = _quat(block, 7 * an, lane)  # the ankle's world rotation: the IK keeps it
+    local = (float(out_rot[t, an, 0]), float(out_rot[t, an, 1]), float(out_rot[t, an, 2]),
+             float(out_rot[t, an, 3]))
+    upper = v3(offsets[an])  # the parent bone, in the parent's frame
+    lower = qrot(local, v3(offsets[ef]))  # the ankle's own bone, in the parent's frame
+    axis = cross(upper, lower)
+    along = dot3(upper, lower)
+    angle = math.degrees(math.atan2(math.sqrt(dot3(axis, axis)), along))
+    parent = qmul(kept, conj(local))
+    lengths = math.sqrt(dot3(upper, upper) * dot3(lower, lower))
+    straighten = unit4(cross(lower, upper) + (lengths + along,))
+    return qrot(qmul(conj(_quat(block, 0, lane)), parent), axis), angle, qmul(parent, qmul(straighten, local))
+
+
+@_jit(inline="always")  # into the function allocating B (see the IK section's comment)
+def _straighten(B: Any, world: Any, targets: Any, sink: Any, rigs: Any, parents: Any, offsets: Any,
+                bends: Any, out_rot: Any, f: int, u: int, o: int) -> None:
+    """Leg f's ankle on frame u put in line with its parent bone, the leg solved again around it,
+    until it is bent less than SIDE_DEG (at most SIDE_TRIES times): see the section's comment."""
+    an = rigs[f, 2]
+    block, lane = world[(u - o) // LANES], (u - o) % LANES
+    for _ in range(SIDE_TRIES):
+        angle, paw = _ankle_bend(world, out_rot, offsets, an, rigs[f, 3], u, o)[1:]
+        if angle < SIDE_DEG:
+            break
+        for k in range(4):  # the ankle's world rotation, which the IK keeps
+            block[7 * an + k, lane] = paw[k]
+        _solve_leg(B, world, targets, sink, rigs, parents, offsets, bends, out_rot, f, u, u + 1, o)

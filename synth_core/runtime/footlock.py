@@ -52,6 +52,10 @@ TURN_CARRY = 4.0
 STEP_S = 0.2
 STEP_HEIGHT = 0.08
 STEP_LIFT = 0.15
+# An ankle bent less than this has no side; bent this much or more on two frames in a row, it keeps
+# its side (limb_kernels.solve_legs): the limb flip's own threshold (metrics.FLIP_MIN_BEND_DEG,
+# issue 28), below which a dog's toe swings 10 deg one way to 10 the other at a paw strike.
+SIDE_DEG = 15.0
 # Frames either side of a frame that its eased sink reads: the running max's half width plus the
 # Gaussian's radius (ease_sink: sigma EASE_FRAMES / 6, truncated at 4 sigma), twice: fold_room's
 # raise is eased again over the eased sink.
