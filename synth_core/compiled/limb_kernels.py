@@ -19,6 +19,11 @@ from synth_core.runtime.footlock import LONGEST_OVER, SIDE_DEG
 
 _jit = render_jit
 SIDE_TRIES = 3  # see the ankle's side below
+# The bend axes of two frames turned more than 90 deg in the body's frame (a flip) have turned more
+# than 90 less the parent bone's own turn against the body in a frame in its frame: cos(30 deg), a
+# forearm turning under 60 deg a frame (the body's frame, which costs a world read, asked only then).
+MAYBE_TURNED = math.cos(math.radians(30.0))
+_COS_SIDE, _SIN_SIDE = math.cos(math.radians(SIDE_DEG)), math.sin(math.radians(SIDE_DEG))
 
 _EPS = 1e-9
 
@@ -253,14 +258,17 @@ def solve_legs(world: Any, targets: Any, sink: Any, rigs: Any, parents: Any, off
     for f in range(4):
         _solve_leg(B, world, targets, sink, rigs, parents, offsets, bends, out_rot, f, a, T, o)
         an, ef = rigs[f, 2], rigs[f, 3]
-        before, before_angle = _ankle_bend(world, out_rot, offsets, an, ef, a, o)[:2]
+        before, before_bent = _bend_in_parent(out_rot, offsets, an, ef, a)
         for t in range(a + 1, T):
-            axis, angle = _ankle_bend(world, out_rot, offsets, an, ef, t, o)[:2]
-            if min(angle, before_angle) >= SIDE_DEG and dot3(axis, before) < 0.0:
-                _straighten(B, world, targets, sink, rigs, parents, offsets, bends, out_rot, f,
-                            t if angle <= before_angle else t - 1, o)
-                axis, angle = _ankle_bend(world, out_rot, offsets, an, ef, t, o)[:2]
-            before, before_angle = axis, angle
+            axis, bent = _bend_in_parent(out_rot, offsets, an, ef, t)
+            if (bent and before_bent and dot3(axis, before) < MAYBE_TURNED
+                    and dot3(_ankle_bend(world, out_rot, offsets, an, ef, t, o)[0],
+                             _ankle_bend(world, out_rot, offsets, an, ef, t - 1, o)[0]) < 0.0):
+                nearer = t if (_ankle_bend(world, out_rot, offsets, an, ef, t, o)[1]
+                               <= _ankle_bend(world, out_rot, offsets, an, ef, t - 1, o)[1]) else t - 1
+                _straighten(B, world, targets, sink, rigs, parents, offsets, bends, out_rot, f, nearer, o)
+                axis, bent = _bend_in_parent(out_rot, offsets, an, ef, t)
+            before, before_bent = axis, bent
 
 
 # --- the ankle's bend side kept over time ------------------------------------------------------
@@ -279,6 +287,21 @@ def solve_legs(world: Any, targets: Any, sink: Any, rigs: Any, parents: Any, off
 # longer quite in line: again, up to SIDE_TRIES times, until it is bent less than SIDE_DEG (it then
 # has no side, to either neighbour; the real dog's mixed_sizes: a leg locked straight the frame
 # before left the wrist 15.9 deg bent after one).
+
+
+@_jit(inline="always")
+def _bend_in_parent(out_rot: Any, offsets: Any, an: int, ef: int, t: int) -> Any:
+    """The ankle's bend on frame t in its parent's frame: the unit bend axis (zero if straight)
+    and whether it is bent SIDE_DEG or more (|u||l| sin(angle - SIDE_DEG) >= 0). Read every frame:
+    the body's frame (:func:`_ankle_bend`) is asked only where the axis turned MAYBE_TURNED or
+    more in the parent's."""
+    local = (float(out_rot[t, an, 0]), float(out_rot[t, an, 1]), float(out_rot[t, an, 2]),
+             float(out_rot[t, an, 3]))
+    upper, lower = v3(offsets[an]), qrot(local, v3(offsets[ef]))
+    axis = cross(upper, lower)
+    norm = math.sqrt(dot3(axis, axis))
+    bent = norm * _COS_SIDE - dot3(upper, lower) * _SIN_SIDE >= 0.0
+    return vscale(axis, 1.0 / norm if norm > _EPS else 0.0), bent
 
 
 @_jit()
