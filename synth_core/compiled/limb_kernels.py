@@ -19,11 +19,7 @@ from synth_core.runtime.footlock import LONGEST_OVER, SIDE_DEG
 
 _jit = render_jit
 SIDE_TRIES = 3  # see the ankle's side below
-# The bend axes of two frames turned more than 90 deg in the body's frame (a flip) have turned more
-# than 90 less the parent bone's own turn against the body in a frame in its frame: cos(30 deg), a
-# forearm turning under 60 deg a frame (the body's frame, which costs a world read, asked only then).
-MAYBE_TURNED = math.cos(math.radians(30.0))
-_COS_SIDE, _SIN_SIDE = math.cos(math.radians(SIDE_DEG)), math.sin(math.radians(SIDE_DEG))
+_SIDE_TAN2 = math.tan(math.radians(SIDE_DEG)) ** 2
 
 _EPS = 1e-9
 
@@ -44,7 +40,7 @@ LANES = 16
 # Rows of the block: per frame, the leg's inputs, then its three joints' local rotations.
 _P_UP, _P_HI, _P_AN, _P_TOE = 0, 3, 6, 9  # positions, unit space
 _R_PUP, _R_UP, _R_HI, _R_PAN, _R_AN, _R_ROOT = 12, 16, 20, 24, 28, 32  # world rotations
-_TARGET, _SINK, _OUT, _ROWS = 36, 39, 40, 52
+_TARGET, _SINK, _OUT, _SIDE, _ROWS = 36, 39, 40, 52, 56  # _SIDE: the ankle's bend after the IK
 
 
 @_jit()
@@ -210,8 +206,9 @@ def fk(rot: Any, root: Any, h: float, parents: Any, offsets: Any, joints: Any, w
 
 @_jit(inline="always")  # into the function allocating B (see the IK section's comment)
 def _solve_leg(B: Any, world: Any, targets: Any, sink: Any, rigs: Any, parents: Any, offsets: Any,
-               bends: Any, out_rot: Any, f: int, a: int, T: int, o: int) -> None:
-    """Leg f's IK on frames ``[a, T)``: see :func:`solve_legs`."""
+               bends: Any, out_rot: Any, f: int, a: int, T: int, o: int, sides: Any, base: int) -> None:
+    """Leg f's IK on frames ``[a, T)`` (see :func:`solve_legs`); its ankle's bend after it into
+    ``sides[t - base]`` (:func:`_ankle_sides`)."""
     up, hi, an, ef = 7 * rigs[f, 0], 7 * rigs[f, 1], 7 * rigs[f, 2], 7 * rigs[f, 3]
     pup, pan = 7 * parents[rigs[f, 0]], 7 * parents[rigs[f, 2]]
     toe_offset = v3(offsets[rigs[f, 3]])
@@ -239,8 +236,10 @@ def _solve_leg(B: Any, world: Any, targets: Any, sink: Any, rigs: Any, parents: 
                 B[_R_AN + k, t] = block[an + k, t]
                 B[_R_ROOT + k, t] = block[k, t]
         _solve_block(B, toe_offset, bend, furthest)
+        _ankle_sides(B, v3(offsets[rigs[f, 2]]), toe_offset)
         for t in range(max(a - b0, 0), min(T - b0, LANES)):
             for k in range(4):
+                sides[b0 + t - base, k] = B[_SIDE + k, t]
                 out_rot[b0 + t, rigs[f, 0], k] = B[_OUT + k, t]
                 out_rot[b0 + t, rigs[f, 1], k] = B[_OUT + 4 + k, t]
                 out_rot[b0 + t, rigs[f, 2], k] = B[_OUT + 8 + k, t]
@@ -255,20 +254,19 @@ def solve_legs(world: Any, targets: Any, sink: Any, rigs: Any, parents: Any, off
     of ``world`` at a time: lanes outside the frames are solved too (on the nearest frame's
     target), not written."""
     B = np.empty((_ROWS, LANES))  # here, not passed in: see the IK section's comment
+    sides = np.empty((max(T - a, 1), 4))
     for f in range(4):
-        _solve_leg(B, world, targets, sink, rigs, parents, offsets, bends, out_rot, f, a, T, o)
-        an, ef = rigs[f, 2], rigs[f, 3]
-        before, before_bent = _bend_in_parent(out_rot, offsets, an, ef, a)
+        _solve_leg(B, world, targets, sink, rigs, parents, offsets, bends, out_rot, f, a, T, o, sides, a)
         for t in range(a + 1, T):
-            axis, bent = _bend_in_parent(out_rot, offsets, an, ef, t)
-            if (bent and before_bent and dot3(axis, before) < MAYBE_TURNED
-                    and dot3(_ankle_bend(world, out_rot, offsets, an, ef, t, o)[0],
-                             _ankle_bend(world, out_rot, offsets, an, ef, t - 1, o)[0]) < 0.0):
-                nearer = t if (_ankle_bend(world, out_rot, offsets, an, ef, t, o)[1]
-                               <= _ankle_bend(world, out_rot, offsets, an, ef, t - 1, o)[1]) else t - 1
-                _straighten(B, world, targets, sink, rigs, parents, offsets, bends, out_rot, f, nearer, o)
-                axis, bent = _bend_in_parent(out_rot, offsets, an, ef, t)
-            before, before_bent = axis, bent
+            i = t - a
+            turned = (sides[i, 0] * sides[i - 1, 0] + sides[i, 1] * sides[i - 1, 1]
+                      + sides[i, 2] * sides[i - 1, 2])
+            if turned < 0.0 and sides[i, 3] > 0.0 and sides[i - 1, 3] > 0.0:
+                an, ef = rigs[f, 2], rigs[f, 3]
+                nearer = _ankle_bend(world, out_rot, offsets, an, ef, t, o)[0] <= \
+                    _ankle_bend(world, out_rot, offsets, an, ef, t - 1, o)[0]
+                _straighten(world, targets, sink, rigs, parents, offsets, bends, out_rot, f,
+                            t if nearer else t - 1, o, sides, a)
 
 
 # --- the ankle's bend side kept over time ------------------------------------------------------
@@ -289,52 +287,55 @@ def solve_legs(world: Any, targets: Any, sink: Any, rigs: Any, parents: Any, off
 # before left the wrist 15.9 deg bent after one).
 
 
-@_jit(inline="always")
-def _bend_in_parent(out_rot: Any, offsets: Any, an: int, ef: int, t: int) -> Any:
-    """The ankle's bend on frame t in its parent's frame: the unit bend axis (zero if straight)
-    and whether it is bent SIDE_DEG or more (|u||l| sin(angle - SIDE_DEG) >= 0). Read every frame:
-    the body's frame (:func:`_ankle_bend`) is asked only where the axis turned MAYBE_TURNED or
-    more in the parent's."""
-    local = (float(out_rot[t, an, 0]), float(out_rot[t, an, 1]), float(out_rot[t, an, 2]),
-             float(out_rot[t, an, 3]))
-    upper, lower = v3(offsets[an]), qrot(local, v3(offsets[ef]))
-    axis = cross(upper, lower)
-    norm = math.sqrt(dot3(axis, axis))
-    bent = norm * _COS_SIDE - dot3(upper, lower) * _SIN_SIDE >= 0.0
-    return vscale(axis, 1.0 / norm if norm > _EPS else 0.0), bent
+@_jit(inline="always")  # into the function allocating B (see the IK section's comment)
+def _ankle_sides(B: Any, upper: Any, lower: Any) -> None:
+    """Each lane's ankle bend after the IK, into rows ``_SIDE``: its axis (parent bone ``upper``
+    x its bone ``lower``, offsets in their parents' frames) in the root's frame, unnormalized,
+    and 1 where it is bent SIDE_DEG or more (a side to keep), else 0. In the lanes, with no
+    branch (it costs ~2% of the IK's arithmetic): the IK keeps the ankle's world rotation, so
+    its parent's is that times its local rotation's inverse."""
+    for t in range(LANES):
+        local = _quat(B, _OUT + 8, t)
+        bone = qrot(local, lower)
+        axis = cross(upper, bone)
+        along = dot3(upper, bone)
+        to_root = qmul(conj(_quat(B, _R_ROOT, t)), _quat(B, _R_AN, t))
+        body = qrot(to_root, qrot(conj(local), axis))
+        bent = along <= 0.0 or dot3(axis, axis) >= _SIDE_TAN2 * along * along
+        B[_SIDE, t], B[_SIDE + 1, t], B[_SIDE + 2, t] = body
+        B[_SIDE + 3, t] = 1.0 if bent else 0.0
 
 
 @_jit()
 def _ankle_bend(world: Any, out_rot: Any, offsets: Any, an: int, ef: int, t: int, o: int) -> Any:
-    """The ankle's bend on frame t after the IK: the bend axis (parent bone x its bone, in the
-    root's frame, unnormalized), the angle (deg), and the paw's world rotation that would put it
-    straight (its parent bone kept)."""
+    """The ankle's bend on frame t after the IK (deg), and the ankle's world rotation that would
+    put it straight (its parent bone kept)."""
     block, lane = world[(t - o) // LANES], (t - o) % LANES
-    kept = _quat(block, 7 * an, lane)  # the ankle's world rotation: the IK keeps it
     local = (float(out_rot[t, an, 0]), float(out_rot[t, an, 1]), float(out_rot[t, an, 2]),
              float(out_rot[t, an, 3]))
-    upper = v3(offsets[an])  # the parent bone, in the parent's frame
-    lower = qrot(local, v3(offsets[ef]))  # the ankle's own bone, in the parent's frame
-    axis = cross(upper, lower)
+    upper = v3(offsets[an])
+    lower = qrot(local, v3(offsets[ef]))
     along = dot3(upper, lower)
-    angle = math.degrees(math.atan2(math.sqrt(dot3(axis, axis)), along))
-    parent = qmul(kept, conj(local))
+    turn = cross(lower, upper)
+    angle = math.degrees(math.atan2(math.sqrt(dot3(turn, turn)), along))
     lengths = math.sqrt(dot3(upper, upper) * dot3(lower, lower))
-    straighten = unit4(cross(lower, upper) + (lengths + along,))
-    return qrot(qmul(conj(_quat(block, 0, lane)), parent), axis), angle, qmul(parent, qmul(straighten, local))
+    parent = qmul(_quat(block, 7 * an, lane), conj(local))
+    return angle, qmul(parent, qmul(unit4(turn + (lengths + along,)), local))
 
 
-@_jit(inline="always")  # into the function allocating B (see the IK section's comment)
-def _straighten(B: Any, world: Any, targets: Any, sink: Any, rigs: Any, parents: Any, offsets: Any,
-                bends: Any, out_rot: Any, f: int, u: int, o: int) -> None:
+@_jit()  # not inlined: rare, and solve_legs' loop stays small
+def _straighten(world: Any, targets: Any, sink: Any, rigs: Any, parents: Any, offsets: Any,
+                bends: Any, out_rot: Any, f: int, u: int, o: int, sides: Any, base: int) -> None:
     """Leg f's ankle on frame u put in line with its parent bone, the leg solved again around it,
     until it is bent less than SIDE_DEG (at most SIDE_TRIES times): see the section's comment."""
     an = rigs[f, 2]
     block, lane = world[(u - o) // LANES], (u - o) % LANES
+    B = np.empty((_ROWS, LANES))  # here, not passed in: see the IK section's comment
     for _ in range(SIDE_TRIES):
-        angle, paw = _ankle_bend(world, out_rot, offsets, an, rigs[f, 3], u, o)[1:]
+        angle, paw = _ankle_bend(world, out_rot, offsets, an, rigs[f, 3], u, o)
         if angle < SIDE_DEG:
             break
         for k in range(4):  # the ankle's world rotation, which the IK keeps
             block[7 * an + k, lane] = paw[k]
-        _solve_leg(B, world, targets, sink, rigs, parents, offsets, bends, out_rot, f, u, u + 1, o)
+        _solve_leg(B, world, targets, sink, rigs, parents, offsets, bends, out_rot, f, u, u + 1, o,
+                   sides, base)
