@@ -292,8 +292,8 @@ def _ankle_sides(B: Any, upper: Any, lower: Any) -> None:
     """Each lane's ankle bend after the IK, into rows ``_SIDE``: its axis (parent bone ``upper``
     x its bone ``lower``, offsets in their parents' frames) in the root's frame, unnormalized,
     and 1 where it is bent SIDE_DEG or more (a side to keep), else 0. In the lanes, with no
-    branch (it costs ~2% of the IK's arithmetic): the IK keeps the ankle's world rotation, so
-    its parent's is that times its local rotation's inverse."""
+    branch (per frame outside them it cost the render a sixth more): the IK keeps the ankle's
+    world rotation, so its parent's is that times its local rotation's inverse."""
     for t in range(LANES):
         local = _quat(B, _OUT + 8, t)
         bone = qrot(local, lower)
