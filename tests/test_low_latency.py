@@ -251,3 +251,30 @@ def test_shards_make_the_low_latency_sessions_frames(bank: Bank, herd: np.ndarra
             joined = np.concatenate([w.root_pos for w in b])
             np.testing.assert_array_equal(joined, a.root_pos)
             np.testing.assert_array_equal(np.concatenate([w.gait for w in b]), a.gait)
+
+
+def test_a_path_moving_at_its_first_points_starts_in_its_gait_live(bank: Bank) -> None:
+    """The low-latency mode's head behind the first points is their line (it was the first point
+    held: a path moving at once was planned from standing, its plants left out of reach -- the
+    horse's hooves jumped 21 cm, a walk with one hoof down). The first frame reads the points its
+    budget waits for anyway. Issue 27's targets after FK on the frames sent (the dog meets them
+    all; the horse its walk support and flips); a path standing at first still starts standing."""
+    from synth_core.build.library_store import builtin_library
+    from synth_core.build.motion_graph import HUBS
+    from synth_core.quality import edge
+    from synth_core.runtime.bank import build_bank
+
+    dog = build_bank(builtin_library("dog"))
+    for animal, judged in ((dog, ("glide_ratio", "jump_cm_max", "walk_support_share", "limb_flips")),
+                           (bank, ("walk_support_share", "limb_flips"))):
+        gaits = {HUBS[h]: (float(s[0]), float(s[-1])) for h, s in animal.speeds.items()}
+        (sc,) = edge.scenarios(gaits, animal.fps, 0, ["moving_start"])
+        run = play(animal, sc.positions, sc.scales, latency_ms=100.0)
+        assert run.result.gait[:, 0].tolist() == [1, 2, 3, 4]  # walk, trot, canter, gallop at once
+        figures = evaluate.edge_figures(animal, run.result, sc.reference, sc.positions.shape[1],
+                                        library_reference(animal), sent=sc.positions)
+        for name in judged:
+            assert evaluate.passes(name, figures[name]), (name, figures[name])
+        (standing,) = edge.scenarios(gaits, animal.fps, 0, ["cruise_straight"])
+        still = play(animal, standing.positions[:, :120], standing.scales, latency_ms=100.0)
+        assert (still.result.gait[:, 0] == 0).all()

@@ -240,7 +240,7 @@ class LiveSynth(LivePath):
         self.lock_lag = budget - 1 - self.ahead if self.foot_lock else 0
         self.speed_sigma = max(self.sigma, SPEED_SIGMA * self.m)
         self.behind = max(self.radius, int(4.0 * self.speed_sigma + 0.5))
-        self.pad = self.behind  # the head: the first point, held (a session starts standing)
+        self.pad = self.behind  # the head: the first points' line, back (LivePath._raw)
         self.horizon = 0  # decided on what has arrived
         # A plant's target: its frames known (planned) when its first frame is sent, no later ones,
         # so each window pins it where the last did (frames sent; see _emit).
@@ -342,7 +342,7 @@ class LiveSynth(LivePath):
             raise TrajectoryError(f"points: a trajectory needs at least 2 points, got {self.n_inputs}")
         self.ended = True
         if self.n_raw == 0:  # fewer points than the head needs: the batch's shorter head
-            self.pad = self.made - 1
+            self.pad = self.made - 1 if self.latency_ms is None else self.pad
             self._raw(np.zeros((len(self.scales), 0, self.width)))
         # As the batch does at the end: the path goes on as it went (point reflection)...
         end = self.n_raw

@@ -153,13 +153,15 @@ class LivePath:
         """Library-rate points into `longer`, behind the head the batch makes of the first ones."""
         if self.n_raw == 0:
             first = np.concatenate([self.first_points, new], axis=1)
-            if first.shape[1] < (self.pad + 1 if self.latency_ms is None else 1):
+            # The low-latency mode's first frame reads `ahead` points past it: as many wait here.
+            wanted = self.pad + 1 if self.latency_ms is None else 1 if self.ended else self.ahead + 1
+            if first.shape[1] < wanted:
                 self.first_points = first
                 return
             if self.latency_ms is None:
                 head = 2 * first[:, :1] - first[:, self.pad:0:-1]
-            else:  # made at once: no point waited for (the session starts standing)
-                head = np.repeat(first[:, :1], self.pad, axis=1)
+            else:  # the line of the points so far, back: a path moving at once starts moving
+                head = first[:, :1] - _mean_step(first) * np.arange(self.pad, 0, -1)[None, :, None]
             self.longer = np.concatenate([head, first], axis=1)
             self.n_raw = first.shape[1]
             self.first_points = first[:, :0]
@@ -283,3 +285,13 @@ class LivePath:
         # Frame t reads segment floor((t - (m-1)/2) / m) + 1 (and at least segment 1).
         m = self.m
         return int(np.ceil((self.n_seg - 1) * m + (m - 1) / 2)) if self.n_seg >= 2 else 0
+
+
+def _mean_step(points: Floats) -> Floats:
+    """``(C, 1, K)``: the mean step a frame of ``points (C, n, K)`` over their positions (the
+    velocity columns' step 0: the first one sent goes back with the head)."""
+    n = points.shape[1] - 1
+    step = np.zeros_like(points[:, :1])
+    if n > 0:
+        step[..., :3] = (points[:, -1:, :3] - points[:, :1, :3]) / n
+    return step
