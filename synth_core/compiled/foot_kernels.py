@@ -33,7 +33,7 @@ from synth_core.compiled.replant_kernels import (
 from synth_core.compiled.replant_kernels import LEG_WIDTH as LEG_WIDTH  # (callers ask foot_kernels)
 from synth_core.compiled.replant_kernels import NOWHERE as NOWHERE
 from synth_core.compiled.replant_kernels import no_steps as no_steps
-from synth_core.compiled.vec_kernels import conj, norm3, q4, qmul, qrot, v3, vadd, vscale, vsub
+from synth_core.compiled.vec_kernels import conj, norm3, q4, qmul, qrot, smoothstep, v3, vadd, vscale, vsub
 from synth_core.runtime.footlock import EASE_FRAMES, LONGEST_OVER, REACH, STEP_HEIGHT
 
 _jit = render_jit
@@ -199,13 +199,11 @@ def _eased(u: int, last_start: int, last_end: int, nxt: int, has_before: bool, h
     its plant keeps (:func:`_swings`)."""
     x = 1.0 if has_after else 0.0
     if has_before and has_after:
-        x = min(max((u - last_end) / max(nxt - last_end, 1), 0.0), 1.0)
-        x = x * x * (3 - 2 * x)
+        x = smoothstep((u - last_end) / max(nxt - last_end, 1))
     if not (unplanned and has_before):
-        return float(x), float(x)
+        return x, x
     span = step if step > 0 else max((last_end - last_start + 1) // 2, 1)
-    y = min(max((u - last_end) / span, 0.0), 1.0)
-    return float(y * y * (3 - 2 * y)), float(x)
+    return smoothstep((u - last_end) / span), x
 
 
 @_jit()

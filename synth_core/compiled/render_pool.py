@@ -42,10 +42,9 @@ def one_thread() -> Iterator[None]:
     For work cut small, as a live tick's (a few frames of a session's characters): a kernel
     fanned out to every core ends by waiting for the slowest of its threads, and on a busy
     machine (other sessions, the service's packing, another process) that one waits for a
-    scheduler slice at every kernel call -- the low-latency edge suite, a tick at a time, went
-    from half a minute to over five with three other busy processes on the two cores, against
-    a minute and a quarter on one thread. Such work gets its cores from side-by-side parts
-    instead: a session's shards, the service's sessions."""
+    scheduler slice at every kernel call: a live session fed a tick at a time ran ten times
+    slower. Such work gets its cores from side-by-side parts instead: a session's shards, the
+    service's sessions."""
     if not kernels.AVAILABLE:
         yield
         return

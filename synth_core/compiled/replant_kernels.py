@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 
 from synth_core.compiled.jit import render_jit
-from synth_core.compiled.vec_kernels import v3, vsub
+from synth_core.compiled.vec_kernels import smoothstep, v3, vsub
 from synth_core.runtime.footlock import LONGEST_OVER, REACH, STEP_HEIGHT, STEP_LIFT, TURN_CARRY
 
 _jit = render_jit
@@ -205,8 +205,7 @@ def step_over(out: Any, f: int, a: int, b: int, height: float) -> None:
     n = b - a + 1
     for u in range(a, b):
         x = (u - a + 1) / n
-        e = min(max((x - STEP_LIFT) / (1.0 - 2.0 * STEP_LIFT), 0.0), 1.0)  # up before it moves
-        e = e * e * (3 - 2 * e)
+        e = smoothstep((x - STEP_LIFT) / (1.0 - 2.0 * STEP_LIFT))  # up before it moves
         for k in range(3):
             out[u, f, k] = out[a - 1, f, k] + e * (out[b, f, k] - out[a - 1, f, k])
         out[u, f, 1] += height * math.sin(math.pi * x)

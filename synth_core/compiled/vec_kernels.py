@@ -72,6 +72,13 @@ def norm3(a: Any) -> float:
 
 
 @_jit()
+def smoothstep(x: float) -> float:
+    """3x^2 - 2x^3 of ``x`` clamped to [0, 1]: an ease in and out."""
+    x = min(max(x, 0.0), 1.0)
+    return float(x * x * (3 - 2 * x))
+
+
+@_jit()
 def v3(a: Any) -> Any:
     return (float(a[0]), float(a[1]), float(a[2]))
 
