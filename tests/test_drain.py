@@ -5,6 +5,7 @@ cancelled counter counts WebSocket clients that leave mid-batch."""
 from __future__ import annotations
 
 import signal
+import socket
 import threading
 import time
 from pathlib import Path
@@ -47,6 +48,36 @@ def test_sigterm_with_two_workers_is_not_ready_at_once_then_refuses_connections(
         for _ in range(5):
             with pytest.raises(httpx.ConnectError):
                 httpx.get(f"{url}/readyz", timeout=5)
+        assert proc.wait(timeout=60) in (0, -signal.SIGTERM)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+
+
+def test_a_connection_taken_just_before_the_listeners_close_is_answered(tmp_path: Path) -> None:
+    port = free_port()
+    proc = start(["--port", str(port), "--log-level", "warning"], tmp_path)
+    url = f"http://127.0.0.1:{port}"
+    try:
+        wait_until_live(proc, url)
+        early = socket.create_connection(("127.0.0.1", port), timeout=30)
+        # Taken by the server: connections are accepted in the order they came, and a later one
+        # has been answered.
+        assert httpx.get(f"{url}/livez").status_code == 200
+        proc.send_signal(signal.SIGTERM)
+        until = time.monotonic() + 60
+        while time.monotonic() < until:  # until the listeners are closed
+            try:
+                socket.create_connection(("127.0.0.1", port), timeout=5).close()
+            except ConnectionRefusedError:
+                break
+        early.sendall(b"GET /readyz HTTP/1.1\r\nHost: quadsynth\r\nConnection: close\r\n\r\n")
+        answer = b""
+        while chunk := early.recv(65536):
+            answer += chunk
+        assert answer.startswith(b"HTTP/1.1 503"), answer[:80]
+        early.close()
         assert proc.wait(timeout=60) in (0, -signal.SIGTERM)
     finally:
         if proc.poll() is None:
