@@ -17,6 +17,7 @@ import numpy as np
 
 from synth_core.compiled.ground_kernels import ground_at
 from synth_core.compiled.jit import render_jit
+from synth_core.compiled.jump_kernels import ease_jumps
 from synth_core.compiled.limb_kernels import unit4, world_position
 from synth_core.compiled.pose_kernels import lean_tilt
 from synth_core.compiled.replant_kernels import (
@@ -34,7 +35,7 @@ from synth_core.compiled.replant_kernels import LEG_WIDTH as LEG_WIDTH  # (calle
 from synth_core.compiled.replant_kernels import NOWHERE as NOWHERE
 from synth_core.compiled.replant_kernels import no_steps as no_steps
 from synth_core.compiled.vec_kernels import conj, norm3, q4, qmul, qrot, smoothstep, v3, vadd, vscale, vsub
-from synth_core.runtime.footlock import EASE_FRAMES, LONGEST_OVER, REACH, STEP_HEIGHT
+from synth_core.runtime.footlock import EASE_FRAMES, JUMP_EASE, LONGEST_OVER, REACH, STEP_HEIGHT
 
 _jit = render_jit
 
@@ -47,7 +48,10 @@ def plant_targets(feet: Any, contacts: Any, out: Any, most: int, pins: Any, pinn
     correction eased (smoothstep) from the one its last plant needed at lift-off to the one its
     next plant needs at touchdown, over the ground only (x and z: swing heights are the clip's).
     ``most``: a plant's position averages its first so many frames at most (and, ``most`` < T, a
-    swing before no plant eases its correction out as there).
+    swing before no plant eases its correction out as there). A target's one-frame jump is then
+    eased into a ramp over the swing frames around it
+    (:func:`~synth_core.compiled.jump_kernels.ease_jumps`; not where ``most`` < T, whose swings
+    are sent before their next plant is planned).
 
     A plant the body's turn carries out of its leg's reach (a body turning on the spot over a
     standing foot: :func:`~synth_core.compiled.replant_kernels.replant`) is stepped instead: split
@@ -67,7 +71,9 @@ def plant_targets(feet: Any, contacts: Any, out: Any, most: int, pins: Any, pinn
     pinned it would hover the whole stand. Then, for
     ``last`` >= 0, the same of each foot's last plant up to frame ``last``: the one it is in, or
     the one before its swing (whose lift-off correction the swing eases out)."""
-    down = np.empty(feet.shape[0], np.bool_)
+    T = feet.shape[0]
+    down = np.empty(T, np.bool_)
+    saved = np.empty((T, 3))  # ease_jumps' scratch
     air = np.empty((feet.shape[0], 4), np.bool_)  # each foot off the ground (steps too, once made)
     for f in range(4):
         air[:, f] = ~contacts[:, f]
@@ -79,6 +85,8 @@ def plant_targets(feet: Any, contacts: Any, out: Any, most: int, pins: Any, pinn
         _plants(feet, down, f, out, most, pins[f], pinned[f], reach, air, steps)
         _swings(feet, down, contacts[:, f], out, f, most, STEP_HEIGHT * bends[f, 4], int(bends[f, 5]),
                 pinned[f])
+        if most >= T:  # the low-latency mode (most < T) sends a swing before its next plant
+            ease_jumps(out, down, f, JUMP_EASE / h, saved)
         u = last
         while u >= 0 and not down[u]:
             u -= 1

@@ -40,6 +40,12 @@ MAX_SINK = 0.05  # of the leg length, the most the root is lowered
 # stretches (issue 33).
 TERRAIN_MAX_SINK = 0.2
 EASE_FRAMES = 9
+# A foot target's step longer than the mean of the steps either side of it by more than this
+# (metres in the world; issue 27's one-frame jump target is 6 cm) is eased into a ramp over the
+# swing frames around it (jump_kernels.ease_jumps). Half the target: the rest is for what comes
+# after the targets -- the sink moving the hips, the IK falling short where a leg cannot reach,
+# the hoof or paw below the ankle, which the IK does not hold.
+JUMP_EASE = 0.03
 # A body turning on the spot carries a standing foot round with it: held where it stood, the foot
 # went out of the leg's reach (issue 27, turn_on_spot: a horse pivoting 180 deg on its hips over
 # standing forefeet reared, the hooves hanging 35-50 cm up, then jumped 37 cm in a frame as they

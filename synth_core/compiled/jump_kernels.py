@@ -1,0 +1,98 @@
+"""A foot target's one-frame jumps eased into ramps (issue 27's jump target, issue 28's paws).
+
+Every cause of a foot jumping in one frame at a stitch (docs/stitch_jumps.md: a held transition
+fading out, a clip frame skipped at a contact change, settling pinning a raised hoof, a
+transition played far faster than its clip) ends up as the same thing in the foot lock: a step
+of a foot's target much longer than the steps either side of it. :func:`ease_jumps` finds those
+in the targets :func:`~synth_core.compiled.foot_kernels.plant_targets` made and spreads each
+one's excess over the swing frames around it, eased; planted frames are never moved.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+from synth_core.compiled.jit import render_jit
+from synth_core.compiled.vec_kernels import smoothstep
+
+_jit = render_jit
+
+
+@_jit(inline="always")
+def _step(out: Any, f: int, t: int, k: int) -> float:
+    """Axis k of foot f's target step from frame t - 1 to frame t."""
+    return float(out[t, f, k] - out[t - 1, f, k])
+
+
+@_jit(inline="always")
+def _beyond(out: Any, f: int, t: int, k: int) -> float:
+    """Axis k of foot f's step into frame t beyond the mean of the steps before and after it."""
+    return _step(out, f, t, k) - 0.5 * (_step(out, f, t - 1, k) + _step(out, f, t + 1, k))
+
+
+@_jit()
+def _excess(out: Any, f: int, t: int) -> float:
+    """How much longer foot f's step into frame t is than the mean of the steps before and after
+    it (metrics.one_frame_jumps_mm, in the targets' unit)."""
+    d = math.hypot(math.hypot(_step(out, f, t, 0), _step(out, f, t, 1)), _step(out, f, t, 2))
+    before = math.hypot(math.hypot(_step(out, f, t - 1, 0), _step(out, f, t - 1, 1)), _step(out, f, t - 1, 2))
+    after = math.hypot(math.hypot(_step(out, f, t + 1, 0), _step(out, f, t + 1, 1)), _step(out, f, t + 1, 2))
+    return float(d - 0.5 * (before + after))
+
+
+@_jit()
+def _worst(out: Any, f: int, a: int, b: int) -> float:
+    """The largest :func:`_excess` of foot f's steps into frames [a, b] (those within its path)."""
+    worst = -math.inf
+    for t in range(max(a, 2), min(b, out.shape[0] - 2) + 1):
+        worst = max(worst, _excess(out, f, t))
+    return worst
+
+
+@_jit()
+def _ramp(out: Any, f: int, t: int, a: int, b: int) -> None:
+    """Foot f's step into frame t made the mean of the steps either side (its excess over that,
+    a vector: taken off, the step is no longer than their mean length), the excess eased in
+    instead over frames (a, b): a smoothstep from a to b put on, the jump (a step function at
+    t) taken off."""
+    for k in range(3):
+        x = _beyond(out, f, t, k)
+        for u in range(a + 1, b):
+            out[u, f, k] += (smoothstep((u - a) / (b - a)) - (1.0 if u >= t else 0.0)) * x
+
+
+@_jit()
+def ease_jumps(out: Any, down: Any, f: int, bound: float, saved: Any) -> None:
+    """Foot f's targets ``out (T, 4, 3)`` with every step longer than the mean of the steps before
+    and after it by more than ``bound`` made that mean, its excess spread instead over the frames
+    around it that are not planted (``down (T,)``: its planted frames): a smoothstep ramp over
+    enough of them that no frame takes more than ``bound`` of it (1.5 / n of the excess over n
+    frames at the ramp's steepest), centred on the step, as many as its swing holds. A step into
+    a plant's first frame (a raised hoof pinned down at once) so ramps over the frames before
+    it; a step out of a plant, over those after. A ramp that leaves a step around it jumping as
+    far as before or further is not made (a swing of a frame or two between plants far apart:
+    no frames to spread it over). Scanned forward, each step read as the ramps before it left
+    it. Reads the swing the step is in and its plants' frames either side only (a live window's
+    foot-lock context holds them: kernels.lock_context). ``saved (T, 3)``: scratch."""
+    T = out.shape[0]
+    for t in range(2, T - 1):
+        if (down[t - 1] and down[t]) or _excess(out, f, t) <= bound:
+            continue
+        lo, hi = t - 1, t  # the frames free to move: (lo, hi), lo and hi planted or the ends
+        while lo > 0 and not down[lo]:
+            lo -= 1
+        while hi < T - 1 and not down[hi]:
+            hi += 1
+        ex = 0.0
+        for k in range(3):
+            ex = math.hypot(ex, _beyond(out, f, t, k))
+        n = max(int(math.ceil(1.5 * ex / bound)), 2)
+        a = max(lo, t - 1 - (n - 1) // 2)
+        b = min(hi, a + n)
+        a = max(lo, b - n)
+        before = _worst(out, f, a, b + 1)
+        saved[a:b + 1] = out[a:b + 1, f]
+        _ramp(out, f, t, a, b)
+        if _worst(out, f, a, b + 1) >= before:
+            out[a:b + 1, f] = saved[a:b + 1]
