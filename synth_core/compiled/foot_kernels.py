@@ -50,8 +50,9 @@ def plant_targets(feet: Any, contacts: Any, out: Any, most: int, pins: Any, pinn
     ``most``: a plant's position averages its first so many frames at most (and, ``most`` < T, a
     swing before no plant eases its correction out as there). A target's one-frame jump is then
     eased into a ramp over the swing frames around it
-    (:func:`~synth_core.compiled.jump_kernels.ease_jumps`; not where ``most`` < T, whose swings
-    are sent before their next plant is planned).
+    (:func:`~synth_core.compiled.jump_kernels.ease_jumps`; where ``most`` < T, whose swings are
+    sent before their next plant is planned, in a live window only (``last`` >= 0) and on its
+    frames not sent yet alone, from the targets sent: :func:`_ease_unsent`, ``body``'s last).
 
     A plant the body's turn carries out of its leg's reach (a body turning on the spot over a
     standing foot: :func:`~synth_core.compiled.replant_kernels.replant`) is stepped instead: split
@@ -61,7 +62,8 @@ def plant_targets(feet: Any, contacts: Any, out: Any, most: int, pins: Any, pinn
     needing more is out of reach), the first frame posed (earlier ones count as in reach), the
     path ``(T, 3)`` and the share of its height added to a foot's for the legs (on a terrain the
     feet's heights are over the body's ground: 1 / h; else 0), the body's yaw ``(T,)`` and root
-    ``(T, 3)`` (world), the scale h and whether to step at all (kernels.render_window's ``steps``).
+    ``(T, 3)`` (world), the scale h, whether to step at all (kernels.render_window's ``steps``),
+    the window's first frame and the targets sent (:func:`_ease_unsent`'s ``first``, ``sent``).
 
     ``pins (4, 3)``, ``pinned (4,)``: foot f's plant through frame ``pinned[f]`` (if that is one
     of its planted frames) is at ``pins[f]`` over the ground, whatever its frames here average:
@@ -73,11 +75,11 @@ def plant_targets(feet: Any, contacts: Any, out: Any, most: int, pins: Any, pinn
     the one before its swing (whose lift-off correction the swing eases out)."""
     T = feet.shape[0]
     down = np.empty(T, np.bool_)
-    saved = np.empty((T, 3))  # ease_jumps' scratch
+    saved = np.empty((T + 4, 3))  # ease_jumps' scratch, and _ease_unsent's
     air = np.empty((feet.shape[0], 4), np.bool_)  # each foot off the ground (steps too, once made)
     for f in range(4):
         air[:, f] = ~contacts[:, f]
-    bends, legs, limit, posed, path, lift, yaw, root, h, steps = body
+    bends, legs, limit, posed, path, lift, yaw, root, h, steps, first, sent = body
     for f in range(4):
         out[:, f, :] = feet[:, f, :]
         down[:] = contacts[:, f]
@@ -85,14 +87,44 @@ def plant_targets(feet: Any, contacts: Any, out: Any, most: int, pins: Any, pinn
         _plants(feet, down, f, out, most, pins[f], pinned[f], reach, air, steps)
         _swings(feet, down, contacts[:, f], out, f, most, STEP_HEIGHT * bends[f, 4], int(bends[f, 5]),
                 pinned[f])
-        if most >= T:  # the low-latency mode (most < T) sends a swing before its next plant
-            ease_jumps(out, down, f, JUMP_EASE / h, saved)
+        if most >= T:  # a batch's or the exact live mode's: every frame free
+            ease_jumps(out, down, f, JUMP_EASE / h, saved, 0)
+        elif last >= 0:  # the low-latency mode sends a swing before its next plant is planned
+            _ease_unsent(out, down, f, JUMP_EASE / h, saved, last, first, sent)
         u = last
         while u >= 0 and not down[u]:
             u -= 1
         if u >= 0:
             pins[f, :] = out[u, f, :]
             pinned[f] = u
+
+
+@_jit()
+def _ease_unsent(out: Any, down: Any, f: int, bound: float, saved: Any, last: int, first: int,
+                 sent: Any) -> None:
+    """Foot f's targets' one-frame jumps eased (:func:`ease_jumps`) on the frames of a live
+    window in the low-latency mode not sent yet (from frame ``first`` on). ``sent``: ``(kept (2,
+    4, 3), at)``: the targets of frames ``at - 1``, ``at`` as sent (if ``at`` is ``first - 1``),
+    put back on those frames first: recomputed, a sent swing's frames may lie elsewhere (its
+    next plant came since) and a ramp an earlier window began was sent in part, so the frames
+    here are eased on from where the foot was sent (sent, a frame stays); put back after (the
+    sink and the pins read the sent frames' targets as before). The targets of frames ``last -
+    1``, ``last`` (the window's last, sent now) are then kept there for the next one. ``saved (T +
+    4, 3)``: scratch."""
+    kept, at = sent
+    T = out.shape[0]
+    here, now = saved[T:T + 2], saved[T + 2:T + 4]
+    anchored = first >= 2 and at == first - 1
+    if anchored:
+        here[:] = out[first - 2:first, f]
+        out[first - 2:first, f] = kept[:, f]
+    ease_jumps(out, down, f, bound, saved, first)
+    if last >= 1:
+        now[:] = out[last - 1:last + 1, f]
+    if anchored:
+        out[first - 2:first, f] = here
+    if last >= 1:
+        kept[:, f] = now
 
 
 @_jit()

@@ -63,7 +63,7 @@ def _ramp(out: Any, f: int, t: int, a: int, b: int) -> None:
 
 
 @_jit()
-def ease_jumps(out: Any, down: Any, f: int, bound: float, saved: Any) -> None:
+def ease_jumps(out: Any, down: Any, f: int, bound: float, saved: Any, first: int) -> None:
     """Foot f's targets ``out (T, 4, 3)`` with every step longer than the mean of the steps before
     and after it by more than ``bound`` made that mean, its excess spread instead over the frames
     around it that are not planted (``down (T,)``: its planted frames): a smoothstep ramp over
@@ -74,13 +74,15 @@ def ease_jumps(out: Any, down: Any, f: int, bound: float, saved: Any) -> None:
     far as before or further is not made (a swing of a frame or two between plants far apart:
     no frames to spread it over). Scanned forward, each step read as the ramps before it left
     it. Reads the swing the step is in and its plants' frames either side only (a live window's
-    foot-lock context holds them: kernels.lock_context). ``saved (T, 3)``: scratch."""
+    foot-lock context holds them: kernels.lock_context). ``saved (T, 3)``: scratch. ``first``:
+    frames before it are never moved (a live window's frames sent already: a step into a frame
+    sent is left, a ramp that would reach back past ``first`` is shortened to the frames after)."""
     T = out.shape[0]
-    for t in range(2, T - 1):
+    for t in range(max(2, first), T - 1):
         if (down[t - 1] and down[t]) or _excess(out, f, t) <= bound:
             continue
-        lo, hi = t - 1, t  # the frames free to move: (lo, hi), lo and hi planted or the ends
-        while lo > 0 and not down[lo]:
+        lo, hi = t - 1, t  # the frames free to move: (lo, hi), lo and hi planted, sent or the ends
+        while lo > max(first - 1, 0) and not down[lo]:
             lo -= 1
         while hi < T - 1 and not down[hi]:
             hi += 1

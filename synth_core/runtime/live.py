@@ -220,6 +220,8 @@ class LiveSynth(LivePath):
         # The low-latency mode's plants as sent, each through the last frame sent (kernels.Posed):
         # a plant longer than the frames kept stays where its first frames put it.
         self.pins, self.pinned = np.zeros((C, 4, 3)), np.full((C, 4), NOWHERE)
+        # The foot targets of the last two frames sent (kernels.Posed): later windows ease from them.
+        self.sent, self.sent_at = np.zeros((C, 2, 4, 3)), np.full(C, NOWHERE)
         # The characters whose rotations are wanted (see set_posed); character-frames sent posed so far.
         self.pose = np.ones(C, bool)
         self.posed_frames = 0
@@ -445,13 +447,14 @@ class LiveSynth(LivePath):
         o0, n = self.buffer.start, buf.yaw.shape[1]
         self.feet.reserve(max(o0 + n - self.feet.stop, 0))
         posed = kernels.Posed(self.feet.columns(o0, o0 + n)[0][0], self.known_feet - o0, self.recent_legs,
-                              self.legs_at - o0, self.pins, self.pinned - o0)
+                              self.legs_at - o0, self.pins, self.pinned - o0, self.sent, self.sent_at - o0)
         out = None if self.scratch is None else self.scratch.array(
             "live.rotations", (len(self.scales), hi - lo, self.bank.skeleton.n_joints, 4), np.float32)
         root, rot = kernels.render_window(self.bank, buf, lo, hi, begin, end, self.foot_lock, posed, out,
                                           self.share, ground, self.pose, self.compiled, self.plant_frames,
                                           steps=False)
         self.known_feet, self.legs_at, self.pinned = posed.frames + o0, posed.legs_at + o0, posed.pinned + o0
+        self.sent_at = posed.sent_at + o0
         return root, rot
 
     def _emit(self, start: int, stop: int) -> Window:
