@@ -267,7 +267,10 @@ class CharacterOut(BaseModel):
     root: Blob = Field(description="root position (frames, 3) float32, metres")
     rotations: PackedRotations
     gait: Blob = Field(description="(frames,) int8: 0 static, 1 walk, 2 trot, 3 canter, 4 gallop")
-    contacts: Blob = Field(description="(frames,) uint8 bit mask of planted feet: 1 LF, 2 RF, 4 LH, 8 RH")
+    contacts: Blob = Field(description="(frames,) uint8 bit mask of planted feet: 1 LF, 2 RF, 4 LH, 8 RH: "
+                                       "the feet the motion sent stands on the ground (the foot lock's "
+                                       "plants, its steps off; a far, unposed character's: its plan's). "
+                                       "See docs/wire-format.md")
 
 
 class Skipped(BaseModel):

@@ -255,7 +255,7 @@ def produce(job: jobs.Job, bank: Bank, meta: dict[str, Any], emit: Callable[[Any
                                 out=None if encoding == "f32" else scratch.array(
                                     "packed", (n, T, J, 6 if encoding == "s48" else 4),
                                     np.uint8 if encoding == "s48" else np.int16))
-        bits = contact_bits(p.contacts)
+        bits = contact_bits(chunk.contacts)
         arrays = []
         for i in range(n):
             k = frames[sl.start + i]
@@ -333,7 +333,7 @@ def produce_detailed(job: jobs.Job, bank: Bank, meta: dict[str, Any], emit: Call
 
     def piece(chunk: Rendered, scratch: Scratch) -> bytes:
         sl = chunk.characters
-        bits = contact_bits(chunk.plan.contacts)
+        bits = contact_bits(chunk.contacts)
         out: list[bytes | memoryview] = []
         for i, (packed, rot) in enumerate(_packed_rotations(chunk, frames, p)):
             c = sl.start + i

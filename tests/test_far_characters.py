@@ -1,6 +1,7 @@
 """Far characters in a batch (REST, WebSocket batch, synthesize): a character whose rotations
 nobody is sent (root_gait detail) is not posed -- no pose, no foot lock -- and still gets the
-root, gait and contacts the full render gives it; the posed characters' motion is unchanged."""
+root and gait the full render gives it, and its plan's contacts (the feet a render would plant
+are those, less the lock's steps: docs/wire-format.md); the posed characters' motion is unchanged."""
 
 from __future__ import annotations
 
@@ -30,7 +31,9 @@ def test_a_batch_poses_only_the_characters_wanted(bank: Bank, herd: np.ndarray) 
     np.testing.assert_array_equal(far.rotations[POSED], full.rotations[POSED])
     np.testing.assert_array_equal(far.root_pos[POSED], full.root_pos[POSED])
     np.testing.assert_array_equal(far.gait, full.gait)
-    np.testing.assert_array_equal(far.contacts, full.contacts)
+    np.testing.assert_array_equal(far.contacts[POSED], full.contacts[POSED])
+    plan = synthesize(bank, herd, options=Options(seed=3, scale_range=(0.8, 1.2), foot_lock=False))
+    np.testing.assert_array_equal(far.contacts[~POSED], plan.contacts[~POSED])  # (unlocked: the plan's)
     assert_far_root(bank, far.root_pos[~POSED], full.root_pos[~POSED], full.scales[~POSED])
 
 
@@ -44,7 +47,8 @@ def test_a_batch_stream_poses_only_the_characters_wanted(bank: Bank, herd: np.nd
     root_full, rot_full, contacts_full = frames(Options(seed=3))
     np.testing.assert_array_equal(rot[POSED], rot_full[POSED])
     np.testing.assert_array_equal(root[POSED], root_full[POSED])
-    np.testing.assert_array_equal(contacts, contacts_full)
+    np.testing.assert_array_equal(contacts[POSED], contacts_full[POSED])
+    assert not (contacts_full & ~contacts).any()  # a far one's plan has every foot the render plants
     scales = synthesize(bank, herd[:1], options=Options(seed=3)).scales  # scale 1: the range's default
     assert_far_root(bank, root[~POSED], root_full[~POSED], np.full((~POSED).sum(), scales[0]))
 

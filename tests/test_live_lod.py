@@ -1,5 +1,5 @@
 """Level of detail on the live path's server side: a character whose rotations nobody is sent
-(root_gait) is not posed -- no pose, no foot lock -- and still gets its root, gait and contacts."""
+(root_gait) is not posed -- no pose, no foot lock -- and still gets its root, gait and its plan's contacts."""
 
 from __future__ import annotations
 
@@ -50,7 +50,7 @@ def session(bank: Bank, herd: np.ndarray) -> LiveShards:
     return LiveShards(bank, len(herd), 30.0, seed=4, scale_range=(0.8, 1.2), shards=2)
 
 
-def test_far_characters_are_not_posed_and_keep_the_full_sessions_root_gait_and_contacts(
+def test_far_characters_are_not_posed_and_keep_the_full_sessions_root_gait_and_plan_contacts(
         bank: Bank, herd: np.ndarray) -> None:
     full = session(bank, herd)
     want, _ = run(full, herd)
@@ -61,7 +61,9 @@ def test_far_characters_are_not_posed_and_keep_the_full_sessions_root_gait_and_c
     assert full.posed_frames == len(herd) * frames  # every frame sent
     assert far.posed_frames == 0
     np.testing.assert_array_equal(cat(got, "gait"), cat(want, "gait"))
-    np.testing.assert_array_equal(cat(got, "contacts"), cat(want, "contacts"))
+    # A far character's contacts are its plan's: every foot the full render plants and the
+    # frames the lock lifts it off (docs/wire-format.md).
+    assert not (cat(want, "contacts") & ~cat(got, "contacts")).any()
     root, root_full = cat(got, "root_pos"), cat(want, "root_pos")
     assert_far_root(bank, root, root_full, far.scales)
     assert (np.abs(root[..., 1] - root_full[..., 1]) < 1e-5).mean() > 0.5  # most frames need neither

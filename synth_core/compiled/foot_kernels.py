@@ -35,14 +35,22 @@ from synth_core.compiled.replant_kernels import LEG_WIDTH as LEG_WIDTH  # (calle
 from synth_core.compiled.replant_kernels import NOWHERE as NOWHERE
 from synth_core.compiled.replant_kernels import no_steps as no_steps
 from synth_core.compiled.vec_kernels import conj, norm3, q4, qmul, qrot, smoothstep, v3, vadd, vscale, vsub
-from synth_core.runtime.footlock import EASE_FRAMES, JUMP_EASE, LONGEST_OVER, REACH, STEP_HEIGHT
+from synth_core.runtime.footlock import (
+    EASE_FRAMES,
+    JUMP_EASE,
+    LONGEST_OVER,
+    PLANTED_SLACK,
+    PLANTED_UP,
+    REACH,
+    STEP_HEIGHT,
+)
 
 _jit = render_jit
 
 
 @_jit()
 def plant_targets(feet: Any, contacts: Any, out: Any, most: int, pins: Any, pinned: Any, last: int,
-                  body: Any) -> None:
+                  body: Any) -> Any:
     """Foot targets ``out (T, 4, 3)`` of one character from its feet ``(T, 4, 3)`` and ``contacts
     (T, 4)``: each plant at the foot's average over it; a swinging foot on its own path plus a
     correction eased (smoothstep) from the one its last plant needed at lift-off to the one its
@@ -72,7 +80,10 @@ def plant_targets(feet: Any, contacts: Any, out: Any, most: int, pins: Any, pinn
     (braking from a canter, 3-5 cm up) puts it down as its first frames leave the context, where
     pinned it would hover the whole stand. Then, for
     ``last`` >= 0, the same of each foot's last plant up to frame ``last``: the one it is in, or
-    the one before its swing (whose lift-off correction the swing eases out)."""
+    the one before its swing (whose lift-off correction the swing eases out).
+
+    Returns ``air (T, 4)``: each foot's frames off the ground as the targets have them -- the
+    plan's swings, and the steps and early lift-offs of plants stepped (:func:`held` reads it)."""
     T = feet.shape[0]
     down = np.empty(T, np.bool_)
     saved = np.empty((T + 4, 3))  # ease_jumps' scratch, and _ease_unsent's
@@ -97,6 +108,38 @@ def plant_targets(feet: Any, contacts: Any, out: Any, most: int, pins: Any, pinn
         if u >= 0:
             pins[f, :] = out[u, f, :]
             pinned[f] = u
+    hovering(air, out, path, lift > 0.0, h, 0, feet.shape[0])  # (on the ground, as held reads it)
+    return air
+
+
+@_jit()
+def hovering(air: Any, targets: Any, path: Any, terrain: bool, h: float, a: int, b: int) -> None:
+    """Marks in ``air`` the frames of ``[a, b)`` whose plant stands higher than PLANTED_UP over
+    the ground (targets as :func:`plant_targets` left them: on a terrain, over the body's ground;
+    else over the path's height): a plant taken from its frames while the foot still comes down
+    (a live window's first frames of it) holds the foot up there, not on the ground."""
+    for t in range(a, b):
+        ground = 0.0 if terrain else path[t, 1] / h
+        for f in range(4):
+            if (targets[t, f, 1] - ground) * h > PLANTED_UP:
+                air[t, f] = True
+
+
+@_jit()
+def held(air: Any, targets: Any, legs: Any, bends: Any, eased: Any, h: float, a: int, b: int,
+         kept: Any) -> None:
+    """``kept[t - a, f]`` for frames t of ``[a, b)``: foot f stands on its plant -- its target is
+    not in the air (``air``: :func:`plant_targets`') and its leg reaches it, the root sunk by
+    ``eased``, within PLANTED_SLACK (world metres; the IK's reach: the chain's and LONGEST_OVER
+    past the poses' longest, ``bends[:, 4]``). Where the sink's bound leaves a plant out of reach
+    (a live plant held where it was sent while the body ran on), the foot hangs short of it: not
+    on the ground, so not flagged. The wire's contacts (docs/wire-format.md)."""
+    for t in range(a, b):
+        for f in range(4):
+            up, across2 = from_hip(targets[t, f], legs[t, f])
+            allowed = min(legs[t, f, LEG_REACH], (1.0 + LONGEST_OVER) * bends[f, 4])
+            short = (sink_within(up, across2, allowed) - eased[t]) * h  # the IK's shortfall, metres
+            kept[t - a, f] = not air[t, f] and short <= PLANTED_SLACK
 
 
 @_jit()

@@ -50,6 +50,7 @@ from synth_core.compiled.foot_kernels import (
     ease_sink,
     fold_room,
     ground_targets,
+    held,
     lock_contexts,
     measure_feet,
     plant_targets,
@@ -91,20 +92,20 @@ def _character(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, yaw
                     keep_from: int, keep_to: int, known_feet: Any, known: int, recent: Any,
                     recent_known: bool, tilt: Any, tilt_at: int, heights: Any, ground_x0: float,
                     ground_z0: float, spacing: float, plant_frames: int, pins: Any, pinned: Any,
-                    steps: bool, sent: Any) -> bool:
+                    steps: bool, sent: Any, kept: Any) -> bool:
     """All four passes for one character (scratch arrays given). Only frames ``[keep_from, keep_to)``
     are wanted (a window over its foot lock's context): the legs' IK is solved for those alone.
     ``known_feet (T, 4, 3)``: the feet of frames ``[0, known)`` made already (a live session's
     earlier windows), read there, not posed again, and written for the frames posed (an empty
     array: none kept). ``recent (PAD, 4, LEG_WIDTH)``: what the sink reads of the PAD frames before
     ``keep_from``, if ``recent_known`` (then ``known >= keep_from``; not posed either); on return
-    the same of the PAD frames before ``keep_to``: True if it does.
+    the same of the PAD frames before ``keep_to``: True if it does; ``kept``: its contacts, foot_kernels.held
     ``heights (Nz, Nx)``: the terrain (``(0, 0)``: none), grid origin, spacing; the body tilted by
     ``tilt[tilt_at + t]`` (``(T', 4)``) on frame t, its feet planted on the terrain (measure_feet).
     ``plant_frames``: plant_targets' ``most`` (feet kept: its pins, sent too); ``steps``: render_window's."""
-    terrain = heights.shape[0] > 0
-    T = out_rot.shape[0]
+    terrain, T = heights.shape[0] > 0, out_rot.shape[0]
     if not foot_lock:
+        kept[...] = contacts[keep_from:keep_to]  # (no feet held: the plan's)
         keep_from, keep_to, known, recent_known = 0, T, 0, False  # no context
     # Posed from a; the sink from s, the first frame the wanted frames' eased sink reads.
     if recent_known:
@@ -129,20 +130,20 @@ def _character(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, yaw
         known_feet[a:] = feet[a:]
     last = -1 if plant_frames == WHOLE_PLANT or known_feet.shape[0] == 0 else keep_to - 1
     body = (bends, legs, sink_limit, a, path, terrain / h, yaw, out_root, h, steps, keep_from, sent)
-    plant_targets(feet, contacts, targets, plant_frames, pins, pinned, last, body)
+    air = plant_targets(feet, contacts, targets, plant_frames, pins, pinned, last, body)
     if terrain:
         ground_targets(targets, contacts, heights, ground_x0, ground_z0, spacing, h, sink)
     reach_sink(targets, legs, bends, path, h, terrain, s, T, sink)
     # Eased from frame s on: the wanted frames, PAD or more after it, read nothing before it.
     ease_sink(sink[s:], sink_limit, eased[s:])
     fold_room(targets, legs, bends, sink_limit, s, T, eased, sink)  # the sink read: its frames free
-    for t in range(a, T):
-        out_root[t, 1] = (out_root[t, 1] / h - eased[t]) * h
+    out_root[a:, 1] = (out_root[a:, 1] / h - eased[a:]) * h
+    held(air, targets, legs, bends, eased, h, keep_from, keep_to, kept)
     solve_legs(world, targets, eased, rigs, parents, offsets, bends, out_rot, keep_from, keep_to, o)
-    if keep_to - PAD < s:
-        return False
-    recent[...] = legs[keep_to - PAD:keep_to]
-    return True
+    made = keep_to - PAD >= s
+    if made:
+        recent[...] = legs[keep_to - PAD:keep_to]
+    return made
 
 
 @_jit(parallel=True)
@@ -151,11 +152,11 @@ def _render_all(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, ya
                 bends: Any, sink_limit: float, foot_lock: bool, out_rot: Any, out_root: Any,
                 w_world: Any, w_feet: Any, w_legs: Any, w_targets: Any, w_sink: Any, w_eased: Any,
                 tilt: Any, heights: Any, ground_x0: float, ground_z0: float, spacing: float,
-                pose: Any) -> None:
+                pose: Any, kept: Any) -> None:
     """``w_*``: one working set per worker (first axis), reused for its characters: a fresh
     megabyte per character would cost more in page faults than the lock's arithmetic.
     ``pose (C,)``: the characters posed; the others get their root alone (:func:`root_only`)
-    and their rotations are left as they were in ``out_rot``."""
+    and their rotations are left as they were in ``out_rot``, their ``kept (C, T, 4)`` the plan's contacts."""
     C = out_rot.shape[0]
     workers = min(C, w_world.shape[0])
     none_known = np.empty((0, 4, 3))
@@ -167,13 +168,15 @@ def _render_all(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, ya
         for c in range(worker, C, workers):
             if not pose[c]:
                 root_only(height, surge, rows[c], weights[c], yaw[c], path[c], scales[c], out_root[c])
+                kept[c] = contacts[c]
                 continue
             own_tilt = tilt[c] if heights.shape[0] > 0 else tilt[0]
             _character(poses, height, surge, rows[c], weights[c], yaw[c], lean[c], path[c], scales[c],
                        contacts[c], parents, offsets, fk_joints, rigs, bends, sink_limit, foot_lock,
                        out_rot[c], out_root[c], world, feet, legs, targets, sink, eased, 0,
                        out_rot.shape[1], none_known, 0, recent, False, own_tilt, 0, heights, ground_x0,
-                       ground_z0, spacing, WHOLE_PLANT, no_pins, unpinned, True, (no_sent, NOWHERE))
+                       ground_z0, spacing, WHOLE_PLANT, no_pins, unpinned, True, (no_sent, NOWHERE),
+                       kept[c])
 
 
 @_jit(parallel=True)
@@ -183,14 +186,15 @@ def _render_windows(poses: Any, height: Any, surge: Any, rows: Any, weights: Any
                     begin: Any, end: Any, start: int, out_rot: Any, out_root: Any, tilt: Any, heights: Any,
                     ground_x0: float, ground_z0: float, spacing: float, pose: Any, known_feet: Any,
                     known: Any, known_legs: Any, legs_at: Any, pins: Any, pinned: Any, sent: Any,
-                    sent_at: Any, plant_frames: int, steps: bool, c0: int, c1: int) -> None:
+                    sent_at: Any, plant_frames: int, steps: bool, kept: Any, c0: int, c1: int) -> None:
     """Frames ``[start, start + out.shape[1])`` of characters ``[c0, c1)``, each rendered over its own context
     ``[begin[c], end[c])`` of the plan (see :func:`render_window`); ``known_feet (T, C, 4, 3)`` (or none:
     ``(0, C, 4, 3)``), ``known``, ``known_legs``, ``legs_at``, ``pins``, ``pinned``, ``sent``, ``sent_at``: a
     :class:`Posed`'s, moved on (``known`` to ``end``, ``legs_at`` to the window's end, the pins to its last
     frame's plants, ``sent`` to its last two frames). Calls for disjoint character ranges may run side by
     side. ``pose (C,)``: the characters posed; the others get their root alone (:func:`_root_only`), their
-    rotations left as they were in ``out_rot`` and nothing of theirs kept."""
+    rotations left as they were in ``out_rot`` and nothing of theirs kept; ``kept (C, n, 4)``: the feet
+    planted as posed (far: the plan's)."""
     n, J = out_rot.shape[1], out_rot.shape[2]
     longest = 0
     for c in range(c0, c1):
@@ -198,8 +202,7 @@ def _render_windows(poses: Any, height: Any, surge: Any, rows: Any, weights: Any
     workers = min(c1 - c0, workers)
     keep = known_feet.shape[0] > 0
     for worker in prange(workers):
-        rot = np.empty((longest, J, 4), np.float32)
-        root = np.empty((longest, 3))
+        rot, root = np.empty((longest, J, 4), np.float32), np.empty((longest, 3))
         # See fk: from an origin up to LANES - 1 frames before the first posed.
         world = np.empty(((longest + 2 * LANES - 2) // LANES, 7 * J, LANES))
         feet = np.empty((longest, 4, 3))
@@ -211,6 +214,7 @@ def _render_windows(poses: Any, height: Any, surge: Any, rows: Any, weights: Any
             if not pose[c]:
                 root_only(height, surge, rows[c, start:start + n], weights[c, start:start + n],
                            yaw[c, start:start + n], path[c, start:start + n], scales[c], out_root[c])
+                kept[c] = contacts[c, start:start + n]
                 if keep:
                     legs_at[c] = sent_at[c] = NOWHERE
                 continue
@@ -226,7 +230,7 @@ def _render_windows(poses: Any, height: Any, surge: Any, rows: Any, weights: Any
                               bends, sink_limit, foot_lock, rot[:k], root[:k], world, feet[:k], legs[:k],
                               targets[:k], sink[:k], eased[:k], start - b, start - b + n, known_feet[b:e, c],
                               kn, own_legs, recent_known, own_tilt, b, heights, ground_x0, ground_z0, spacing,
-                              plant_frames, pins[c], pinned[c], steps, (sent[c], sent_at[c] - b))
+                              plant_frames, pins[c], pinned[c], steps, (sent[c], sent_at[c] - b), kept[c])
             pinned[c] += b
             sent_at[c] = start + n - 1  # sent[c]: the targets of its last two frames (none kept: not read)
             out_rot[c] = rot[start - b:start - b + n]
@@ -370,12 +374,23 @@ def _run_windows(kernels: RenderKernels, args: tuple[Any, ...], C: int,
            for a, b in zip(cuts[:-1], cuts[1:], strict=True) if b > a])
 
 
+def _outputs(C: int, T: int, J: int, rot: NDArray[np.float32] | None, contacts: NDArray[np.bool_] | None
+             ) -> tuple[NDArray[np.float64], NDArray[np.float32], NDArray[np.bool_]]:
+    """A render's root (new), rotations and contacts (``rot``, ``contacts`` if given, checked)."""
+    rot = np.empty((C, T, J, 4), np.float32) if rot is None else rot
+    kept = np.empty((C, T, 4), np.bool_) if contacts is None else contacts
+    assert rot.shape == (C, T, J, 4) and rot.dtype == np.float32 and rot.flags.c_contiguous
+    assert kept.shape == (C, T, 4) and kept.dtype == np.bool_ and kept.flags.c_contiguous
+    return np.empty((C, T, 3), np.float64), rot, kept
+
+
 def render_window(bank: Bank, plan: Plan, start: int, stop: int, begin: NDArray[np.int64],
                   end: NDArray[np.int64], foot_lock: bool = True, known: Posed | None = None,
                   out: NDArray[np.float32] | None = None,
                   share: Callable[[list[Callable[[], None]]], None] | None = None,
                   ground: Grounding | None = None, pose: NDArray[np.bool_] | None = None,
-                  compiled: bool = True, plant_frames: int | None = None, steps: bool = True
+                  compiled: bool = True, plant_frames: int | None = None, steps: bool = True,
+                  contacts: NDArray[np.bool_] | None = None
                   ) -> tuple[NDArray[np.float32], NDArray[np.float32]]:
     """Root ``(C, stop - start, 3)`` and rotations of frames ``[start, stop)`` only, each
     character rendered over its context ``[begin, end)`` of ``plan`` (from
@@ -402,7 +417,8 @@ def render_window(bank: Bank, plan: Plan, start: int, stop: int, begin: NDArray[
     for a live session's: a plant runs on past what is planned and what was sent stays sent, so
     where it is split would be decided anew each window (each plant held whole, as sent).
 
-    ``compiled``: else the reference (:data:`REFERENCE`, one thread)."""
+    ``compiled``: else the reference (:data:`REFERENCE`, one thread). ``contacts (C, stop - start, 4)``:
+    the feet planted as posed are written there, as :func:`render`."""
     kernels = COMPILED if compiled else REFERENCE
     C = plan.yaw.shape[0]
     pose = np.ones(C, np.bool_) if pose is None else np.ascontiguousarray(pose, np.bool_)
@@ -412,17 +428,14 @@ def render_window(bank: Bank, plan: Plan, start: int, stop: int, begin: NDArray[
     posed = _checked(known, plan)
     for frames in (posed.frames, posed.legs_at, posed.pinned, posed.sent_at):  # in the window's frames
         frames[...] -= cb
-    out_root = np.empty((C, stop - start, 3), np.float64)
-    out_rot = np.empty((C, stop - start, bank.skeleton.n_joints, 4), np.float32) if out is None else out
-    assert out_rot.shape == (C, stop - start, bank.skeleton.n_joints, 4) and out_rot.dtype == np.float32
-    assert out_rot.flags.c_contiguous
+    out_root, out_rot, kept = _outputs(C, stop - start, bank.skeleton.n_joints, out, contacts)
     table, skeleton = _sink_limit(bank, ground)
     args = (*table, *_plan_arrays(plan.window(cb, ce)), *skeleton, foot_lock,
             1 if share or not compiled else threads(), np.asarray(begin, np.int64) - cb,
             np.asarray(end, np.int64) - cb, start - cb, out_rot, out_root,
             *_terrain_arrays(None if ground is None else ground.window(cb, ce)), pose,
             posed.feet[cb:ce] if known is not None else posed.feet, posed.frames, posed.legs, posed.legs_at,
-            *posed[4:], WHOLE_PLANT if plant_frames is None else max(int(plant_frames), 1), steps)
+            *posed[4:], WHOLE_PLANT if plant_frames is None else max(int(plant_frames), 1), steps, kept)
     try:
         _run_windows(kernels, args, C, share)
     finally:
@@ -434,7 +447,8 @@ def render_window(bank: Bank, plan: Plan, start: int, stop: int, begin: NDArray[
 def render(bank: Bank, plan: Plan, foot_lock: bool = True,
            out: tuple[NDArray[np.float32], NDArray[np.float32]] | None = None,
            scratch: Scratch | None = None, ground: Grounding | None = None, compiled: bool = True,
-           pose: NDArray[np.bool_] | None = None) -> tuple[NDArray[np.float32], NDArray[np.float32]]:
+           pose: NDArray[np.bool_] | None = None, contacts: NDArray[np.bool_] | None = None
+           ) -> tuple[NDArray[np.float32], NDArray[np.float32]]:
     """Root ``(C, T, 3)`` and local rotations ``(C, T, J, 4)`` of a plan (the four passes of the
     module doc); into ``out`` (root, rotations) if given.
     ``scratch``: where the workers' working sets are kept between calls (a small chunk's call
@@ -442,7 +456,9 @@ def render(bank: Bank, plan: Plan, foot_lock: bool = True,
     a terrain (:func:`synth_core.runtime.terrain.ground_plan`). ``compiled``: else the reference
     (:data:`REFERENCE`, one thread). ``pose (C,)``: the characters whose rotations are wanted
     (None: all); the others (far characters, at root_gait) get the plan's root alone, as in
-    :func:`render_window`, and their rows of the rotations are not written."""
+    :func:`render_window`, and their rows of the rotations are not written. ``contacts (C, T, 4)``:
+    each frame a foot stands on its plant is set there (foot_kernels.held: the foot lock's steps
+    off); far characters' (not posed) and, without the foot lock, everyone's are the plan's."""
     C, T = plan.yaw.shape
     pose = np.ones(C, np.bool_) if pose is None else np.ascontiguousarray(pose, np.bool_)
     assert pose.shape == (C,)
@@ -458,9 +474,11 @@ def render(bank: Bank, plan: Plan, foot_lock: bool = True,
     out_rot = np.empty((C, T, J, 4), np.float32) if out is None else out[1]
     table, skeleton = _sink_limit(bank, ground)
     w_world, w_feet, w_legs, w_targets, w_sink, w_eased = work
+    kept = np.empty((C, T, 4), np.bool_) if contacts is None else contacts
+    assert kept.shape == (C, T, 4) and kept.dtype == np.bool_ and kept.flags.c_contiguous
     kernels = COMPILED if compiled else REFERENCE
     kernels.render_all(*table, *_plan_arrays(plan), *skeleton, foot_lock, out_rot, out_root, w_world, w_feet,
-                       w_legs, w_targets, w_sink, w_eased, *_terrain_arrays(ground), pose)
+                       w_legs, w_targets, w_sink, w_eased, *_terrain_arrays(ground), pose, kept)
     assert UP_AXIS == 1  # the kernels index Y directly
     if out is None:
         return out_root.astype(np.float32), out_rot

@@ -96,7 +96,9 @@ def synthesize_onthefly(bank: Bank, library: Library, positions: ArrayLike, fps:
     segment = np.minimum(np.arange(T) // prep.segment, prep.segment_speeds.shape[1] - 1)
     segment = np.broadcast_to(segment[None, :], p.rows.shape[:2])
     extended, p = _remap(bank, p, segment, prep.segment_speeds / h[:, None], library)
-    root, rotations = kernels.render(extended, p, options.foot_lock, compiled=compiled_backend(options))
-    return Result(root, rotations, p.gait, p.contacts, p.stitches, h, p.path,
+    contacts = np.empty(p.contacts.shape, np.bool_)
+    root, rotations = kernels.render(extended, p, options.foot_lock, compiled=compiled_backend(options),
+                                     contacts=contacts)
+    return Result(root, rotations, p.gait, contacts, p.stitches, h, p.path,
                   prep.resample_rate, prep.kept, prep.rejected, prep.warnings,
                   character_leads(bank, keys) > 0)

@@ -34,6 +34,13 @@ REACH = 0.98  # of a leg's full reach, at most
 # MAX_SINK) comes first; past it the IK reaches toward the target no further (limb_kernels) and
 # the foot falls short of it. The built-in animals' legs straighten: 0.98 of the chain binds them.
 LONGEST_OVER = 0.02
+# A foot flagged planted on the wire (kernels' contacts, foot_kernels.held) stands on its plant:
+# its leg reaches the plant's target within this (metres, whatever the character's size); one
+# the sink's bound leaves further short hangs above it, not flagged.
+PLANTED_SLACK = 0.003
+# ... and its plant stands no higher than this over the ground (metres; a plant's height is its
+# clip frames', and a mocap paw's end site stands up to 3 cm up: the real dog's trot).
+PLANTED_UP = 0.05
 MAX_SINK = 0.05  # of the leg length, the most the root is lowered
 # ... on a terrain: a foot planted a stride downhill of its hip is further from it than on the
 # flat (at 30%, 7% of the leg for a foot half a leg ahead), and a body lowers rather than a leg

@@ -430,19 +430,20 @@ class LiveSynth(LivePath):
         return np.asarray(x * x * (3.0 - 2.0 * x))
 
     def _render(self, buf: Plan, lo: int, hi: int, begin: NDArray[np.int64], end: NDArray[np.int64],
-                field: HeightField | None, keep: bool) -> tuple[NDArray[np.float32], NDArray[np.float32]]:
+                field: HeightField | None, keep: bool
+                ) -> tuple[NDArray[np.float32], NDArray[np.float32], NDArray[np.bool_]]:
         """Root and rotations of buffered frames [lo, hi) on ``field``; ``keep``: the feet posed are
         kept for the next windows (else they are not read either: a crossfade's other motion).
         No plant is stepped (render_window's ``steps``): one still going on at the last frame
         planned was split anew by each window, the feet of frames sent pinned back or stepped
-        again (low-latency horse jitter_10hz: strict skate p95 0.003 -> 77 mm)."""
-        ground = None
+        again (low-latency horse jitter_10hz: strict skate p95 0.003 -> 77 mm). And its contacts."""
+        ground, contacts = None, np.empty((len(self.scales), hi - lo, 4), np.bool_)
         if field is not None:
             buf, ground = on_ground(self.bank, buf, field, int(begin.min()), int(end.max()))
         if not keep:
-            return kernels.render_window(self.bank, buf, lo, hi, begin, end, self.foot_lock, None, None,
-                                         self.share, ground, self.pose, self.compiled, self.plant_frames,
-                                         steps=False)
+            return *kernels.render_window(self.bank, buf, lo, hi, begin, end, self.foot_lock, None, None,
+                                          self.share, ground, self.pose, self.compiled, self.plant_frames,
+                                          steps=False, contacts=contacts), contacts
         # The feet of frames posed by earlier windows, by frame sent (from 0), kept for later ones.
         o0, n = self.buffer.start, buf.yaw.shape[1]
         self.feet.reserve(max(o0 + n - self.feet.stop, 0))
@@ -452,10 +453,10 @@ class LiveSynth(LivePath):
             "live.rotations", (len(self.scales), hi - lo, self.bank.skeleton.n_joints, 4), np.float32)
         root, rot = kernels.render_window(self.bank, buf, lo, hi, begin, end, self.foot_lock, posed, out,
                                           self.share, ground, self.pose, self.compiled, self.plant_frames,
-                                          steps=False)
+                                          steps=False, contacts=contacts)
         self.known_feet, self.legs_at, self.pinned = posed.frames + o0, posed.legs_at + o0, posed.pinned + o0
         self.sent_at = posed.sent_at + o0
-        return root, rot
+        return root, rot, contacts
 
     def _emit(self, start: int, stop: int) -> Window:
         """Render planned frames [start, stop) (every ``out_step``-th frame of the library's)."""
@@ -472,17 +473,16 @@ class LiveSynth(LivePath):
         else:
             C = len(self.scales)
             begin, end = np.full(C, lo), np.full(C, hi)
-        fade = self._fade(start, stop)
-        if fade is not None:  # the motion on the ground before, crossfaded to the motion on this one
-            old_root, old_rot = self._render(buf, lo, hi, begin, end, self.old_ground, keep=False)
-        root, rot = self._render(buf, lo, hi, begin, end, self.ground, keep=True)
+        if (fade := self._fade(start, stop)) is not None:  # the motion on the ground before, crossfaded to
+            old_root, old_rot, _ = self._render(buf, lo, hi, begin, end, self.old_ground, keep=False)
+        root, rot, contacts = self._render(buf, lo, hi, begin, end, self.ground, keep=True)  # this one's
         if fade is not None:
             a = fade[None, :, None]
             root = (old_root * (1.0 - a) + root * a).astype(np.float32)
             rot = quat.nlerp(old_rot, rot, np.broadcast_to(a, rot.shape[:3])).astype(np.float32)
         self.posed_frames += int(self.pose.sum()) * (hi - lo)
         # Copies: the buffer's columns are written over by later blocks.
-        window = Window(self.emitted, root, rot, buf.gait[:, lo:hi].copy(), buf.contacts[:, lo:hi].copy())
+        window = Window(self.emitted, root, rot, buf.gait[:, lo:hi].copy(), contacts)
         self.emitted += hi - lo
         if stop == self.settled:
             # The context the next frames' lock reads. Not before every frame settled is given:

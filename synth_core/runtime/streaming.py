@@ -123,7 +123,8 @@ class BatchStream:
             begin, end = np.full(C, start), np.full(C, stop)
         else:
             begin, end = self._context(p, start, stop) if context is None else context
-        gait, contacts = p.gait[:, start:stop], p.contacts[:, start:stop]
+        gait = p.gait[:, start:stop]
+        contacts = np.empty((C, stop - start, 4), np.bool_)  # the feet planted as posed (kernels.render)
         at, ground = start, None
         if self.options.ground is not None:  # the frames read, on the terrain (terrain.ground_plan)
             o = int(begin.min())
@@ -132,7 +133,7 @@ class BatchStream:
         root, rot = kernels.render_window(self.bank, p, start, stop, begin, end, lock,
                                           share=render_pool.shared if shared else None, ground=ground,
                                           pose=self.options.posed_rows(self.prep.kept[rows]),
-                                          compiled=compiled_backend(self.options))
+                                          compiled=compiled_backend(self.options), contacts=contacts)
         return Window(at, root, rot, gait, contacts)
 
     def _first_part(self, rows: slice, stop: int, shared: bool = False) -> tuple[Window, Plan | None]:

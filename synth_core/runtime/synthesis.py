@@ -81,7 +81,8 @@ class Result:
     rotations: NDArray[np.float32]  # (C, T, J, 4) local, xyzw
     gait: NDArray[np.int8]  # (C, T) hub index (static 0 ... gallop 4); a transition: the hub it
     # leaves over its first half, the one it reaches over its second
-    contacts: NDArray[np.bool_]  # (C, T, 4) planted feet
+    contacts: NDArray[np.bool_]  # (C, T, 4) the feet planted as posed (kernels.render: the foot
+    # lock's, each on the ground within footlock.PLANTED_SLACK; far characters': the plan's)
     stitches: NDArray[np.bool_]  # (C, T) frames where a new piece starts (transitions in/out)
     scales: Floats  # (C,)
     path: Floats  # (C, T, 3) the path followed: the points sent, their timing smoothed
@@ -174,6 +175,7 @@ class Rendered:
     root: NDArray[np.float32]  # (n, T, 3)
     rotations: NDArray[np.float32]  # (n, T, J, 4)
     plan: Plan
+    contacts: NDArray[np.bool_]  # (n, T, 4) the feet planted as posed (kernels.render), not the plan's
 
 
 def render_chunk(bank: Bank, prep: Prepared, h: Floats, keys: NDArray[np.uint64], options: Options,
@@ -197,9 +199,10 @@ def render_chunk(bank: Bank, prep: Prepared, h: Floats, keys: NDArray[np.uint64]
         out = (scratch.array("root", (n, T, 3), np.float32),
                scratch.array("rotations", (n, T, bank.skeleton.n_joints, 4), np.float32))
     root, rotations = out
+    contacts = scratch.array("contacts", p.contacts.shape, np.bool_)
     kernels.render(bank, p, options.foot_lock, out=(root, rotations), scratch=scratch, ground=ground,
-                   compiled=compiled, pose=options.posed_rows(prep.kept[sl]))
-    return Rendered(sl, root, rotations, p)
+                   compiled=compiled, pose=options.posed_rows(prep.kept[sl]), contacts=contacts)
+    return Rendered(sl, root, rotations, p, contacts)
 
 
 def render_chunks(bank: Bank, prep: Prepared, h: Floats, keys: NDArray[np.uint64], options: Options,
@@ -268,7 +271,7 @@ def synthesize(bank: Bank, positions: ArrayLike, fps: float | None = None,
     stitches = np.empty((C, T), bool)
     for chunk in render_chunks(bank, prep, h, keys, options, out=out, fresh=fresh, scratch=scratch):
         sl, p = chunk.characters, chunk.plan
-        gait[sl], contacts[sl], stitches[sl] = p.gait, p.contacts, p.stitches
+        gait[sl], contacts[sl], stitches[sl] = p.gait, chunk.contacts, p.stitches
         if progress:
             progress(sl.stop, C)
     return Result(out[0], out[1], gait, contacts, stitches, h, prep.positions, prep.resample_rate,
