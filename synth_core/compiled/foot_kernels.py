@@ -37,7 +37,6 @@ from synth_core.compiled.replant_kernels import no_steps as no_steps
 from synth_core.compiled.vec_kernels import conj, norm3, q4, qmul, qrot, smoothstep, v3, vadd, vscale, vsub
 from synth_core.runtime.footlock import (
     EASE_FRAMES,
-    JUMP_EASE,
     LONGEST_OVER,
     PLANTED_SLACK,
     PLANTED_UP,
@@ -99,9 +98,9 @@ def plant_targets(feet: Any, contacts: Any, out: Any, most: int, pins: Any, pinn
         _swings(feet, down, contacts[:, f], out, f, most, STEP_HEIGHT * bends[f, 4], int(bends[f, 5]),
                 pinned[f])
         if most >= T:  # a batch's or the exact live mode's: every frame free
-            ease_jumps(out, down, f, JUMP_EASE / h, saved, 0)
+            ease_jumps(out, down, f, h, saved, 0)
         elif last >= 0:  # the low-latency mode sends a swing before its next plant is planned
-            _ease_unsent(out, down, f, JUMP_EASE / h, saved, last, first, sent)
+            _ease_unsent(out, down, f, h, saved, last, first, sent)
         u = last
         while u >= 0 and not down[u]:
             u -= 1
@@ -143,7 +142,7 @@ def held(air: Any, targets: Any, legs: Any, bends: Any, eased: Any, h: float, a:
 
 
 @_jit()
-def _ease_unsent(out: Any, down: Any, f: int, bound: float, saved: Any, last: int, first: int,
+def _ease_unsent(out: Any, down: Any, f: int, h: float, saved: Any, last: int, first: int,
                  sent: Any) -> None:
     """Foot f's targets' one-frame jumps eased (:func:`ease_jumps`) on the frames of a live
     window in the low-latency mode not sent yet (from frame ``first`` on). ``sent``: ``(kept (2,
@@ -161,7 +160,7 @@ def _ease_unsent(out: Any, down: Any, f: int, bound: float, saved: Any, last: in
     if anchored:
         here[:] = out[first - 2:first, f]
         out[first - 2:first, f] = kept[:, f]
-    ease_jumps(out, down, f, bound, saved, first)
+    ease_jumps(out, down, f, h, saved, first)
     if last >= 1:
         now[:] = out[last - 1:last + 1, f]
     if anchored:
