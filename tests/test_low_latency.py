@@ -107,7 +107,7 @@ def _targets(feet: np.ndarray, contacts: np.ndarray, most: int, compiled: bool =
     pins = np.zeros((4, 3)) if pins is None else pins
     pinned = np.full(4, foot_kernels.NOWHERE) if pinned is None else pinned
     # Every frame counted as sent before: the plants and swings alone, no jump eased on any
-    # (foot_kernels._ease_unsent: tests/test_stitch_jumps.py for ease_jumps).
+    # (jump_kernels.ease_unsent: tests/test_stitch_jumps.py for ease_jumps).
     body = (*foot_kernels.no_steps(len(feet))[:-2], len(feet), (np.zeros((2, 4, 3)), foot_kernels.NOWHERE))
     run(feet, contacts, out, most, pins, pinned, last, body)
     return out

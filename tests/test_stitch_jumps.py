@@ -38,7 +38,7 @@ LL_LATENCY_MS = 100.0  # the low-latency edge suite's budget (quadsynth eval --l
 @pytest.mark.parametrize(("animal", "name"), [("dog", "jitter_10hz"), ("horse", "moving_start")])
 def test_no_foot_jumps_past_the_target_in_the_low_latency_mode(horse: Bank, animal: str, name: str) -> None:
     """The low-latency live mode eases the jumps of its frames not sent yet from the targets sent
-    (foot_kernels._ease_unsent), and a ramp lowers no swing frame still moving over the ground
+    (jump_kernels.ease_unsent), and a ramp lowers no swing frame still moving over the ground
     to near its plants' height (jump_kernels._ramp): the dog's jitter_10hz, whose last swing
     frames before a touchdown it lowered under the strict-plant height, skated 6.6 mm (p95).
     On main at e2f3035 these read 10.07 cm (dog jitter_10hz) and 7.49 cm (horse moving_start)."""

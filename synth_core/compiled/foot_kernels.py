@@ -17,7 +17,7 @@ import numpy as np
 
 from synth_core.compiled.ground_kernels import ground_at
 from synth_core.compiled.jit import render_jit
-from synth_core.compiled.jump_kernels import ease_jumps
+from synth_core.compiled.jump_kernels import ease_jumps, ease_unsent
 from synth_core.compiled.limb_kernels import unit4, world_position
 from synth_core.compiled.pose_kernels import lean_tilt
 from synth_core.compiled.replant_kernels import (
@@ -56,10 +56,9 @@ def plant_targets(feet: Any, contacts: Any, out: Any, most: int, pins: Any, pinn
     next plant needs at touchdown, over the ground only (x and z: swing heights are the clip's).
     ``most``: a plant's position averages its first so many frames at most (and, ``most`` < T, a
     swing before no plant eases its correction out as there). A target's one-frame jump is then
-    eased into a ramp over the swing frames around it
-    (:func:`~synth_core.compiled.jump_kernels.ease_jumps`; where ``most`` < T, whose swings are
-    sent before their next plant is planned, in a live window only (``last`` >= 0) and on its
-    frames not sent yet alone, from the targets sent: :func:`_ease_unsent`, ``body``'s last).
+    eased into a ramp over the swing frames around it (:func:`ease_jumps`; where ``most`` < T,
+    whose swings are sent before their next plant is planned, in a live window only (``last`` >=
+    0), on its frames not sent yet, from the targets sent: :func:`ease_unsent`, ``body``'s last).
 
     A plant the body's turn carries out of its leg's reach (a body turning on the spot over a
     standing foot: :func:`~synth_core.compiled.replant_kernels.replant`) is stepped instead: split
@@ -70,22 +69,21 @@ def plant_targets(feet: Any, contacts: Any, out: Any, most: int, pins: Any, pinn
     path ``(T, 3)`` and the share of its height added to a foot's for the legs (on a terrain the
     feet's heights are over the body's ground: 1 / h; else 0), the body's yaw ``(T,)`` and root
     ``(T, 3)`` (world), the scale h, whether to step at all (kernels.render_window's ``steps``),
-    the window's first frame and the targets sent (:func:`_ease_unsent`'s ``first``, ``sent``).
+    the window's first frame and the targets sent (:func:`ease_unsent`'s ``first``, ``sent``).
 
     ``pins (4, 3)``, ``pinned (4,)``: foot f's plant through frame ``pinned[f]`` (if that is one
     of its planted frames) is at ``pins[f]`` over the ground, whatever its frames here average:
     where an earlier window sent it (a live window's context may have lost that plant's first
     frames). Its height is still its frames' here: a stand begun with a foot still coming down
     (braking from a canter, 3-5 cm up) puts it down as its first frames leave the context, where
-    pinned it would hover the whole stand. Then, for
-    ``last`` >= 0, the same of each foot's last plant up to frame ``last``: the one it is in, or
-    the one before its swing (whose lift-off correction the swing eases out).
+    pinned it would hover the whole stand. Then, for ``last`` >= 0, the same of each foot's last
+    plant up to frame ``last``: the one it is in, or the one before its swing (whose lift-off
+    correction the swing eases out).
 
     Returns ``air (T, 4)``: each foot's frames off the ground as the targets have them -- the
     plan's swings, and the steps and early lift-offs of plants stepped (:func:`held` reads it)."""
     T = feet.shape[0]
-    down = np.empty(T, np.bool_)
-    saved = np.empty((T + 4, 3))  # ease_jumps' scratch, and _ease_unsent's
+    down, saved = np.empty(T, np.bool_), np.empty((T + 4, 3))  # saved: ease_jumps' scratch, ease_unsent's
     air = np.empty((feet.shape[0], 4), np.bool_)  # each foot off the ground (steps too, once made)
     for f in range(4):
         air[:, f] = ~contacts[:, f]
@@ -100,7 +98,7 @@ def plant_targets(feet: Any, contacts: Any, out: Any, most: int, pins: Any, pinn
         if most >= T:  # a batch's or the exact live mode's: every frame free
             ease_jumps(out, down, f, h, saved, 0)
         elif last >= 0:  # the low-latency mode sends a swing before its next plant is planned
-            _ease_unsent(out, down, f, h, saved, last, first, sent)
+            ease_unsent(out, down, f, h, saved, last, first, sent)
         u = last
         while u >= 0 and not down[u]:
             u -= 1
@@ -139,34 +137,6 @@ def held(air: Any, targets: Any, legs: Any, bends: Any, eased: Any, h: float, a:
             allowed = min(legs[t, f, LEG_REACH], (1.0 + LONGEST_OVER) * bends[f, 4])
             short = (sink_within(up, across2, allowed) - eased[t]) * h  # the IK's shortfall, metres
             kept[t - a, f] = not air[t, f] and short <= PLANTED_SLACK
-
-
-@_jit()
-def _ease_unsent(out: Any, down: Any, f: int, h: float, saved: Any, last: int, first: int,
-                 sent: Any) -> None:
-    """Foot f's targets' one-frame jumps eased (:func:`ease_jumps`) on the frames of a live
-    window in the low-latency mode not sent yet (from frame ``first`` on). ``sent``: ``(kept (2,
-    4, 3), at)``: the targets of frames ``at - 1``, ``at`` as sent (if ``at`` is ``first - 1``),
-    put back on those frames first: recomputed, a sent swing's frames may lie elsewhere (its
-    next plant came since) and a ramp an earlier window began was sent in part, so the frames
-    here are eased on from where the foot was sent (sent, a frame stays); put back after (the
-    sink and the pins read the sent frames' targets as before). The targets of frames ``last -
-    1``, ``last`` (the window's last, sent now) are then kept there for the next one. ``saved (T +
-    4, 3)``: scratch."""
-    kept, at = sent
-    T = out.shape[0]
-    here, now = saved[T:T + 2], saved[T + 2:T + 4]
-    anchored = first >= 2 and at == first - 1
-    if anchored:
-        here[:] = out[first - 2:first, f]
-        out[first - 2:first, f] = kept[:, f]
-    ease_jumps(out, down, f, h, saved, first)
-    if last >= 1:
-        now[:] = out[last - 1:last + 1, f]
-    if anchored:
-        out[first - 2:first, f] = here
-    if last >= 1:
-        kept[:, f] = now
 
 
 @_jit()

@@ -128,3 +128,31 @@ def ease_jumps(out: Any, down: Any, f: int, h: float, saved: Any, first: int) ->
         _ramp(out, down, f, t, a, b, (lo, hi, h))
         if _worst(out, f, a, b + 1) >= before:
             out[a:b + 1, f] = saved[a:b + 1]
+
+
+@_jit()
+def ease_unsent(out: Any, down: Any, f: int, h: float, saved: Any, last: int, first: int,
+                 sent: Any) -> None:
+    """Foot f's targets' one-frame jumps eased (:func:`ease_jumps`) on the frames of a live
+    window in the low-latency mode not sent yet (from frame ``first`` on). ``sent``: ``(kept (2,
+    4, 3), at)``: the targets of frames ``at - 1``, ``at`` as sent (if ``at`` is ``first - 1``),
+    put back on those frames first: recomputed, a sent swing's frames may lie elsewhere (its
+    next plant came since) and a ramp an earlier window began was sent in part, so the frames
+    here are eased on from where the foot was sent (sent, a frame stays); put back after (the
+    sink and the pins read the sent frames' targets as before). The targets of frames ``last -
+    1``, ``last`` (the window's last, sent now) are then kept there for the next one. ``saved (T +
+    4, 3)``: scratch."""
+    kept, at = sent
+    T = out.shape[0]
+    here, now = saved[T:T + 2], saved[T + 2:T + 4]
+    anchored = first >= 2 and at == first - 1
+    if anchored:
+        here[:] = out[first - 2:first, f]
+        out[first - 2:first, f] = kept[:, f]
+    ease_jumps(out, down, f, h, saved, first)
+    if last >= 1:
+        now[:] = out[last - 1:last + 1, f]
+    if anchored:
+        out[first - 2:first, f] = here
+    if last >= 1:
+        kept[:, f] = now

@@ -175,8 +175,7 @@ def _render_all(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, ya
                        contacts[c], parents, offsets, fk_joints, rigs, bends, sink_limit, foot_lock,
                        out_rot[c], out_root[c], world, feet, legs, targets, sink, eased, 0,
                        out_rot.shape[1], none_known, 0, recent, False, own_tilt, 0, heights, ground_x0,
-                       ground_z0, spacing, WHOLE_PLANT, no_pins, unpinned, True, (no_sent, NOWHERE),
-                       kept[c])
+                       ground_z0, spacing, WHOLE_PLANT, no_pins, unpinned, True, (no_sent, NOWHERE), kept[c])
 
 
 @_jit(parallel=True)
@@ -188,13 +187,11 @@ def _render_windows(poses: Any, height: Any, surge: Any, rows: Any, weights: Any
                     known: Any, known_legs: Any, legs_at: Any, pins: Any, pinned: Any, sent: Any,
                     sent_at: Any, plant_frames: int, steps: bool, kept: Any, c0: int, c1: int) -> None:
     """Frames ``[start, start + out.shape[1])`` of characters ``[c0, c1)``, each rendered over its own context
-    ``[begin[c], end[c])`` of the plan (see :func:`render_window`); ``known_feet (T, C, 4, 3)`` (or none:
-    ``(0, C, 4, 3)``), ``known``, ``known_legs``, ``legs_at``, ``pins``, ``pinned``, ``sent``, ``sent_at``: a
-    :class:`Posed`'s, moved on (``known`` to ``end``, ``legs_at`` to the window's end, the pins to its last
-    frame's plants, ``sent`` to its last two frames). Calls for disjoint character ranges may run side by
-    side. ``pose (C,)``: the characters posed; the others get their root alone (:func:`_root_only`), their
-    rotations left as they were in ``out_rot`` and nothing of theirs kept; ``kept (C, n, 4)``: the feet
-    planted as posed (far: the plan's)."""
+    ``[begin[c], end[c])`` of the plan (see :func:`render_window`); ``known_feet`` (``(0, C, 4, 3)``: none) to
+    ``sent_at``: a :class:`Posed`'s, moved on (``known`` to ``end``, ``legs_at`` to the window's end, the pins
+    to its last frame's plants, ``sent`` to its last two frames). Calls for disjoint character ranges may run
+    side by side. ``pose (C,)``: the characters posed; the others get their root alone (:func:`_root_only`),
+    their rotations left in ``out_rot``, nothing kept; ``kept (C, n, 4)``: feet planted (far: the plan's)."""
     n, J = out_rot.shape[1], out_rot.shape[2]
     longest = 0
     for c in range(c0, c1):
@@ -205,11 +202,9 @@ def _render_windows(poses: Any, height: Any, surge: Any, rows: Any, weights: Any
         rot, root = np.empty((longest, J, 4), np.float32), np.empty((longest, 3))
         # See fk: from an origin up to LANES - 1 frames before the first posed.
         world = np.empty(((longest + 2 * LANES - 2) // LANES, 7 * J, LANES))
-        feet = np.empty((longest, 4, 3))
-        legs = np.empty((longest, 4, LEG_WIDTH))
-        targets = np.empty((longest, 4, 3))
+        feet, targets = np.empty((longest, 4, 3)), np.empty((longest, 4, 3))
+        legs, no_recent = np.empty((longest, 4, LEG_WIDTH)), np.empty((PAD, 4, LEG_WIDTH))
         sink, eased = np.empty(longest), np.empty(longest)
-        no_recent = np.empty((PAD, 4, LEG_WIDTH))
         for c in range(c0 + worker, c1, workers):
             if not pose[c]:
                 root_only(height, surge, rows[c, start:start + n], weights[c, start:start + n],
@@ -321,14 +316,14 @@ class Posed(NamedTuple):
     """What a live session's windows keep of the frames they posed, for the later windows over
     the same plan (see :func:`render_window`): the feet ``(T, C, 4, 3)`` float64, C-contiguous
     (frames first: every view of them is, so the kernel is compiled for one layout), of each
-    character's plan frames ``[0, frames[c])``; what the sink reads of the legs on the PAD
-    frames before ``legs_at[c]`` (``(C, PAD, 4, LEG_WIDTH)``; ``NOWHERE``: none kept); where
-    plants are pinned at their first frames (``render_window``'s ``plant_frames``), each foot's
-    plant through plan frame ``pinned[c, f]`` and its target ``pins[c, f]`` as sent
-    (``(C, 4)``, ``(C, 4, 3)``; ``NOWHERE``: none), so that a plant longer than the context kept
-    stays there when its first frames are dropped; there too, the foot targets ``(C, 2, 4, 3)``
-    of plan frames ``sent_at[c] - 1``, ``sent_at[c]`` as sent (``(C,)``; ``NOWHERE``: none), which
-    the next window's unsent frames ease their jumps from (foot_kernels._ease_unsent)."""
+    character's plan frames ``[0, frames[c])``; what the sink reads of the legs on the PAD frames
+    before ``legs_at[c]`` (``(C, PAD, 4, LEG_WIDTH)``; ``NOWHERE``: none kept); where plants are
+    pinned at their first frames (``render_window``'s ``plant_frames``), each foot's plant through
+    plan frame ``pinned[c, f]`` and its target ``pins[c, f]`` as sent (``(C, 4)``, ``(C, 4, 3)``;
+    ``NOWHERE``: none), so that a plant longer than the context kept stays there when its first
+    frames are dropped; there too, the foot targets ``(C, 2, 4, 3)`` of plan frames ``sent_at[c]
+    - 1``, ``sent_at[c]`` as sent (``(C,)``; ``NOWHERE``: none), from which the next window's
+    unsent frames' jumps are eased (jump_kernels.ease_unsent)."""
 
     feet: NDArray[np.float64]
     frames: NDArray[np.int64]
@@ -351,8 +346,7 @@ def _checked(known: Posed | None, plan: Plan) -> Posed:
     C = plan.yaw.shape[0]
     if known is None:
         return Posed(np.empty((0, C, 4, 3)), np.zeros(C, np.int64), np.empty((0, PAD, 4, LEG_WIDTH)),
-                     np.zeros(C, np.int64), np.zeros((C, 4, 3)), np.full((C, 4), NOWHERE),
-                     np.zeros((C, 2, 4, 3)), np.full(C, NOWHERE))
+                     np.zeros(C, np.int64), *Posed.none(C, np.empty((0, C, 4, 3)))[4:])
     assert known.feet.shape == (*plan.yaw.shape[::-1], 4, 3) and known.feet.dtype == np.float64
     assert known.feet.flags.c_contiguous
     assert known.legs.shape == (C, PAD, 4, LEG_WIDTH) and known.legs.flags.c_contiguous
