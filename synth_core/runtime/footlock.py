@@ -58,8 +58,8 @@ JUMP_EASE = 0.03
 # its plants' height, lower than the frame was un-eased: the strict-plant height (1 cm,
 # metrics.STRICT_PLANT_M) and the IK's slack under a target (PLANTED_SLACK). Such a frame reads
 # as planted after FK and skates: the low-latency dog's jitter_10hz, its last swing frames before
-# a touchdown lowered from 12-15 mm to 7-10 mm, strict skate p95 3.0 -> 6.6 mm (with a floor of
-# 1 cm alone they landed at 9.7-9.9 mm after FK: still counted).
+# a touchdown (12-15 mm up) lowered under 1 cm, strict skate p95 3.0 -> 6.6 mm (with a floor of
+# 1 cm alone they landed at 9.3-9.9 mm after FK: still counted).
 SWING_MOVING = 0.003
 SWING_CLEAR = 0.01 + PLANTED_SLACK
 # A body turning on the spot carries a standing foot round with it: held where it stood, the foot
