@@ -106,7 +106,10 @@ def _targets(feet: np.ndarray, contacts: np.ndarray, most: int, compiled: bool =
     out = np.empty(feet.shape)
     pins = np.zeros((4, 3)) if pins is None else pins
     pinned = np.full(4, foot_kernels.NOWHERE) if pinned is None else pinned
-    run(feet, contacts, out, most, pins, pinned, last, foot_kernels.no_steps(len(feet)))
+    # Every frame counted as sent before: the plants and swings alone, no jump eased on any
+    # (jump_kernels.ease_unsent: tests/test_stitch_jumps.py for ease_jumps).
+    body = (*foot_kernels.no_steps(len(feet))[:-2], len(feet), (np.zeros((2, 4, 3)), foot_kernels.NOWHERE))
+    run(feet, contacts, out, most, pins, pinned, last, body)
     return out
 
 
@@ -194,8 +197,10 @@ def test_a_swing_eases_out_a_held_plants_correction_before_its_next_plant_is_pla
     body[0][:, 4], body[0][:, 5] = 1.0, round(STEP_S * 60)
     pins, pinned = np.zeros((4, 3)), np.full(4, foot_kernels.NOWHERE)
     sent = np.empty((T - lag, 4, 3))
+    kept = np.zeros((2, 4, 3))  # the targets of the last two frames sent (kernels.Posed's sent)
     for k in range(T - lag):  # each window: the frames planned so far, the last one sent pinned
         out = np.empty((k + lag + 1, 4, 3))
+        body[-2:] = k, (kept, k - 1)  # frame k sent now, those before it by earlier windows
         foot_kernels.plant_targets(feet[:k + lag + 1], contacts[:k + lag + 1], out, 3, pins, pinned, k,
                                    tuple(body))
         sent[k] = out[k]

@@ -17,7 +17,7 @@ import numpy as np
 
 from synth_core.compiled.ground_kernels import ground_at
 from synth_core.compiled.jit import render_jit
-from synth_core.compiled.jump_kernels import ease_jumps
+from synth_core.compiled.jump_kernels import ease_jumps, ease_unsent
 from synth_core.compiled.limb_kernels import unit4, world_position
 from synth_core.compiled.pose_kernels import lean_tilt
 from synth_core.compiled.replant_kernels import (
@@ -37,7 +37,6 @@ from synth_core.compiled.replant_kernels import no_steps as no_steps
 from synth_core.compiled.vec_kernels import conj, norm3, q4, qmul, qrot, smoothstep, v3, vadd, vscale, vsub
 from synth_core.runtime.footlock import (
     EASE_FRAMES,
-    JUMP_EASE,
     LONGEST_OVER,
     PLANTED_SLACK,
     PLANTED_UP,
@@ -57,9 +56,9 @@ def plant_targets(feet: Any, contacts: Any, out: Any, most: int, pins: Any, pinn
     next plant needs at touchdown, over the ground only (x and z: swing heights are the clip's).
     ``most``: a plant's position averages its first so many frames at most (and, ``most`` < T, a
     swing before no plant eases its correction out as there). A target's one-frame jump is then
-    eased into a ramp over the swing frames around it
-    (:func:`~synth_core.compiled.jump_kernels.ease_jumps`; not where ``most`` < T, whose swings
-    are sent before their next plant is planned).
+    eased into a ramp over the swing frames around it (:func:`ease_jumps`; where ``most`` < T,
+    whose swings are sent before their next plant is planned, in a live window only (``last`` >=
+    0), on its frames not sent yet, from the targets sent: :func:`ease_unsent`, ``body``'s last).
 
     A plant the body's turn carries out of its leg's reach (a body turning on the spot over a
     standing foot: :func:`~synth_core.compiled.replant_kernels.replant`) is stepped instead: split
@@ -69,26 +68,26 @@ def plant_targets(feet: Any, contacts: Any, out: Any, most: int, pins: Any, pinn
     needing more is out of reach), the first frame posed (earlier ones count as in reach), the
     path ``(T, 3)`` and the share of its height added to a foot's for the legs (on a terrain the
     feet's heights are over the body's ground: 1 / h; else 0), the body's yaw ``(T,)`` and root
-    ``(T, 3)`` (world), the scale h and whether to step at all (kernels.render_window's ``steps``).
+    ``(T, 3)`` (world), the scale h, whether to step at all (kernels.render_window's ``steps``),
+    the window's first frame and the targets sent (:func:`ease_unsent`'s ``first``, ``sent``).
 
     ``pins (4, 3)``, ``pinned (4,)``: foot f's plant through frame ``pinned[f]`` (if that is one
     of its planted frames) is at ``pins[f]`` over the ground, whatever its frames here average:
     where an earlier window sent it (a live window's context may have lost that plant's first
     frames). Its height is still its frames' here: a stand begun with a foot still coming down
     (braking from a canter, 3-5 cm up) puts it down as its first frames leave the context, where
-    pinned it would hover the whole stand. Then, for
-    ``last`` >= 0, the same of each foot's last plant up to frame ``last``: the one it is in, or
-    the one before its swing (whose lift-off correction the swing eases out).
+    pinned it would hover the whole stand. Then, for ``last`` >= 0, the same of each foot's last
+    plant up to frame ``last``: the one it is in, or the one before its swing (whose lift-off
+    correction the swing eases out).
 
     Returns ``air (T, 4)``: each foot's frames off the ground as the targets have them -- the
     plan's swings, and the steps and early lift-offs of plants stepped (:func:`held` reads it)."""
     T = feet.shape[0]
-    down = np.empty(T, np.bool_)
-    saved = np.empty((T, 3))  # ease_jumps' scratch
+    down, saved = np.empty(T, np.bool_), np.empty((T + 4, 3))  # saved: ease_jumps' scratch, ease_unsent's
     air = np.empty((feet.shape[0], 4), np.bool_)  # each foot off the ground (steps too, once made)
     for f in range(4):
         air[:, f] = ~contacts[:, f]
-    bends, legs, limit, posed, path, lift, yaw, root, h, steps = body
+    bends, legs, limit, posed, path, lift, yaw, root, h, steps, first, sent = body
     for f in range(4):
         out[:, f, :] = feet[:, f, :]
         down[:] = contacts[:, f]
@@ -96,8 +95,10 @@ def plant_targets(feet: Any, contacts: Any, out: Any, most: int, pins: Any, pinn
         _plants(feet, down, f, out, most, pins[f], pinned[f], reach, air, steps)
         _swings(feet, down, contacts[:, f], out, f, most, STEP_HEIGHT * bends[f, 4], int(bends[f, 5]),
                 pinned[f])
-        if most >= T:  # the low-latency mode (most < T) sends a swing before its next plant
-            ease_jumps(out, down, f, JUMP_EASE / h, saved)
+        if most >= T:  # a batch's or the exact live mode's: every frame free
+            ease_jumps(out, down, f, h, saved, 0)
+        elif last >= 0:  # the low-latency mode sends a swing before its next plant is planned
+            ease_unsent(out, down, f, h, saved, last, first, sent)
         u = last
         while u >= 0 and not down[u]:
             u -= 1

@@ -15,6 +15,7 @@ from typing import Any
 
 from synth_core.compiled.jit import render_jit
 from synth_core.compiled.vec_kernels import smoothstep
+from synth_core.runtime.footlock import JUMP_EASE, SWING_CLEAR, SWING_MOVING
 
 _jit = render_jit
 
@@ -50,37 +51,68 @@ def _worst(out: Any, f: int, a: int, b: int) -> float:
     return worst
 
 
+@_jit(inline="always")
+def _ground_step(out: Any, f: int, t: int) -> float:
+    """How far foot f's target moves over the ground (x, z) from frame t - 1 to frame t."""
+    return math.hypot(_step(out, f, t, 0), _step(out, f, t, 2))
+
+
 @_jit()
-def _ramp(out: Any, f: int, t: int, a: int, b: int) -> None:
+def _floor(out: Any, down: Any, f: int, lo: int, hi: int, u: int, clear: float) -> float:
+    """The height foot f's frame u in the swing (lo, hi) may be lowered to at least while it moves
+    over the ground: ``clear`` over its plants' (frames lo and hi, those of them planted; between,
+    their heights interpolated: a plant's height is its foot's standing one), or none (-inf: no
+    plant either side)."""
+    if down[lo] and down[hi]:
+        w = (u - lo) / (hi - lo)
+        return float((1.0 - w) * out[lo, f, 1] + w * out[hi, f, 1]) + clear
+    if down[lo] or down[hi]:
+        return float(out[lo if down[lo] else hi, f, 1]) + clear
+    return -math.inf
+
+
+@_jit()
+def _ramp(out: Any, down: Any, f: int, t: int, a: int, b: int, swing: Any) -> None:
     """Foot f's step into frame t made the mean of the steps either side (its excess over that,
     a vector: taken off, the step is no longer than their mean length), the excess eased in
     instead over frames (a, b): a smoothstep from a to b put on, the jump (a step function at
-    t) taken off."""
-    for k in range(3):
+    t) taken off. Its vertical part last, and lowering no frame moving over the ground more than
+    SWING_MOVING a frame (its ground step into it or out of it, as eased) under :func:`_floor`
+    (nor, if it was under it, at all). ``swing``: the swing's (lo, hi) and the scale h."""
+    lo, hi, h = swing
+    moving = SWING_MOVING / h
+    for k in (0, 2, 1):
         x = _beyond(out, f, t, k)
         for u in range(a + 1, b):
-            out[u, f, k] += (smoothstep((u - a) / (b - a)) - (1.0 if u >= t else 0.0)) * x
+            d = (smoothstep((u - a) / (b - a)) - (1.0 if u >= t else 0.0)) * x
+            if k == 1 and d < 0.0 and max(_ground_step(out, f, u), _ground_step(out, f, u + 1)) > moving:
+                d = min(max(d, _floor(out, down, f, lo, hi, u, SWING_CLEAR / h) - out[u, f, 1]), 0.0)
+            out[u, f, k] += d
 
 
 @_jit()
-def ease_jumps(out: Any, down: Any, f: int, bound: float, saved: Any) -> None:
+def ease_jumps(out: Any, down: Any, f: int, h: float, saved: Any, first: int) -> None:
     """Foot f's targets ``out (T, 4, 3)`` with every step longer than the mean of the steps before
-    and after it by more than ``bound`` made that mean, its excess spread instead over the frames
-    around it that are not planted (``down (T,)``: its planted frames): a smoothstep ramp over
+    and after it by more than ``bound`` (JUMP_EASE over the scale ``h``) made that mean, its
+    excess spread instead over the frames around it that are not planted (``down (T,)``: its
+    planted frames): a smoothstep ramp over
     enough of them that no frame takes more than ``bound`` of it (1.5 / n of the excess over n
-    frames at the ramp's steepest), centred on the step, as many as its swing holds. A step into
+    frames at the ramp's steepest), centred on the step, as many as its swing holds (its vertical
+    part bringing no frame moving over the ground down near it: :func:`_ramp`). A step into
     a plant's first frame (a raised hoof pinned down at once) so ramps over the frames before
     it; a step out of a plant, over those after. A ramp that leaves a step around it jumping as
     far as before or further is not made (a swing of a frame or two between plants far apart:
     no frames to spread it over). Scanned forward, each step read as the ramps before it left
     it. Reads the swing the step is in and its plants' frames either side only (a live window's
-    foot-lock context holds them: kernels.lock_context). ``saved (T, 3)``: scratch."""
-    T = out.shape[0]
-    for t in range(2, T - 1):
+    foot-lock context holds them: kernels.lock_context). ``saved (T, 3)``: scratch. ``first``:
+    frames before it are never moved (a live window's frames sent already: a step into a frame
+    sent is left, a ramp that would reach back past ``first`` is shortened to the frames after)."""
+    T, bound = out.shape[0], JUMP_EASE / h
+    for t in range(max(2, first), T - 1):
         if (down[t - 1] and down[t]) or _excess(out, f, t) <= bound:
             continue
-        lo, hi = t - 1, t  # the frames free to move: (lo, hi), lo and hi planted or the ends
-        while lo > 0 and not down[lo]:
+        lo, hi = t - 1, t  # the frames free to move: (lo, hi), lo and hi planted, sent or the ends
+        while lo > max(first - 1, 0) and not down[lo]:
             lo -= 1
         while hi < T - 1 and not down[hi]:
             hi += 1
@@ -93,6 +125,34 @@ def ease_jumps(out: Any, down: Any, f: int, bound: float, saved: Any) -> None:
         a = max(lo, b - n)
         before = _worst(out, f, a, b + 1)
         saved[a:b + 1] = out[a:b + 1, f]
-        _ramp(out, f, t, a, b)
+        _ramp(out, down, f, t, a, b, (lo, hi, h))
         if _worst(out, f, a, b + 1) >= before:
             out[a:b + 1, f] = saved[a:b + 1]
+
+
+@_jit()
+def ease_unsent(out: Any, down: Any, f: int, h: float, saved: Any, last: int, first: int,
+                 sent: Any) -> None:
+    """Foot f's targets' one-frame jumps eased (:func:`ease_jumps`) on the frames of a live
+    window in the low-latency mode not sent yet (from frame ``first`` on). ``sent``: ``(kept (2,
+    4, 3), at)``: the targets of frames ``at - 1``, ``at`` as sent (if ``at`` is ``first - 1``),
+    put back on those frames first: recomputed, a sent swing's frames may lie elsewhere (its
+    next plant came since) and a ramp an earlier window began was sent in part, so the frames
+    here are eased on from where the foot was sent (sent, a frame stays); put back after (the
+    sink and the pins read the sent frames' targets as before). The targets of frames ``last -
+    1``, ``last`` (the window's last, sent now) are then kept there for the next one. ``saved (T +
+    4, 3)``: scratch."""
+    kept, at = sent
+    T = out.shape[0]
+    here, now = saved[T:T + 2], saved[T + 2:T + 4]
+    anchored = first >= 2 and at == first - 1
+    if anchored:
+        here[:] = out[first - 2:first, f]
+        out[first - 2:first, f] = kept[:, f]
+    ease_jumps(out, down, f, h, saved, first)
+    if last >= 1:
+        now[:] = out[last - 1:last + 1, f]
+    if anchored:
+        out[first - 2:first, f] = here
+    if last >= 1:
+        kept[:, f] = now

@@ -92,7 +92,7 @@ def _character(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, yaw
                     keep_from: int, keep_to: int, known_feet: Any, known: int, recent: Any,
                     recent_known: bool, tilt: Any, tilt_at: int, heights: Any, ground_x0: float,
                     ground_z0: float, spacing: float, plant_frames: int, pins: Any, pinned: Any,
-                    steps: bool, kept: Any) -> bool:
+                    steps: bool, sent: Any, kept: Any) -> bool:
     """All four passes for one character (scratch arrays given). Only frames ``[keep_from, keep_to)``
     are wanted (a window over its foot lock's context): the legs' IK is solved for those alone.
     ``known_feet (T, 4, 3)``: the feet of frames ``[0, known)`` made already (a live session's
@@ -102,7 +102,7 @@ def _character(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, yaw
     the same of the PAD frames before ``keep_to``: True if it does; ``kept``: its contacts, foot_kernels.held
     ``heights (Nz, Nx)``: the terrain (``(0, 0)``: none), grid origin, spacing; the body tilted by
     ``tilt[tilt_at + t]`` (``(T', 4)``) on frame t, its feet planted on the terrain (measure_feet).
-    ``plant_frames``: plant_targets' ``most`` (with feet kept: its pins too); ``steps``: render_window's."""
+    ``plant_frames``: plant_targets' ``most`` (feet kept: its pins, sent too); ``steps``: render_window's."""
     terrain, T = heights.shape[0] > 0, out_rot.shape[0]
     if not foot_lock:
         kept[...] = contacts[keep_from:keep_to]  # (no feet held: the plan's)
@@ -129,7 +129,7 @@ def _character(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, yaw
     if known_feet.shape[0] > 0:
         known_feet[a:] = feet[a:]
     last = -1 if plant_frames == WHOLE_PLANT or known_feet.shape[0] == 0 else keep_to - 1
-    body = (bends, legs, sink_limit, a, path, terrain / h, yaw, out_root, h, steps)  # what a foot can reach
+    body = (bends, legs, sink_limit, a, path, terrain / h, yaw, out_root, h, steps, keep_from, sent)
     air = plant_targets(feet, contacts, targets, plant_frames, pins, pinned, last, body)
     if terrain:
         ground_targets(targets, contacts, heights, ground_x0, ground_z0, spacing, h, sink)
@@ -160,7 +160,7 @@ def _render_all(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, ya
     C = out_rot.shape[0]
     workers = min(C, w_world.shape[0])
     none_known = np.empty((0, 4, 3))
-    no_pins, unpinned = np.empty((4, 3)), np.full(4, NOWHERE)
+    no_pins, unpinned, no_sent = np.empty((4, 3)), np.full(4, NOWHERE), np.empty((2, 4, 3))
     for worker in prange(workers):
         world, feet, legs, targets = w_world[worker], w_feet[worker], w_legs[worker], w_targets[worker]
         sink, eased = w_sink[worker], w_eased[worker]
@@ -175,7 +175,7 @@ def _render_all(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, ya
                        contacts[c], parents, offsets, fk_joints, rigs, bends, sink_limit, foot_lock,
                        out_rot[c], out_root[c], world, feet, legs, targets, sink, eased, 0,
                        out_rot.shape[1], none_known, 0, recent, False, own_tilt, 0, heights, ground_x0,
-                       ground_z0, spacing, WHOLE_PLANT, no_pins, unpinned, True, kept[c])
+                       ground_z0, spacing, WHOLE_PLANT, no_pins, unpinned, True, (no_sent, NOWHERE), kept[c])
 
 
 @_jit(parallel=True)
@@ -184,16 +184,14 @@ def _render_windows(poses: Any, height: Any, surge: Any, rows: Any, weights: Any
                     rigs: Any, bends: Any, sink_limit: float, foot_lock: bool, workers: int,
                     begin: Any, end: Any, start: int, out_rot: Any, out_root: Any, tilt: Any, heights: Any,
                     ground_x0: float, ground_z0: float, spacing: float, pose: Any, known_feet: Any,
-                    known: Any, known_legs: Any, legs_at: Any, pins: Any, pinned: Any, plant_frames: int,
-                    steps: bool, kept: Any, c0: int, c1: int) -> None:
-    """Frames ``[start, start + out.shape[1])`` of characters ``[c0, c1)``, each rendered over
-    its own context ``[begin[c], end[c])`` of the plan (see :func:`render_window`);
-    ``known_feet (T, C, 4, 3)`` (or none: ``(0, C, 4, 3)``), ``known``, ``known_legs``,
-    ``legs_at``, ``pins``, ``pinned``: a :class:`Posed`'s, moved on (``known`` to ``end``,
-    ``legs_at`` to the window's end, the pins to its last frame's plants). Calls for disjoint
-    character ranges may run side by side. ``pose (C,)``: the characters posed; the others get
-    their root alone (:func:`_root_only`), their rotations left as they were in ``out_rot`` and
-    nothing of theirs kept; ``kept (C, n, 4)``: the feet planted as posed (far: the plan's)."""
+                    known: Any, known_legs: Any, legs_at: Any, pins: Any, pinned: Any, sent: Any,
+                    sent_at: Any, plant_frames: int, steps: bool, kept: Any, c0: int, c1: int) -> None:
+    """Frames ``[start, start + out.shape[1])`` of characters ``[c0, c1)``, each rendered over its own context
+    ``[begin[c], end[c])`` of the plan (see :func:`render_window`); ``known_feet`` (``(0, C, 4, 3)``: none) to
+    ``sent_at``: a :class:`Posed`'s, moved on (``known`` to ``end``, ``legs_at`` to the window's end, the pins
+    to its last frame's plants, ``sent`` to its last two frames). Calls for disjoint character ranges may run
+    side by side. ``pose (C,)``: the characters posed; the others get their root alone (:func:`_root_only`),
+    their rotations left in ``out_rot``, nothing kept; ``kept (C, n, 4)``: feet planted (far: the plan's)."""
     n, J = out_rot.shape[1], out_rot.shape[2]
     longest = 0
     for c in range(c0, c1):
@@ -204,18 +202,16 @@ def _render_windows(poses: Any, height: Any, surge: Any, rows: Any, weights: Any
         rot, root = np.empty((longest, J, 4), np.float32), np.empty((longest, 3))
         # See fk: from an origin up to LANES - 1 frames before the first posed.
         world = np.empty(((longest + 2 * LANES - 2) // LANES, 7 * J, LANES))
-        feet = np.empty((longest, 4, 3))
-        legs = np.empty((longest, 4, LEG_WIDTH))
-        targets = np.empty((longest, 4, 3))
+        feet, targets = np.empty((longest, 4, 3)), np.empty((longest, 4, 3))
+        legs, no_recent = np.empty((longest, 4, LEG_WIDTH)), np.empty((PAD, 4, LEG_WIDTH))
         sink, eased = np.empty(longest), np.empty(longest)
-        no_recent = np.empty((PAD, 4, LEG_WIDTH))
         for c in range(c0 + worker, c1, workers):
             if not pose[c]:
                 root_only(height, surge, rows[c, start:start + n], weights[c, start:start + n],
                            yaw[c, start:start + n], path[c, start:start + n], scales[c], out_root[c])
                 kept[c] = contacts[c, start:start + n]
                 if keep:
-                    legs_at[c] = NOWHERE
+                    legs_at[c] = sent_at[c] = NOWHERE
                 continue
             b, e = begin[c], end[c]
             k = e - b
@@ -226,11 +222,12 @@ def _render_windows(poses: Any, height: Any, surge: Any, rows: Any, weights: Any
             pinned[c] -= b  # in the context's frames
             made = _character(poses, height, surge, rows[c, b:e], weights[c, b:e], yaw[c, b:e], lean[c, b:e],
                               path[c, b:e], scales[c], contacts[c, b:e], parents, offsets, fk_joints, rigs,
-                              bends, sink_limit, foot_lock, rot[:k], root[:k], world, feet[:k],
-                              legs[:k], targets[:k], sink[:k], eased[:k], start - b, start - b + n,
-                              known_feet[b:e, c], kn, own_legs, recent_known, own_tilt, b, heights,
-                              ground_x0, ground_z0, spacing, plant_frames, pins[c], pinned[c], steps, kept[c])
+                              bends, sink_limit, foot_lock, rot[:k], root[:k], world, feet[:k], legs[:k],
+                              targets[:k], sink[:k], eased[:k], start - b, start - b + n, known_feet[b:e, c],
+                              kn, own_legs, recent_known, own_tilt, b, heights, ground_x0, ground_z0, spacing,
+                              plant_frames, pins[c], pinned[c], steps, (sent[c], sent_at[c] - b), kept[c])
             pinned[c] += b
+            sent_at[c] = start + n - 1  # sent[c]: the targets of its last two frames (none kept: not read)
             out_rot[c] = rot[start - b:start - b + n]
             out_root[c] = root[start - b:start - b + n]
             if keep and foot_lock:
@@ -319,12 +316,14 @@ class Posed(NamedTuple):
     """What a live session's windows keep of the frames they posed, for the later windows over
     the same plan (see :func:`render_window`): the feet ``(T, C, 4, 3)`` float64, C-contiguous
     (frames first: every view of them is, so the kernel is compiled for one layout), of each
-    character's plan frames ``[0, frames[c])``; what the sink reads of the legs on the PAD
-    frames before ``legs_at[c]`` (``(C, PAD, 4, LEG_WIDTH)``; ``NOWHERE``: none kept); where
-    plants are pinned at their first frames (``render_window``'s ``plant_frames``), each foot's
-    plant through plan frame ``pinned[c, f]`` and its target ``pins[c, f]`` as sent
-    (``(C, 4)``, ``(C, 4, 3)``; ``NOWHERE``: none), so that a plant longer than the context kept
-    stays there when its first frames are dropped."""
+    character's plan frames ``[0, frames[c])``; what the sink reads of the legs on the PAD frames
+    before ``legs_at[c]`` (``(C, PAD, 4, LEG_WIDTH)``; ``NOWHERE``: none kept); where plants are
+    pinned at their first frames (``render_window``'s ``plant_frames``), each foot's plant through
+    plan frame ``pinned[c, f]`` and its target ``pins[c, f]`` as sent (``(C, 4)``, ``(C, 4, 3)``;
+    ``NOWHERE``: none), so that a plant longer than the context kept stays there when its first
+    frames are dropped; there too, the foot targets ``(C, 2, 4, 3)`` of plan frames ``sent_at[c]
+    - 1``, ``sent_at[c]`` as sent (``(C,)``; ``NOWHERE``: none), from which the next window's
+    unsent frames' jumps are eased (jump_kernels.ease_unsent)."""
 
     feet: NDArray[np.float64]
     frames: NDArray[np.int64]
@@ -332,12 +331,14 @@ class Posed(NamedTuple):
     legs_at: NDArray[np.int64]
     pins: NDArray[np.float64]
     pinned: NDArray[np.int64]
+    sent: NDArray[np.float64]
+    sent_at: NDArray[np.int64]
 
     @classmethod
     def none(cls, C: int, feet: NDArray[np.float64]) -> Posed:
         """Nothing posed yet, the feet to be kept in ``feet``."""
         return cls(feet, np.zeros(C, np.int64), np.empty((C, PAD, 4, LEG_WIDTH)), np.full(C, NOWHERE),
-                   np.zeros((C, 4, 3)), np.full((C, 4), NOWHERE))
+                   np.zeros((C, 4, 3)), np.full((C, 4), NOWHERE), np.zeros((C, 2, 4, 3)), np.full(C, NOWHERE))
 
 
 def _checked(known: Posed | None, plan: Plan) -> Posed:
@@ -345,12 +346,13 @@ def _checked(known: Posed | None, plan: Plan) -> Posed:
     C = plan.yaw.shape[0]
     if known is None:
         return Posed(np.empty((0, C, 4, 3)), np.zeros(C, np.int64), np.empty((0, PAD, 4, LEG_WIDTH)),
-                     np.zeros(C, np.int64), np.zeros((C, 4, 3)), np.full((C, 4), NOWHERE))
+                     np.zeros(C, np.int64), *Posed.none(C, np.empty((0, C, 4, 3)))[4:])
     assert known.feet.shape == (*plan.yaw.shape[::-1], 4, 3) and known.feet.dtype == np.float64
     assert known.feet.flags.c_contiguous
     assert known.legs.shape == (C, PAD, 4, LEG_WIDTH) and known.legs.flags.c_contiguous
     assert known.pins.shape == (C, 4, 3) and known.pins.flags.c_contiguous and known.pinned.shape == (C, 4)
-    for frames in (known.frames, known.legs_at, known.pinned):
+    assert known.sent.shape == (C, 2, 4, 3) and known.sent.flags.c_contiguous
+    for frames in (known.frames, known.legs_at, known.pinned, known.sent_at):
         assert frames.dtype == np.int64 and frames.flags.c_contiguous
     return known
 
@@ -418,7 +420,7 @@ def render_window(bank: Bank, plan: Plan, start: int, stop: int, begin: NDArray[
     # Only the frames some context reads are made contiguous.
     cb, ce = int(np.min(begin)), int(np.max(end))
     posed = _checked(known, plan)
-    for frames in (posed.frames, posed.legs_at, posed.pinned):  # in the window's frames (moved back after)
+    for frames in (posed.frames, posed.legs_at, posed.pinned, posed.sent_at):  # in the window's frames
         frames[...] -= cb
     out_root, out_rot, kept = _outputs(C, stop - start, bank.skeleton.n_joints, out, contacts)
     table, skeleton = _sink_limit(bank, ground)
@@ -427,12 +429,11 @@ def render_window(bank: Bank, plan: Plan, start: int, stop: int, begin: NDArray[
             np.asarray(end, np.int64) - cb, start - cb, out_rot, out_root,
             *_terrain_arrays(None if ground is None else ground.window(cb, ce)), pose,
             posed.feet[cb:ce] if known is not None else posed.feet, posed.frames, posed.legs, posed.legs_at,
-            posed.pins, posed.pinned, WHOLE_PLANT if plant_frames is None else max(int(plant_frames), 1),
-            steps, kept)
+            *posed[4:], WHOLE_PLANT if plant_frames is None else max(int(plant_frames), 1), steps, kept)
     try:
         _run_windows(kernels, args, C, share)
     finally:
-        for frames in (posed.frames, posed.legs_at, posed.pinned):
+        for frames in (posed.frames, posed.legs_at, posed.pinned, posed.sent_at):  # moved back
             frames[...] += cb
     return out_root.astype(np.float32), out_rot
 

@@ -46,9 +46,9 @@ def sink_within(up: float, across2: float, allowed: float) -> float:
 
 def no_steps(T: int) -> tuple[Any, ...]:
     """plant_targets' ``body`` for ``T`` frames where no plant is stepped (its targets the
-    plants' averages alone): no step frames, legs never out of reach."""
+    plants' averages alone): no step frames, legs never out of reach; no frame sent before it."""
     return (np.zeros((4, 6)), np.zeros((T, 4, LEG_WIDTH)), np.inf, 0, np.zeros((T, 3)), 0.0, np.zeros(T),
-            np.zeros((T, 3)), 1.0, False)
+            np.zeros((T, 3)), 1.0, False, 0, (np.zeros((2, 4, 3)), NOWHERE))
 
 
 @_jit()

@@ -53,6 +53,15 @@ EASE_FRAMES = 9
 # after the targets -- the sink moving the hips, the IK falling short where a leg cannot reach,
 # the hoof or paw below the ankle, which the IK does not hold.
 JUMP_EASE = 0.03
+# ... but a ramp's vertical part lowers no swing frame still moving over the ground by more than
+# SWING_MOVING (metres a frame: the batch strict skate limit, issue 27) to within SWING_CLEAR of
+# its plants' height, lower than the frame was un-eased: the strict-plant height (1 cm,
+# metrics.STRICT_PLANT_M) and the IK's slack under a target (PLANTED_SLACK). Such a frame reads
+# as planted after FK and skates: the low-latency dog's jitter_10hz, its last swing frames before
+# a touchdown (12-15 mm up) lowered under 1 cm, strict skate p95 3.0 -> 6.6 mm (with a floor of
+# 1 cm alone they landed at 9.3-9.9 mm after FK: still counted).
+SWING_MOVING = 0.003
+SWING_CLEAR = 0.01 + PLANTED_SLACK
 # A body turning on the spot carries a standing foot round with it: held where it stood, the foot
 # went out of the leg's reach (issue 27, turn_on_spot: a horse pivoting 180 deg on its hips over
 # standing forefeet reared, the hooves hanging 35-50 cm up, then jumped 37 cm in a frame as they

@@ -208,21 +208,20 @@ class LiveSynth(LivePath):
         """Planned frames kept as the foot lock's context (see _emit), and the feet it has posed."""
         self.buffer = PlannedColumns(self.scales, -(-2 * (self.lock_lag + self.kept_frames + 2 * self.step)
                                               // self.out_step))
-        # The feet of the frames sent and of those after them posed by the foot lock so far (frames
-        # [0, known_feet) of each character's): see kernels.render_window.
-        # One row of (frames, C, 4, 3): its views are C-contiguous, as the kernel takes them.
+        # The feet of the frames sent and those after them the foot lock posed so far (frames [0,
+        # known_feet) of each: kernels.render_window), a row of (frames, C, 4, 3): C-contiguous views.
         self.feet = Columns(1, [((C, 4, 3), np.float64)],
                              self.buffer.arrays[0].shape[1] + self._end_frames // self.out_step + 1)
         self.known_feet = np.zeros(C, np.int64)
         # What the sink reads of the legs on the last PAD frames sent (see kernels.Posed).
-        self.recent_legs = np.empty((C, PAD, 4, LEG_WIDTH))
-        self.legs_at = np.full(C, NOWHERE)
+        self.recent_legs, self.legs_at = np.empty((C, PAD, 4, LEG_WIDTH)), np.full(C, NOWHERE)
         # The low-latency mode's plants as sent, each through the last frame sent (kernels.Posed):
-        # a plant longer than the frames kept stays where its first frames put it.
+        # a plant longer than the frames kept stays where its first frames put it. And the foot
+        # targets of the last two frames sent (kernels.Posed): later windows ease from them.
         self.pins, self.pinned = np.zeros((C, 4, 3)), np.full((C, 4), NOWHERE)
+        self.sent, self.sent_at = np.zeros((C, 2, 4, 3)), np.full(C, NOWHERE)
         # The characters whose rotations are wanted (see set_posed); character-frames sent posed so far.
-        self.pose = np.ones(C, bool)
-        self.posed_frames = 0
+        self.pose, self.posed_frames = np.ones(C, bool), 0
 
     def _low_latency(self, latency_ms: float) -> None:
         """The low-latency mode: a frame is sent at most ``latency_ms`` after its point arrived
@@ -446,13 +445,14 @@ class LiveSynth(LivePath):
         o0, n = self.buffer.start, buf.yaw.shape[1]
         self.feet.reserve(max(o0 + n - self.feet.stop, 0))
         posed = kernels.Posed(self.feet.columns(o0, o0 + n)[0][0], self.known_feet - o0, self.recent_legs,
-                              self.legs_at - o0, self.pins, self.pinned - o0)
+                              self.legs_at - o0, self.pins, self.pinned - o0, self.sent, self.sent_at - o0)
         out = None if self.scratch is None else self.scratch.array(
             "live.rotations", (len(self.scales), hi - lo, self.bank.skeleton.n_joints, 4), np.float32)
         root, rot = kernels.render_window(self.bank, buf, lo, hi, begin, end, self.foot_lock, posed, out,
                                           self.share, ground, self.pose, self.compiled, self.plant_frames,
                                           steps=False, contacts=contacts)
         self.known_feet, self.legs_at, self.pinned = posed.frames + o0, posed.legs_at + o0, posed.pinned + o0
+        self.sent_at = posed.sent_at + o0
         return root, rot, contacts
 
     def _emit(self, start: int, stop: int) -> Window:
