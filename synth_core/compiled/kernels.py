@@ -368,14 +368,11 @@ def _run_windows(kernels: RenderKernels, args: tuple[Any, ...], C: int,
            for a, b in zip(cuts[:-1], cuts[1:], strict=True) if b > a])
 
 
-def _outputs(C: int, T: int, J: int, rot: NDArray[np.float32] | None, contacts: NDArray[np.bool_] | None
-             ) -> tuple[NDArray[np.float64], NDArray[np.float32], NDArray[np.bool_]]:
-    """A render's root (new), rotations and contacts (``rot``, ``contacts`` if given, checked)."""
-    rot = np.empty((C, T, J, 4), np.float32) if rot is None else rot
+def _contacts_out(C: int, T: int, contacts: NDArray[np.bool_] | None) -> NDArray[np.bool_]:
+    """Where a render writes the feet planted: ``contacts`` if given (checked), else new."""
     kept = np.empty((C, T, 4), np.bool_) if contacts is None else contacts
-    assert rot.shape == (C, T, J, 4) and rot.dtype == np.float32 and rot.flags.c_contiguous
     assert kept.shape == (C, T, 4) and kept.dtype == np.bool_ and kept.flags.c_contiguous
-    return np.empty((C, T, 3), np.float64), rot, kept
+    return kept
 
 
 def render_window(bank: Bank, plan: Plan, start: int, stop: int, begin: NDArray[np.int64],
@@ -422,7 +419,11 @@ def render_window(bank: Bank, plan: Plan, start: int, stop: int, begin: NDArray[
     posed = _checked(known, plan)
     for frames in (posed.frames, posed.legs_at, posed.pinned, posed.sent_at):  # in the window's frames
         frames[...] -= cb
-    out_root, out_rot, kept = _outputs(C, stop - start, bank.skeleton.n_joints, out, contacts)
+    out_root = np.empty((C, stop - start, 3), np.float64)
+    out_rot = np.empty((C, stop - start, bank.skeleton.n_joints, 4), np.float32) if out is None else out
+    assert out_rot.shape == (C, stop - start, bank.skeleton.n_joints, 4) and out_rot.dtype == np.float32
+    assert out_rot.flags.c_contiguous
+    kept = _contacts_out(C, stop - start, contacts)
     table, skeleton = _sink_limit(bank, ground)
     args = (*table, *_plan_arrays(plan.window(cb, ce)), *skeleton, foot_lock,
             1 if share or not compiled else threads(), np.asarray(begin, np.int64) - cb,
@@ -468,8 +469,7 @@ def render(bank: Bank, plan: Plan, foot_lock: bool = True,
     out_rot = np.empty((C, T, J, 4), np.float32) if out is None else out[1]
     table, skeleton = _sink_limit(bank, ground)
     w_world, w_feet, w_legs, w_targets, w_sink, w_eased = work
-    kept = np.empty((C, T, 4), np.bool_) if contacts is None else contacts
-    assert kept.shape == (C, T, 4) and kept.dtype == np.bool_ and kept.flags.c_contiguous
+    kept = _contacts_out(C, T, contacts)
     kernels = COMPILED if compiled else REFERENCE
     kernels.render_all(*table, *_plan_arrays(plan), *skeleton, foot_lock, out_rot, out_root, w_world, w_feet,
                        w_legs, w_targets, w_sink, w_eased, *_terrain_arrays(ground), pose, kept)
