@@ -13,6 +13,8 @@ from __future__ import annotations
 import math
 from typing import Any
 
+import numpy as np
+
 from synth_core.compiled.jit import render_jit
 from synth_core.compiled.vec_kernels import smoothstep
 from synth_core.runtime.footlock import JUMP_EASE, SWING_CLEAR, SWING_MOVING
@@ -33,21 +35,27 @@ def _beyond(out: Any, f: int, t: int, k: int) -> float:
 
 
 @_jit()
-def _excess(out: Any, f: int, t: int) -> float:
-    """How much longer foot f's step into frame t is than the mean of the steps before and after
-    it (metrics.one_frame_jumps_mm, in the targets' unit)."""
-    d = math.hypot(math.hypot(_step(out, f, t, 0), _step(out, f, t, 1)), _step(out, f, t, 2))
-    before = math.hypot(math.hypot(_step(out, f, t - 1, 0), _step(out, f, t - 1, 1)), _step(out, f, t - 1, 2))
-    after = math.hypot(math.hypot(_step(out, f, t + 1, 0), _step(out, f, t + 1, 1)), _step(out, f, t + 1, 2))
-    return float(d - 0.5 * (before + after))
+def _lengths(out: Any, f: int, a: int, b: int, lengths: Any) -> None:
+    """``lengths[t]``: how far foot f's target moves from frame t - 1 to frame t, for t in [a, b).
+    Each step's length once: an excess (:func:`_excess`) reads three of them."""
+    for t in range(max(a, 1), b):
+        x, y, z = _step(out, f, t, 0), _step(out, f, t, 1), _step(out, f, t, 2)
+        lengths[t] = math.sqrt(x * x + y * y + z * z)
+
+
+@_jit(inline="always")
+def _excess(lengths: Any, t: int) -> float:
+    """How much longer the step into frame t is than the mean of the steps before and after it
+    (metrics.one_frame_jumps_mm, in the targets' unit; ``lengths``: :func:`_lengths`)."""
+    return float(lengths[t] - 0.5 * (lengths[t - 1] + lengths[t + 1]))
 
 
 @_jit()
-def _worst(out: Any, f: int, a: int, b: int) -> float:
-    """The largest :func:`_excess` of foot f's steps into frames [a, b] (those within its path)."""
+def _worst(lengths: Any, a: int, b: int) -> float:
+    """The largest :func:`_excess` of the steps into frames [a, b] (those within the path)."""
     worst = -math.inf
-    for t in range(max(a, 2), min(b, out.shape[0] - 2) + 1):
-        worst = max(worst, _excess(out, f, t))
+    for t in range(max(a, 2), min(b, lengths.shape[0] - 2) + 1):
+        worst = max(worst, _excess(lengths, t))
     return worst
 
 
@@ -108,8 +116,10 @@ def ease_jumps(out: Any, down: Any, f: int, h: float, saved: Any, first: int) ->
     frames before it are never moved (a live window's frames sent already: a step into a frame
     sent is left, a ramp that would reach back past ``first`` is shortened to the frames after)."""
     T, bound = out.shape[0], JUMP_EASE / h
+    lengths = np.empty(T)
+    _lengths(out, f, 1, T, lengths)
     for t in range(max(2, first), T - 1):
-        if (down[t - 1] and down[t]) or _excess(out, f, t) <= bound:
+        if (down[t - 1] and down[t]) or _excess(lengths, t) <= bound:
             continue
         lo, hi = t - 1, t  # the frames free to move: (lo, hi), lo and hi planted, sent or the ends
         while lo > max(first - 1, 0) and not down[lo]:
@@ -123,11 +133,13 @@ def ease_jumps(out: Any, down: Any, f: int, h: float, saved: Any, first: int) ->
         a = max(lo, t - 1 - (n - 1) // 2)
         b = min(hi, a + n)
         a = max(lo, b - n)
-        before = _worst(out, f, a, b + 1)
+        before = _worst(lengths, a, b + 1)
         saved[a:b + 1] = out[a:b + 1, f]
         _ramp(out, down, f, t, a, b, (lo, hi, h))
-        if _worst(out, f, a, b + 1) >= before:
+        _lengths(out, f, a + 1, b + 1, lengths)  # the steps into the frames it moved, (a, b)
+        if _worst(lengths, a, b + 1) >= before:
             out[a:b + 1, f] = saved[a:b + 1]
+            _lengths(out, f, a + 1, b + 1, lengths)
 
 
 @_jit()
