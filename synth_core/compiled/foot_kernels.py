@@ -133,10 +133,13 @@ def held(air: Any, targets: Any, legs: Any, bends: Any, eased: Any, h: float, a:
     on the ground, so not flagged. The wire's contacts (docs/wire-format.md)."""
     for t in range(a, b):
         for f in range(4):
+            if air[t, f]:
+                kept[t - a, f] = False
+                continue
             up, across2 = from_hip(targets[t, f], legs[t, f])
             allowed = min(legs[t, f, LEG_REACH], (1.0 + LONGEST_OVER) * bends[f, 4])
             short = (sink_within(up, across2, allowed) - eased[t]) * h  # the IK's shortfall, metres
-            kept[t - a, f] = not air[t, f] and short <= PLANTED_SLACK
+            kept[t - a, f] = short <= PLANTED_SLACK
 
 
 @_jit()

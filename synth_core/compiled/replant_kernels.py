@@ -71,13 +71,14 @@ def strays(x: float, y: float, z: float, reach: Any, f: int, a: int, s: int, t: 
     feet down 1.0 -> 0.81 on a 30% slope, 0.91 on small circles). ``reach``: see foot_kernels._plants."""
     limit, yaw, root, unit = reach[2], reach[6], reach[7], reach[8]
     for u in range(s, t):
-        if _needs(x, y, z, reach, f, u) <= limit:
-            continue
         d = abs((yaw[u] - yaw[a] + math.pi) % (2.0 * math.pi) - math.pi)
         r = math.hypot(x - root[u, 0] * unit, z - root[u, 2] * unit)
+        if r * d <= limit:  # not carried far: most frames, so read before the leg's reach
+            continue
         o = max(a, reach[3])  # (the root is known from the first frame posed on)
         travel = math.hypot(root[u, 0] - root[o, 0], root[u, 2] - root[o, 2]) * unit
-        if r * d > max(TURN_CARRY * travel, limit):  # (a standing body's yaw holds to the last bit)
+        # (a standing body's yaw holds to the last bit)
+        if r * d > TURN_CARRY * travel and _needs(x, y, z, reach, f, u) > limit:
             return True
     return False
 
