@@ -225,14 +225,17 @@ def _moved_plants(feet: Floats, plants: NDArray[np.int64], shift3: Floats, D: Fl
 
 
 def _foot_track(feet: Floats, plants: NDArray[np.int64], shift3: Floats, D: Floats,
-                t: NDArray[np.int64], alone: NDArray[np.bool_]) -> Floats:
+                t: NDArray[np.int64], alone: NDArray[np.bool_], stand: Floats | None = None) -> Floats:
     """One foot's targets (N, 3F, 3) over the three loops: each plant (``plants`` (P, 2), its
     ``[start, stop)``) moved along the stride by the root's shift, the swings corrected between.
     ``feet (N, 3F, 3)``: the source foot's positions, ``shift3 (N, 3F, 3)`` the root's shift,
     ``D`` the source's cycle displacement; ``alone (3F,)``: where lifting this foot leaves one foot
-    down (no lift clearance there: see :func:`_lift_clear`)."""
+    down (no lift clearance there: see :func:`_lift_clear`); ``stand (3F,)``: the height each
+    frame's plant stands at (None: its source average's)."""
     start, stop = plants[:, 0], plants[:, 1]
     plant = _moved_plants(feet, plants, shift3, D)
+    if stand is not None:
+        plant[..., UP_AXIS] = stand[(start + stop - 1) // 2]
     # The swing's correction runs from where the foot left its last plant to where it meets
     # the next one (a foot sliding or settling in its source plant would otherwise jump at
     # lift-off and drop at touchdown: the real dog's paws by 1-5 cm in a frame).
@@ -332,11 +335,14 @@ def _ends_clear(track: Floats, plant: Floats, ends: NDArray[np.bool_]) -> Floats
 
 
 def foot_targets(source_feet: NDArray[np.floating], source_root: NDArray[np.floating],
-                 new_root: Floats, contacts: NDArray[np.bool_], cyclic: bool = True) -> Floats:
+                 new_root: Floats, contacts: NDArray[np.bool_], cyclic: bool = True,
+                 stand: Floats | None = None) -> Floats:
     """Steps 2 and the swing rule: toe targets (N, F, 4, 3) for every frame of every speed.
 
     ``cyclic=False`` treats the clip as one piece (plants at its ends are cut there): with
     ``new_root`` the source root, that pins each plant at its average place (a foot lock).
+    ``stand (F, 4)``: the height each foot's plant on each frame stands at instead (a plant
+    takes its middle frame's), else its source average's.
     """
     feet = np.asarray(source_feet, dtype=np.float64)
     root = np.asarray(source_root, dtype=np.float64)
@@ -349,6 +355,7 @@ def foot_targets(source_feet: NDArray[np.floating], source_root: NDArray[np.floa
     shift3 = _tile(new_root, D_new, copies) - _tile(np.broadcast_to(root, (N, F, 3)),
                                                     np.broadcast_to(D, (N, 3)), copies)
     contacts3 = np.tile(contacts, (copies, 1))
+    stand3 = None if stand is None else np.tile(np.asarray(stand, np.float64), (copies, 1))
     targets = feet3.copy()
     t = np.arange(copies * F)
     for k in range(contacts.shape[1]):
@@ -356,7 +363,8 @@ def foot_targets(source_feet: NDArray[np.floating], source_root: NDArray[np.floa
         if len(plants) == 0:
             continue
         alone = contacts3.sum(axis=1) - contacts3[:, k] == 1
-        targets[:, :, k] = _foot_track(feet3[:, :, k], plants, shift3, D, t, alone)
+        targets[:, :, k] = _foot_track(feet3[:, :, k], plants, shift3, D, t, alone,
+                                       None if stand3 is None else stand3[:, k])
     first = F * (copies // 2)
     return np.asarray(targets[:, first:first + F])
 
