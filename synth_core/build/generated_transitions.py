@@ -24,6 +24,8 @@ from synth_core.motion import contacts as C
 from synth_core.motion import quat
 from synth_core.motion.clip import Motion
 
+Floats = NDArray[np.float64]
+
 
 def _heading(motion: Motion) -> float:
     travel = motion.root_pos[-1] - motion.root_pos[0]
@@ -143,7 +145,8 @@ def _crossfade(first: Motion, second: Motion, name: str, strides: int = 2) -> Mo
     # and the foot would jump between them (11 cm in the real dog's canter2gallop).
     contacts = C.fill_gaps(contacts, SWITCH_GAP)
     return hold_plants(Motion(first.skeleton, root, rotations, first.fps, contacts, name, None),
-                       walk_frames(name, len(contacts)))
+                       walk_frames(name, len(contacts)),
+                       halves(len(contacts), standing(first), standing(second)))
 
 
 def walk_frames(name: str, frames: int) -> NDArray[np.bool_]:
@@ -155,17 +158,38 @@ def walk_frames(name: str, frames: int) -> NDArray[np.bool_]:
     return np.asarray((first & (source == "walk")) | (~first & (target == "walk")))
 
 
-def hold_plants(motion: Motion, walk: NDArray[np.bool_] | None = None) -> Motion:
+def standing(clip: Motion) -> Floats:
+    """(4,) the height each foot stands at in ``clip``: the median of its planted frames' (a foot
+    never planted: its lowest)."""
+    heights = clip.foot_positions()[..., UP_AXIS].astype(np.float64)
+    return np.array([np.median(heights[clip.contacts[:, k], k]) if clip.contacts[:, k].any()
+                     else heights[:, k].min() for k in range(heights.shape[1])])
+
+
+def halves(frames: int, first: Floats, second: Floats) -> Floats:
+    """``(frames, 4)``: ``first`` over a transition's first half, ``second`` over the rest -- the
+    hubs the synthesis counts it as (:func:`walk_frames`)."""
+    return np.where((np.arange(frames) < frames // 2)[:, None], first[None], second[None])
+
+
+def hold_plants(motion: Motion, walk: NDArray[np.bool_] | None = None,
+                stand: Floats | None = None) -> Motion:
     """Every plant held at its average place, swings eased between (as in the speed map), by IK.
     ``walk``: frames played as the walk, which keep two feet down as the walk's speed map does
-    (a lifting foot held where it stood until another lands)."""
+    (a lifting foot held where it stood until another lands). ``stand (F, 4)``: the height each
+    foot's plant stands at on each frame (:func:`halves` of the gaits' :func:`standing`), else its
+    average's. A mocap paw's end site stands higher in one take than in another (the real dog's
+    forepaws 16 mm in its walk, 30 mm in its trot, 22 mm in walk2trot): held at its own take's
+    height, a transition's paw stood 1-1.5 cm under the paw of the gait it plays as, and
+    that gait's last 2-3 cm of every landing and first of every lift-off swept along in the
+    1 cm band of the strict plants (issue 27)."""
     feet = motion.foot_positions()
     if walk is not None:
         held = C.hold_down(motion.contacts, LEAST_DOWN["walk"], cyclic=False, where=walk)
         feet = held_feet(feet, motion.contacts, held)
         motion = motion.with_contacts(held)
     root = np.asarray(motion.root_pos, np.float64)
-    targets = foot_targets(feet, root, root[None], motion.contacts, cyclic=False)[0]
+    targets = foot_targets(feet, root, root[None], motion.contacts, cyclic=False, stand=stand)[0]
     rigs = ik.limb_rigs(motion.skeleton)
     limit = reach_limit(motion, rigs)
 

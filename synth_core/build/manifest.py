@@ -53,7 +53,13 @@ import numpy as np
 
 from synth_core import FOOT_NAMES, UP_AXIS
 from synth_core.build.artifact import Library
-from synth_core.build.generated_transitions import generate_transition, hold_plants, walk_frames
+from synth_core.build.generated_transitions import (
+    generate_transition,
+    halves,
+    hold_plants,
+    standing,
+    walk_frames,
+)
 from synth_core.build.mocap_clips import (
     LOOP_CLOSE_MAX_DEG,
     close_loop,
@@ -265,7 +271,9 @@ def build_from_manifest(path: Path) -> Library:
             clip = _clip(files, given[name], f"transitions.{name}.", name, manual.get(name))
             if name.startswith("static") or name.endswith("static"):
                 clip = stand_as(clip, idle, at_start=name.startswith("static"))
-            transitions[name] = hold_plants(clip, walk_frames(name, clip.n_frames))
+            ends = [maps[g].clip(0) if g in maps else idle for g in name.split("2")]
+            transitions[name] = hold_plants(clip, walk_frames(name, clip.n_frames),
+                                            halves(clip.n_frames, *(standing(e) for e in ends)))
         else:
             source, target = name.split("2")
             transitions[name] = generate_transition(maps.get(source), maps.get(target), idle, name)

@@ -203,13 +203,9 @@ def swing_progress(feet: Floats, lo: NDArray[np.int64], hi: NDArray[np.int64],
     return np.asarray(trust * along + (1 - trust) * timed)
 
 
-def _foot_track(feet: Floats, plants: NDArray[np.int64], shift3: Floats, D: Floats,
-                t: NDArray[np.int64], alone: NDArray[np.bool_]) -> Floats:
-    """One foot's targets (N, 3F, 3) over the three loops: each plant (``plants`` (P, 2), its
-    ``[start, stop)``) moved along the stride by the root's shift, the swings corrected between.
-    ``feet (N, 3F, 3)``: the source foot's positions, ``shift3 (N, 3F, 3)`` the root's shift,
-    ``D`` the source's cycle displacement; ``alone (3F,)``: where lifting this foot leaves one foot
-    down (no lift clearance there: see :func:`_lift_clear`)."""
+def _moved_plants(feet: Floats, plants: NDArray[np.int64], shift3: Floats, D: Floats) -> Floats:
+    """Step 2 for one foot: each plant's place ``(N, P, 3)``, its source average moved by V (see
+    :func:`_foot_track` for the arguments)."""
     start, stop = plants[:, 0], plants[:, 1]
     mid = (start + stop - 1) // 2
     average = np.stack([feet[:, a:b].mean(axis=1) for a, b in plants], axis=1)  # (N, P, 3)
@@ -225,15 +221,33 @@ def _foot_track(feet: Floats, plants: NDArray[np.int64], shift3: Floats, D: Floa
     root_shift = shift3[:, mid]  # (N, P, 3)
     d_c = np.linalg.norm(root_shift[..., _HORIZONTAL], axis=-1)
     sense = np.sign(np.sum(root_shift * direction, axis=-1))
-    plant = average + (sense * d_c)[..., None] * direction
+    return np.asarray(average + (sense * d_c)[..., None] * direction)
+
+
+def _foot_track(feet: Floats, plants: NDArray[np.int64], shift3: Floats, D: Floats,
+                t: NDArray[np.int64], alone: NDArray[np.bool_], stand: Floats | None = None) -> Floats:
+    """One foot's targets (N, 3F, 3) over the three loops: each plant (``plants`` (P, 2), its
+    ``[start, stop)``) moved along the stride by the root's shift, the swings corrected between.
+    ``feet (N, 3F, 3)``: the source foot's positions, ``shift3 (N, 3F, 3)`` the root's shift,
+    ``D`` the source's cycle displacement; ``alone (3F,)``: where lifting this foot leaves one foot
+    down (no lift clearance there: see :func:`_lift_clear`); ``stand (3F,)``: the height each
+    frame's plant stands at (None: its source average's)."""
+    start, stop = plants[:, 0], plants[:, 1]
+    plant = _moved_plants(feet, plants, shift3, D)
+    if stand is not None:
+        plant[..., UP_AXIS] = stand[(start + stop - 1) // 2]
     # The swing's correction runs from where the foot left its last plant to where it meets
     # the next one (a foot sliding or settling in its source plant would otherwise jump at
     # lift-off and drop at touchdown: the real dog's paws by 1-5 cm in a frame).
     lift_off = plant - feet[:, stop - 1]  # (N, P, 3)
     touch_down = plant - feet[:, start]
-    # Per frame: the plant it is in, or the plants either side of its swing.
-    prev = np.clip(np.searchsorted(start, t, side="right") - 1, 0, len(plants) - 1)
-    nxt = np.clip(prev + 1, 0, len(plants) - 1)
+    # Per frame: the plant it is in, or the plants either side of its swing. A clip that does
+    # not loop (a transition) has a swing before its first plant and one after its last, each
+    # with one plant only: ``before`` heads for the first, ``after`` leaves the last.
+    k = np.searchsorted(start, t, side="right") - 1
+    prev = np.clip(k, 0, len(plants) - 1)
+    nxt = np.where(k < 0, 0, np.clip(k + 1, 0, len(plants) - 1))
+    before, after = k < 0, (k == len(plants) - 1) & (t >= stop[-1])
     inside = (t >= start[prev]) & (t < stop[prev])
     lo, hi = stop[prev] - 1, start[nxt]
     # A shortened step is eased by the source's progress (its ground speed scaled down
@@ -242,7 +256,7 @@ def _foot_track(feet: Floats, plants: NDArray[np.int64], shift3: Floats, D: Floa
                < np.linalg.norm((feet[:, hi] - feet[:, lo])[..., _HORIZONTAL], axis=-1))
     u = np.where(shorter, swing_progress(feet, lo, hi, t)[None],
                  _smoothstep((t - lo) / np.maximum(hi - lo, 1))[None])
-    u = np.where(t < start[0], 1.0, u)  # before the first plant: heading for it
+    u = np.where(before, 1.0, np.where(after, 0.0, u))  # heading for the first plant, leaving the last
     blend = (1 - u)[..., None] * lift_off[:, prev] + u[..., None] * touch_down[:, nxt]
     # Heights: the plant's offset fades out soon after lift-off and in just before touchdown,
     # the source's own lift and descent in between. A mocap paw's end site rises 0.5-2 cm as
@@ -253,14 +267,16 @@ def _foot_track(feet: Floats, plants: NDArray[np.int64], shift3: Floats, D: Floa
     s = np.clip((t - lo - 1) / np.maximum(hi - lo - 2, 1), 0.0, 1.0)
     w_lo = 1.0 - _smoothstep(s / HEIGHT_EDGE)
     w_hi = _smoothstep((s - 1.0 + HEIGHT_EDGE) / HEIGHT_EDGE)
-    w_lo, w_hi = np.where(t < start[0], 0.0, w_lo), np.where(t < start[0], 1.0, w_hi)
+    w_lo = np.where(before, 0.0, np.where(after, 1.0, w_lo))
+    w_hi = np.where(before, 1.0, np.where(after, 0.0, w_hi))
     blend[..., UP_AXIS] = (w_lo[None] * lift_off[:, prev, UP_AXIS]
                            + w_hi[None] * touch_down[:, nxt, UP_AXIS])
     swing = feet + blend
     swing[..., UP_AXIS] = _lift_clear(swing[..., UP_AXIS], plant[:, prev, UP_AXIS], t, lo, hi,
                                       (t >= start[0]) & ~alone)
     track = np.where(inside[None, :, None], plant[:, prev], swing)
-    return _touch_clear(track, plant[:, nxt, UP_AXIS], t, lo, hi, t >= start[0])
+    track = _touch_clear(track, plant[:, nxt, UP_AXIS], t, lo, hi, t >= start[0])
+    return _ends_clear(track, plant[:, prev, UP_AXIS], before | after)
 
 
 def _lift_clear(height: Floats, plant: Floats, t: NDArray[np.int64], lo: NDArray[np.int64],
@@ -303,12 +319,30 @@ def _touch_clear(track: Floats, plant: Floats, t: NDArray[np.int64], lo: NDArray
     return out
 
 
+def _ends_clear(track: Floats, plant: Floats, ends: NDArray[np.bool_]) -> Floats:
+    """A clip's swings before its first plant and after its last (``ends``: a transition's;
+    ``plant (N, T)`` the one plant each has) kept :data:`LIFT_CLEAR` over that plant where the
+    foot moves over the ground more than :data:`TOUCH_STEP`. The rules above clear a swing
+    between two plants; these, cut by the clip's ends, were left as the mocap had them: the real
+    dog's paw in walk2trot lifted 6-9 mm off its last plant while moving 3-5 cm a frame, and
+    static2walk's last swings skimmed at 1-4 mm into the walk, the strict plants of issue 27
+    sliding 2-9 cm a frame (the edge suite's cruise_straight, 10 mm p95)."""
+    ground = track[..., _HORIZONTAL]
+    step = np.linalg.norm(np.diff(ground, axis=1, append=ground[:, -1:]), axis=-1)
+    out = np.array(track)
+    out[..., UP_AXIS] = _over_plant(out[..., UP_AXIS], plant, ends & (step > TOUCH_STEP))
+    return out
+
+
 def foot_targets(source_feet: NDArray[np.floating], source_root: NDArray[np.floating],
-                 new_root: Floats, contacts: NDArray[np.bool_], cyclic: bool = True) -> Floats:
+                 new_root: Floats, contacts: NDArray[np.bool_], cyclic: bool = True,
+                 stand: Floats | None = None) -> Floats:
     """Steps 2 and the swing rule: toe targets (N, F, 4, 3) for every frame of every speed.
 
     ``cyclic=False`` treats the clip as one piece (plants at its ends are cut there): with
     ``new_root`` the source root, that pins each plant at its average place (a foot lock).
+    ``stand (F, 4)``: the height each foot's plant on each frame stands at instead (a plant
+    takes its middle frame's), else its source average's.
     """
     feet = np.asarray(source_feet, dtype=np.float64)
     root = np.asarray(source_root, dtype=np.float64)
@@ -321,6 +355,7 @@ def foot_targets(source_feet: NDArray[np.floating], source_root: NDArray[np.floa
     shift3 = _tile(new_root, D_new, copies) - _tile(np.broadcast_to(root, (N, F, 3)),
                                                     np.broadcast_to(D, (N, 3)), copies)
     contacts3 = np.tile(contacts, (copies, 1))
+    stand3 = None if stand is None else np.tile(np.asarray(stand, np.float64), (copies, 1))
     targets = feet3.copy()
     t = np.arange(copies * F)
     for k in range(contacts.shape[1]):
@@ -328,7 +363,8 @@ def foot_targets(source_feet: NDArray[np.floating], source_root: NDArray[np.floa
         if len(plants) == 0:
             continue
         alone = contacts3.sum(axis=1) - contacts3[:, k] == 1
-        targets[:, :, k] = _foot_track(feet3[:, :, k], plants, shift3, D, t, alone)
+        targets[:, :, k] = _foot_track(feet3[:, :, k], plants, shift3, D, t, alone,
+                                       None if stand3 is None else stand3[:, k])
     first = F * (copies // 2)
     return np.asarray(targets[:, first:first + F])
 
