@@ -283,23 +283,3 @@ def test_a_path_moving_at_its_first_points_starts_in_its_gait_live(bank: Bank) -
         (standing,) = edge.scenarios(gaits, animal.fps, 0, ["cruise_straight"])
         still = play(animal, standing.positions[:, :120], standing.scales, latency_ms=100.0)
         assert (still.result.gait[:, 0] == 0).all()
-
-
-def test_a_dog_speeding_up_through_its_walk_keeps_two_feet_down_live() -> None:
-    """Issue 27: a walk has >= 2 feet down after FK on every frame. Walking, trotting and cantering
-    up a slope, the dog speeds up through its walk past its fastest clip's speed (the chain static
-    -> walk -> trot takes a second): played at MAX_RATE its stances slid and the low-latency lock,
-    its plants where their first frames put them, left a trailing foot hanging out of reach (0.994
-    of the walk frames); the walk's stride plays up to PASSING_RATE now."""
-    from synth_core.build.library_store import builtin_library
-    from synth_core.build.motion_graph import HUBS
-    from synth_core.quality import edge
-    from synth_core.runtime.bank import build_bank
-
-    dog = build_bank(builtin_library("dog"))
-    gaits = {HUBS[h]: (float(s[0]), float(s[-1])) for h, s in dog.speeds.items()}
-    (sc,) = edge.scenarios(gaits, dog.fps, 0, ["slope_up_10"])
-    run = play(dog, sc.positions, sc.scales, latency_ms=100.0, ground=sc.ground)
-    figures = evaluate.edge_figures(dog, run.result, sc.reference, sc.positions.shape[1],
-                                    library_reference(dog), sc.ground, sent=sc.positions)
-    assert evaluate.passes("walk_support_share", figures["walk_support_share"]), figures["walk_support_share"]

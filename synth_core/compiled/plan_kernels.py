@@ -107,13 +107,13 @@ def _interp(x: float, xp: Any, at: int, n: int) -> float:
 
 
 @jit(inline="always")
-def _rate(v: float, hub: int, high: Any, max_rate: Any, slowest: int, slow: float, share: float) -> float:
-    """Clip frames per frame (before the tempo) of hub ``hub`` at speed ``v``: up to its
-    ``max_rate`` faster above its fastest clip, and for the slowest gait below its slowest clip
-    (``slow``) slower, down to ``share``."""
+def _rate(v: float, hub: int, high: Any, max_rate: float, slowest: int, slow: float, share: float) -> float:
+    """Clip frames per frame (before the tempo) of hub ``hub`` at speed ``v``: up to ``max_rate``
+    faster above its fastest clip, and for the slowest gait below its slowest clip (``slow``)
+    slower, down to ``share``."""
     if hub == slowest and v < slow:
         return max(v / slow, share)
-    return float(min(max(v / high[hub], 1.0), max_rate[hub]))
+    return float(min(max(v / high[hub], 1.0), max_rate))
 
 
 @jit(inline="always")
@@ -267,7 +267,7 @@ def _walk_on(f: Any, pts: Any, i: int, still: float) -> None:
 
 
 @jit(inline="always")
-def _tick(f: Any, t: int, v: float, tempo: float, high: Any, max_rate: Any, slowest: int, slow: float,
+def _tick(f: Any, t: int, v: float, tempo: float, high: Any, max_rate: float, slowest: int, slow: float,
           share: float) -> None:
     """Every kind's stride clock on to frame t + 1: the gaits' at their rate for speed ``v``;
     standing's and the transitions': time."""
@@ -385,7 +385,7 @@ def _character(t0: int, v: Any, pts: Any, h: float, tempo: float, lead: int, ask
                k0: int, step: int, s: Any, f: Any, offset: Any, frames_of: Any, clips: Any, cyclic: Any,
                source: Any, target: Any, tr_kind: Any, entry: Any, exit_: Any, total: Any, low: Any,
                high: Any, curve_at: Any, curves: Any, contacts_of: Any, slowest: int, fastest: int,
-               max_rate: Any, slow: float, share: float, still_step: float, still_frames: float,
+               max_rate: float, slow: float, share: float, still_step: float, still_frames: float,
                margin: int, creep: float, out_step: int, rows: Any, weights: Any, gait: Any, contacts: Any,
                stitches: Any) -> None:
     """Frames ``[t0, t0 + len(v))`` of one character (speeds ``v``, path ``pts`` from frame t0 on,
@@ -446,7 +446,7 @@ def _character(t0: int, v: Any, pts: Any, h: float, tempo: float, lead: int, ask
 def advance(t0: int, v: Any, pts: Any, h: Any, tempo: Any, lead: Any, asked_speed: Any, draws: Any, k0: int,
             step: int, ints: Any, floats: Any, offset: Any, frames_of: Any, clips: Any, cyclic: Any,
             source: Any, target: Any, tr_kind: Any, entry: Any, exit_: Any, total: Any, low: Any, high: Any,
-            curve_at: Any, curves: Any, contacts_of: Any, slowest: int, fastest: int, max_rate: Any,
+            curve_at: Any, curves: Any, contacts_of: Any, slowest: int, fastest: int, max_rate: float,
             slow: float, share: float, still_step: float, still_frames: float, margin: int, creep: float,
             out_step: int, workers: int, rows: Any, weights: Any, gait: Any, contacts: Any,
             stitches: Any) -> None:

@@ -17,26 +17,26 @@ One planner serves the batch and the live mode. Its design:
 - Around it, in numpy: the library's tables (:func:`tables`), each frame's speed
   (:func:`frame_speeds`) and each decision's random draws (:mod:`synth_core.runtime.draws`).
 
-The rules the machine follows. Every character starts standing and moves through the motion graph
-one hub at a time. A segment's speed ``s / (h k)`` (scale h, stride tempo k) picks the gait: the
-current one while its range covers the speed (hysteresis), else one of the gaits covering it -- at
-random where ranges overlap -- reached one transition per step; gaits are chosen ``DECISION_SHARE``
-times a segment on the speed ``LOOKAHEAD`` segments ahead, as transitions take time. A transition
-starts when the stride reaches the phase the clip starts from and plays by distance; the next gait
-picks up at the phase the transition ends in, so the footfall sequence carries on across it. Within
-a gait every speed-map clip has the same frames and contacts, so the stride phase runs on (k clip
-frames per output frame, up to ``MAX_RATE`` faster above the fastest clip -- the walk, a faster gait
-after it, ``PASSING_RATE`` --, down to ``STAND_SHARE`` below the slowest gait's slowest) and the
-speed only moves the pair of clips blended, ``M = (1 - a) M_i + a M_j``. Where a piece starts, the
-piece before it fades out over ``margin`` frames; where it starts within the margin of the one
-before's start, what fades out is the blend shown (the one before over the one before that, each by
-its nearer row), so no piece vanishes in one frame (issue 27: 25-38 cm hoof jumps between two
-transitions). A character whose path stops (slower than a standing one's, or still for ``STILL_S``)
-stands at once: the idle fades in over the margin, from whatever gait or transition played (issue
-27: transitions play by distance, so the chain trot -> walk -> static on a stopped path took
-hundreds of frames, the animal frozen mid-stride); it leaves standing by the static -> walk
-transition, as from the start, once its path moves (chosen on the speed ahead, the transition crept
-on the spot with a hoof up for as long as the path still stood).
+The rules the machine follows. Every character starts standing and moves through the motion
+graph one hub at a time. A segment's speed ``s / (h k)`` (scale h, stride tempo k) picks the gait:
+the current one while its range covers the speed (hysteresis), else one of the gaits covering it
+-- at random where ranges overlap -- reached one transition per step; gaits are chosen
+``DECISION_SHARE`` times a segment on the speed ``LOOKAHEAD`` segments ahead, as transitions take
+time. A transition starts when the stride reaches the phase the clip starts from and plays by
+distance; the next gait picks up at the phase the transition ends in, so the footfall sequence
+carries on across it. Within a gait every speed-map clip has the same frames and contacts, so the
+stride phase runs on (k clip frames per output frame, up to ``MAX_RATE`` faster above the fastest
+clip, down to ``STAND_SHARE`` below the slowest gait's slowest) and the speed only moves the pair
+of clips blended, ``M = (1 - a) M_i + a M_j``. Where a piece starts, the piece before it fades
+out over ``margin`` frames; where it starts within the margin of the one before's start, what
+fades out is the blend shown (the one before over the one before that, each by its nearer row),
+so no piece vanishes in one frame (issue 27: 25-38 cm hoof jumps between two transitions). A
+character whose path stops (slower than a standing one's, or still for ``STILL_S``) stands at
+once: the idle fades in over the margin, from whatever gait or transition played (issue 27:
+transitions play by distance, so the chain trot -> walk -> static on a stopped path took hundreds
+of frames, the animal frozen mid-stride); it leaves standing by the static -> walk transition, as
+from the start, once its path moves (chosen on the speed ahead, the transition crept on the spot
+with a hoof up for as long as the path still stood).
 
 The heading follows the path's direction (:class:`Headings`), turning no faster than
 ``MAX_YAW_RATE``, and at speed than ``MAX_LATERAL / v``: the root stays on the path, the body lags
@@ -96,13 +96,6 @@ GENTLE_LEAN = float(np.radians(3.0))  # rad
 LOOKAHEAD = 2  # segments: gaits are chosen on the speed this far ahead, as transitions take time
 DECISION_SHARE = 4  # gait decisions this many times a segment
 MAX_RATE = 1.6  # a gait asked to go faster than its fastest clip plays its stride up to this fast
-# The walk's stride rate above its fastest clip while a faster gait is on its way: its speed past
-# its range is a start's or a speed-up's, the chain static -> walk -> trot taking a second or two (a
-# dog at 4 m/s^2 walked at up to 3.6 m/s, four times its fastest clip). At MAX_RATE its stances
-# slid, the trailing foot held short of its plant up to 15 cm up (issue 27, low-latency dog
-# accel_brake: walk frames with >= 2 feet down 0.74). Up to twice as fast, a frame shown skips at
-# most one clip frame (the pace build.straight_crossings keeps).
-PASSING_RATE = 2.0
 
 
 @dataclass(frozen=True, eq=False)
@@ -169,21 +162,12 @@ class Tables:
     still_step: float  # m per frame (the library's): a path's step slower than this stands still
     still_frames: float  # frames of such steps that make a stop
 
-    @property
-    def rates(self) -> Floats:
-        """Per hub, the stride rate it plays up to above its fastest clip (MAX_RATE; the slowest
-        gait PASSING_RATE if a faster one follows)."""
-        rates = np.full(N_HUBS, MAX_RATE)
-        if self.slowest != self.fastest:
-            rates[self.slowest] = PASSING_RATE
-        return rates
-
     def args(self) -> tuple[Any, ...]:
         """The kernel's arguments from ``offset`` to ``creep`` (see plan_kernels.advance)."""
         return (self.offset, self.frames, self.clips, self.cyclic, self.source, self.target, self.tr_kind,
                 self.entry, self.exit, self.total, self.low, self.high, self.curve_at, self.curves,
-                self.contacts, self.slowest, self.fastest, self.rates, self.slow, STAND_SHARE,
-                self.still_step, self.still_frames)
+                self.contacts, self.slowest, self.fastest, MAX_RATE, self.slow, STAND_SHARE, self.still_step,
+                self.still_frames)
 
 
 @functools.lru_cache(maxsize=8)  # per bank (identity): made once, not per plan
