@@ -226,16 +226,18 @@ def _swing(feet: Any, out: Any, f: int, s: int, t: int, e: int, plants: Any) -> 
     plant's frames [t, e)."""
     last_start, last_end, has_before, has_after, unplanned, step = plants
     left = 1.0 - _eased(t, last_start, last_end, t, has_before, has_after, unplanned, step)[0]
-    for k in range(3):
-        if k == 1:
-            continue
-        lift = out[last_end, f, k] - feet[last_end, f, k] if has_before else 0.0
-        touch = out[t, f, k] - feet[t, f, k] if has_after else 0.0
-        for u in range(s, t):
-            eased, landed = _eased(u, last_start, last_end, t, has_before, has_after, unplanned, step)
-            out[u, f, k] = feet[u, f, k] + (1 - eased) * lift + landed * touch
-        for u in range(t, e):
-            out[u, f, k] += left * lift
+    # Over the ground only (x, z): the corrections read before any frame is moved.
+    lift_x = out[last_end, f, 0] - feet[last_end, f, 0] if has_before else 0.0
+    lift_z = out[last_end, f, 2] - feet[last_end, f, 2] if has_before else 0.0
+    touch_x = out[t, f, 0] - feet[t, f, 0] if has_after else 0.0
+    touch_z = out[t, f, 2] - feet[t, f, 2] if has_after else 0.0
+    for u in range(s, t):
+        eased, landed = _eased(u, last_start, last_end, t, has_before, has_after, unplanned, step)
+        out[u, f, 0] = feet[u, f, 0] + (1 - eased) * lift_x + landed * touch_x
+        out[u, f, 2] = feet[u, f, 2] + (1 - eased) * lift_z + landed * touch_z
+    for u in range(t, e):
+        out[u, f, 0] += left * lift_x
+        out[u, f, 2] += left * lift_z
 
 
 @_jit()
