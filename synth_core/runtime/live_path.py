@@ -138,11 +138,14 @@ class LivePath:
             i0 = np.clip(np.floor(t + 1e-9).astype(np.int64), 0, max(self.n_inputs - 2, 0))
             w = np.clip(t - i0, 0.0, 1.0)[None, :, None]
             base = self.inputs_start
-            a = self.inputs[:, i0 - base]
-            b = self.inputs[:, np.minimum(i0 + 1, self.n_inputs - 1) - base]
-            # In C order: a slice-then-index result is laid out frames first, and `longer`, joined
-            # from these, would have been copied whole by each smoothing kernel every tick.
-            new = np.ascontiguousarray(a * (1 - w) + b * w)
+            # np.take: in C order (a slice-then-index result is laid out frames first, and
+            # `longer`, joined from these, would be copied whole by each smoothing kernel every
+            # tick); the products in place: a * (1 - w) + b * w, the same numbers, no temporaries.
+            new = np.take(self.inputs, i0 - base, axis=1)
+            new *= 1 - w
+            b = np.take(self.inputs, np.minimum(i0 + 1, self.n_inputs - 1) - base, axis=1)
+            b *= w
+            new += b
         self.made += new.shape[1]
         self._raw(new)
         keep = max(self.n_inputs - 2, 0)  # the inputs the next points may interpolate from
@@ -203,7 +206,7 @@ class LivePath:
             a, b = self.n_seg * m, whole * m + 1
             pts = self._facing(a, b)  # the positions smoothed, as the batch's (trajectory, step 2)
             # With a terrain, the speed along the ground, as the batch's (terrain.along_ground).
-            on = pts[..., GROUND] if self.ground is None else laid(pts, self.ground)
+            on = pts[..., ::2] if self.ground is None else laid(pts, self.ground)  # x, z (GROUND): a view
             step = np.linalg.norm(np.diff(on, axis=1), axis=-1)
             counts = np.full(whole - self.n_seg, m)  # as segment_speeds divides, for the same bits
             speeds = step.reshape(len(step), -1, m).sum(axis=2) / counts * self.bank.fps
