@@ -365,7 +365,7 @@ class LiveSynth(LivePath):
         ready = min(v_ready, self.n_path - 1)  # a heading reads the next point
         if limit is not None:
             ready = min(ready, limit)
-        first, aheads = self.decisions, []
+        first, aheads = self.decisions, list[int]()
         t1 = ready
         while (a := (first + len(aheads)) * self.step) < ready:
             if a + self.horizon >= v_ready:  # its speed not known yet: planned up to it
