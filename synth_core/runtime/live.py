@@ -440,8 +440,12 @@ class LiveSynth(LivePath):
         self.feet.reserve(max(o0 + n - self.feet.stop, 0))
         posed = kernels.Posed(self.feet.columns(o0, o0 + n)[0][0], self.known_feet - o0, self.recent_legs,
                               self.legs_at - o0, self.pins, self.pinned - o0, self.sent, self.sent_at - o0)
+        # Not touched beforehand: the rows of characters not posed (far, at root_gait) are never
+        # written, so their pages never are either (a 5,000-horse session at root_gait held 54 MB
+        # of them; 100,000 horses in such sessions, a gigabyte).
         out = None if self.scratch is None else self.scratch.array(
-            "live.rotations", (len(self.scales), hi - lo, self.bank.skeleton.n_joints, 4), np.float32)
+            "live.rotations", (len(self.scales), hi - lo, self.bank.skeleton.n_joints, 4), np.float32,
+            touch=False)
         root, rot = kernels.render_window(self.bank, buf, lo, hi, begin, end, self.foot_lock, posed, out,
                                           self.share, ground, self.pose, self.compiled, self.plant_frames,
                                           steps=False, contacts=contacts)

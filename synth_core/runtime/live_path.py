@@ -187,13 +187,15 @@ class LivePath:
             # `longer` itself, not a slice of it: both read only the Gaussian's radius around the
             # frames made, and `longer` ends where their windows do (exact mode: ahead == radius),
             # so a slice changed nothing but cost a copy of every character's window per tick.
+            # The followed path written into its columns at once (no copy of every character's
+            # frames a tick).
             first, n = self.n_path + self.pad - self.longer_start, ready - self.n_path
-            new, facing = gaussian.along_frames(self.longer, self.sigma, first, n), \
-                gaussian.smooth_frames(self.longer, self.sigma, first, n)
+            path, face = self.path.reserve(n)
+            gaussian.along_frames(self.longer, self.sigma, first, n, out=path)
+            face[...] = gaussian.smooth_frames(self.longer, self.sigma, first, n)
         else:
-            new = facing = self.longer[:, self.n_path - self.longer_start:ready - self.longer_start]
-        path, face = self.path.reserve(new.shape[1])
-        path[...], face[...] = new, facing
+            path, face = self.path.reserve(ready - self.n_path)
+            path[...] = face[...] = self.longer[:, self.n_path - self.longer_start:ready - self.longer_start]
         self.n_path = ready
         drop = max(self.n_path + self.pad - self.radius - 1, 0) - self.longer_start
         if drop > 0:
@@ -206,7 +208,7 @@ class LivePath:
             a, b = self.n_seg * m, whole * m + 1
             pts = self._facing(a, b)  # the positions smoothed, as the batch's (trajectory, step 2)
             # With a terrain, the speed along the ground, as the batch's (terrain.along_ground).
-            on = pts[..., ::2] if self.ground is None else laid(pts, self.ground)  # x, z (GROUND): a view
+            on = pts[..., GROUND] if self.ground is None else laid(pts, self.ground)
             step = np.linalg.norm(np.diff(on, axis=1), axis=-1)
             counts = np.full(whole - self.n_seg, m)  # as segment_speeds divides, for the same bits
             speeds = step.reshape(len(step), -1, m).sum(axis=2) / counts * self.bank.fps
