@@ -85,6 +85,21 @@ def rotations(q: NDArray[np.floating], p: Packing, rows: NDArray[np.int64] | sli
     return packed, meta
 
 
+def rotations_joined(parts: Sequence[tuple[NDArray[Any], dict[str, Any]]],
+                     encoding: Encoding) -> tuple[NDArray[Any], dict[str, Any]]:
+    """:func:`rotations` of consecutive groups of characters (the same frames and joints), each
+    packed on its own, as one: the same bytes and map as one call on them all (delta's blocks
+    are per character, one after another; the fixed-size encodings' rows are too)."""
+    packed = np.concatenate([part for part, _ in parts])
+    meta = dict(parts[0][1])
+    if encoding == "delta":
+        rows = sum(m["decoded_shape"][0] for _, m in parts)
+        meta |= {"shape": [len(packed)], "decoded_shape": [rows, *meta["decoded_shape"][1:]]}
+    else:
+        meta["shape"] = list(packed.shape)
+    return packed, meta
+
+
 def rotations_each(q: NDArray[np.floating], p: Packing, rows: NDArray[np.int64],
                    joints: NDArray[np.int64] | None) -> list[tuple[NDArray[Any], dict[str, Any]]]:
     """:func:`rotations` of each character of ``q (R, n, J, 4)`` on its own (a REST answer's

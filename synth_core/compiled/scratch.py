@@ -22,14 +22,17 @@ class Scratch:
     def __init__(self) -> None:
         self._buffers: dict[str, NDArray[np.uint8]] = {}
 
-    def array(self, name: str, shape: tuple[int, ...], dtype: type[np.generic]) -> NDArray[Any]:
+    def array(self, name: str, shape: tuple[int, ...], dtype: type[np.generic],
+              touch: bool = True) -> NDArray[Any]:
         """A C-contiguous array of ``shape`` on the buffer ``name`` (grown when too small; its
-        contents are whatever the last user left)."""
+        contents are whatever the last user left). ``touch``: a new buffer's pages are touched
+        here (else where first written: for a buffer much of which may never be)."""
         size = math.prod(shape) * np.dtype(dtype).itemsize
         buffer = self._buffers.get(name)
         if buffer is None or buffer.nbytes < size:
             buffer = np.empty(size, np.uint8)
-            buffer.fill(0)  # touched once, here, in one thread
+            if touch:
+                buffer.fill(0)  # touched once, here, in one thread
             self._buffers[name] = buffer
         return buffer[:size].view(dtype).reshape(shape)
 

@@ -81,7 +81,8 @@ def smooth_frames(x: NDArray[np.float64], sigma: float, first: int, n: int) -> N
     return out
 
 
-def along_frames(x: NDArray[np.float64], sigma: float, first: int, n: int) -> NDArray[np.float64]:
+def along_frames(x: NDArray[np.float64], sigma: float, first: int, n: int,
+                 out: NDArray[np.float64] | None = None) -> NDArray[np.float64]:
     """Frames ``[first, first + n)`` of the paths ``x (C, T, 3)`` with their *timing* smoothed and
     their shape kept: each frame's point moved along its path's own segments by the Gaussian
     average (``sigma`` frames) of the distance along the path around that frame -- the arc length
@@ -91,9 +92,12 @@ def along_frames(x: NDArray[np.float64], sigma: float, first: int, n: int) -> ND
     themselves (:func:`smooth_frames`) cut a 0.5 m corner at a horse's gallop by 18 cm: a
     circle's points averaged over +-sigma frames lie inside it, by r (1 - exp(-(w sigma)^2 / 2)),
     w its turn rate. Each frame reads only the points within the Gaussian's radius of it, in a
-    fixed order, so a live window gives the batch's numbers bit for bit."""
+    fixed order, so a live window gives the batch's numbers bit for bit. ``out``: written there
+    (``(C, n, 3)`` float64, any strides: a live session's path columns) and returned."""
+    out = np.empty((x.shape[0], n, x.shape[2])) if out is None else out
+    assert out.shape == (x.shape[0], n, x.shape[2]) and out.dtype == np.float64
     if sigma < IDENTITY_SIGMA:
-        return np.array(x[:, first:first + n], np.float64)
-    out = np.empty((x.shape[0], n, x.shape[2]))
+        out[...] = x[:, first:first + n]
+        return out
     path_kernels.along(np.ascontiguousarray(x, np.float64), weights(float(sigma)), first, out)
     return out

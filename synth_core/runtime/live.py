@@ -53,7 +53,7 @@ from synth_core.compiled.scratch import Scratch
 from synth_core.motion import quat
 from synth_core.runtime.bank import Bank
 from synth_core.runtime.columns import Columns, PlannedColumns
-from synth_core.runtime.draws import SCHEDULE_STREAM, character_keys, uniform
+from synth_core.runtime.draws import SCHEDULE_STREAM, character_keys, uniform_streams
 from synth_core.runtime.footlock import EASE_FRAMES, PAD
 from synth_core.runtime.live_path import VELOCITY, LivePath
 from synth_core.runtime.plan import (
@@ -200,7 +200,6 @@ class LiveSynth(LivePath):
         self.planner = Planner(self.bank, self.scales, self.tempo, self.leads, margin, backend)
         self.heading_state = Headings(C, backend)
         self.decisions = 0
-        self.no_decision = Decisions(0, np.zeros((C, 0)), np.zeros((C, 0, N_HUBS)))  # a block without one
         self.planned = 0
         self.emitted = 0
 
@@ -357,38 +356,33 @@ class LiveSynth(LivePath):
     # -- planning ------------------------------------------------------------------------------
 
     def _advance(self, limit: int | None = None) -> None:
-        """Plan every frame the points so far settle (up to ``limit``, the last, at the end)."""
+        """Plan every frame the points so far settle (up to ``limit``, the last, at the end): one
+        block, with every gait decision due in it made first (a block per decision step was three
+        times the numpy calls and kernel launches a tick; the plan is the same either way)."""
         self._smooth()
-        while True:
-            t0 = self.planned
-            a = self.decisions * self.step
-            v_ready = self._speed_ready()
-            ready = min(v_ready, self.n_path - 1)  # a heading reads the next point
-            if limit is not None:
-                ready = min(ready, limit)
-            if t0 >= ready:
+        t0 = self.planned
+        v_ready = self._speed_ready()
+        ready = min(v_ready, self.n_path - 1)  # a heading reads the next point
+        if limit is not None:
+            ready = min(ready, limit)
+        first, aheads = self.decisions, list[int]()
+        t1 = ready
+        while (a := (first + len(aheads)) * self.step) < ready:
+            if a + self.horizon >= v_ready:  # its speed not known yet: planned up to it
+                t1 = a
                 break
-            decisions = self.no_decision
-            if t0 == a:
-                ahead = a + lookahead(self.m)
-                if self.latency_ms is not None:  # the speed known now: the newest
-                    ahead = min(ahead, v_ready - 1)
-                if limit is not None:
-                    ahead = min(ahead, limit - 1)  # the batch's decisions read its last frame there
-                if a + self.horizon >= v_ready:
-                    break
-                decisions = self._decision(ahead)
-            t1 = min(ready, (self.decisions) * self.step)
-            self._plan_block(t0, t1, decisions)
+            ahead = a + lookahead(self.m)
+            if self.latency_ms is not None:  # the speed known now: the newest
+                ahead = min(ahead, v_ready - 1)
+            if limit is not None:
+                ahead = min(ahead, limit - 1)  # the batch's decisions read its last frame there
+            aheads.append(ahead)
+        if t0 < t1:
+            self.decisions += len(aheads)
+            draws = uniform_streams(self.keys, SCHEDULE_STREAM + first, len(aheads), N_HUBS)
+            self._plan_block(t0, t1, Decisions(first, self._speeds(np.array(aheads, np.int64)), draws))
         stop = self.planned if limit is not None else self.planned - self.lock_lag
         self.settled = max(self.settled, stop)
-
-    def _decision(self, ahead: int) -> Decisions:
-        """The next gait decision (at frame ``decisions * step``): on the speed at frame ``ahead``."""
-        k = self.decisions
-        self.decisions += 1
-        draws = uniform(self.keys, SCHEDULE_STREAM + k, N_HUBS)[:, None]
-        return Decisions(k, self._speeds(np.array([ahead])), draws)
 
     def _plan_block(self, t0: int, t1: int, decisions: Decisions) -> None:
         """Frames [t0, t1), with the decision made at t0 if there is one."""
@@ -446,8 +440,12 @@ class LiveSynth(LivePath):
         self.feet.reserve(max(o0 + n - self.feet.stop, 0))
         posed = kernels.Posed(self.feet.columns(o0, o0 + n)[0][0], self.known_feet - o0, self.recent_legs,
                               self.legs_at - o0, self.pins, self.pinned - o0, self.sent, self.sent_at - o0)
+        # Not touched beforehand: the rows of characters not posed (far, at root_gait) are never
+        # written, so their pages never are either (a 5,000-horse session at root_gait held 54 MB
+        # of them; 100,000 horses in such sessions, a gigabyte).
         out = None if self.scratch is None else self.scratch.array(
-            "live.rotations", (len(self.scales), hi - lo, self.bank.skeleton.n_joints, 4), np.float32)
+            "live.rotations", (len(self.scales), hi - lo, self.bank.skeleton.n_joints, 4), np.float32,
+            touch=False)
         root, rot = kernels.render_window(self.bank, buf, lo, hi, begin, end, self.foot_lock, posed, out,
                                           self.share, ground, self.pose, self.compiled, self.plant_frames,
                                           steps=False, contacts=contacts)

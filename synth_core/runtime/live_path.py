@@ -138,11 +138,14 @@ class LivePath:
             i0 = np.clip(np.floor(t + 1e-9).astype(np.int64), 0, max(self.n_inputs - 2, 0))
             w = np.clip(t - i0, 0.0, 1.0)[None, :, None]
             base = self.inputs_start
-            a = self.inputs[:, i0 - base]
-            b = self.inputs[:, np.minimum(i0 + 1, self.n_inputs - 1) - base]
-            # In C order: a slice-then-index result is laid out frames first, and `longer`, joined
-            # from these, would have been copied whole by each smoothing kernel every tick.
-            new = np.ascontiguousarray(a * (1 - w) + b * w)
+            # np.take: in C order (a slice-then-index result is laid out frames first, and
+            # `longer`, joined from these, would be copied whole by each smoothing kernel every
+            # tick); the products in place: a * (1 - w) + b * w, the same numbers, no temporaries.
+            new = np.take(self.inputs, i0 - base, axis=1)
+            new *= 1 - w
+            b = np.take(self.inputs, np.minimum(i0 + 1, self.n_inputs - 1) - base, axis=1)
+            b *= w
+            new += b
         self.made += new.shape[1]
         self._raw(new)
         keep = max(self.n_inputs - 2, 0)  # the inputs the next points may interpolate from
@@ -184,13 +187,15 @@ class LivePath:
             # `longer` itself, not a slice of it: both read only the Gaussian's radius around the
             # frames made, and `longer` ends where their windows do (exact mode: ahead == radius),
             # so a slice changed nothing but cost a copy of every character's window per tick.
+            # The followed path written into its columns at once (no copy of every character's
+            # frames a tick).
             first, n = self.n_path + self.pad - self.longer_start, ready - self.n_path
-            new, facing = gaussian.along_frames(self.longer, self.sigma, first, n), \
-                gaussian.smooth_frames(self.longer, self.sigma, first, n)
+            path, face = self.path.reserve(n)
+            gaussian.along_frames(self.longer, self.sigma, first, n, out=path)
+            face[...] = gaussian.smooth_frames(self.longer, self.sigma, first, n)
         else:
-            new = facing = self.longer[:, self.n_path - self.longer_start:ready - self.longer_start]
-        path, face = self.path.reserve(new.shape[1])
-        path[...], face[...] = new, facing
+            path, face = self.path.reserve(ready - self.n_path)
+            path[...] = face[...] = self.longer[:, self.n_path - self.longer_start:ready - self.longer_start]
         self.n_path = ready
         drop = max(self.n_path + self.pad - self.radius - 1, 0) - self.longer_start
         if drop > 0:
