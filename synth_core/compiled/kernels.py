@@ -391,7 +391,6 @@ def render_window(bank: Bank, plan: Plan, start: int, stop: int, begin: NDArray[
     most of their context). Frames whose feet are known are not posed again but where wanted;
     nor, after a window that ended at ``start``, the PAD frames before it (their sink read from
     ``known.legs``). What the frames posed give is written there, ``frames`` and ``legs_at`` moved on.
-
     ``out``: the rotations are written there (C-contiguous ``(C, stop - start, J, 4)`` float32).
     ``share``: SHARED_PARTS one-thread parts, which ``share`` runs (render_pool.shared: idle threads
     take some), so renders side by side finish together though one has more to pose. ``ground``:
@@ -407,9 +406,8 @@ def render_window(bank: Bank, plan: Plan, start: int, stop: int, begin: NDArray[
     as :func:`render` does, where the contexts hold the plants whole (a batch's windows). False
     for a live session's: a plant runs on past what is planned and what was sent stays sent, so
     where it is split would be decided anew each window (each plant held whole, as sent).
-
-    ``compiled``: else the reference (:data:`REFERENCE`, one thread). ``contacts (C, stop - start, 4)``:
-    the feet planted as posed are written there, as :func:`render`."""
+    ``compiled``: else the reference (:data:`REFERENCE`, one thread). ``contacts (C, stop - start,
+    4)``: the feet planted as posed are written there, as :func:`render`."""
     kernels = COMPILED if compiled else REFERENCE
     C = plan.yaw.shape[0]
     pose = np.ones(C, np.bool_) if pose is None else np.ascontiguousarray(pose, np.bool_)
