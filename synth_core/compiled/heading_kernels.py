@@ -63,6 +63,15 @@ def headings(g: Any, off: int, ends: bool, fps: float, min_speed: float, last_di
         moved[c] = first >= 0
 
 
+@jit(inline="always")
+def _wrapped(w: float) -> float:
+    """``w % (2 pi)`` (Python's, as numba computes it: fmod, then a negative one moved up), with
+    the division skipped where ``w`` is within [0, 2 pi) already -- the modulo of such a ``w`` is
+    ``w`` exactly (-0.0 aside: +0.0, the same once pi is taken off) -- as a heading turning
+    less than half a turn a frame is (two a frame per character)."""
+    return w if 0.0 <= w < 2.0 * math.pi else w % (2.0 * math.pi)
+
+
 @jit(parallel=True)  # characters side by side: each writes its own rows
 def turn(yaw: Any, g: Any, off: int, fps: float, max_rate: float, max_lateral: float, max_lean: float,
          lean_rate: float, gentle: float, last: Any, last_lean: Any, lean: Any) -> None:
@@ -85,9 +94,9 @@ def turn(yaw: Any, g: Any, off: int, fps: float, max_rate: float, max_lateral: f
                 dx, dz = _direction(g[c], off + i)
                 v = math.sqrt(dx * dx + dz * dz) * fps
                 cap = (max_rate if v * max_rate <= max_lateral else max_lateral / v) / fps
-                d = (want - prev + math.pi) % (2.0 * math.pi) - math.pi
+                d = _wrapped(want - prev + math.pi) - math.pi
                 d = min(max(d, -cap), cap)
-                want = (prev + d + math.pi) % (2.0 * math.pi) - math.pi
+                want = _wrapped(prev + d + math.pi) - math.pi
                 omega = d * fps
             # Yaw grows turning from +Z toward +X, the left of a body facing +Z (Y up, right-handed),
             # where the turn's centre then is; a roll of +a about +Z tips the top toward -X.

@@ -58,7 +58,7 @@ from synth_core.compiled.backend import planner
 from synth_core.compiled.jit import threads
 from synth_core.runtime.bank import Bank
 from synth_core.runtime.draws import LEAD_STREAM, SCHEDULE_STREAM, uniform, uniform_streams
-from synth_core.runtime.trajectory import GROUND, Prepared
+from synth_core.runtime.trajectory import GROUND_AXES, Prepared
 
 Floats = NDArray[np.float64]
 MARGIN = 10  # frames over which a finished piece fades out where the next starts
@@ -303,8 +303,8 @@ def turning(path: Floats, fps: float, frames: int | None = None, backend: str = 
     """(C, T) yaw and lean of a whole path ``(C, T, 3)`` (:meth:`Headings.advance`); a character
     that never moves faces its path's first step. ``frames``: the first ``frames`` only (the same
     numbers). ``facing_path``: the path whose way the body faces, if not ``path``."""
-    moving = np.ascontiguousarray(path[..., GROUND])
-    ground = moving if facing_path is None else np.ascontiguousarray(facing_path[..., GROUND])
+    moving = np.ascontiguousarray(path[..., GROUND_AXES])
+    ground = moving if facing_path is None else np.ascontiguousarray(facing_path[..., GROUND_AXES])
     T = ground.shape[1]
     n = T if frames is None else min(frames, T)
     first_step = ground[:, min(1, T - 1)] - ground[:, 0]

@@ -50,6 +50,10 @@ MAX_COORDINATE_M = 1e6
 ALL_INVALID = "every character was invalid"  # the refusal when skip_invalid leaves none
 MAX_RESAMPLE = 8.0  # refuse trajectories needing more than 8x the frames
 GROUND = [0, 2]  # the ground plane's axes (x, z): Y is up
+# The same axes as a basic slice: indexing with it is a view, not numpy's gather of the list's
+# (copying (C, F, 2) out of (C, F, 3) by a slice is 4x quicker: 0.8 vs 3.1 ms for 500 x 500; but
+# np.diff of the strided view is slower than gathering first: segment_speeds gathers).
+GROUND_AXES = slice(0, 3, 2)
 ROWS = 256  # characters checked and smoothed at a time: their arrays stay in cache (a batch of
 # 2,000 done at once cost twice as much per point as one of 500)
 _R = TypeVar("_R")
