@@ -293,3 +293,16 @@ def test_the_foot_lock_stretches_no_leg_past_the_clips_reach(mann: Library) -> N
     suite = edge_suite(build_bank(mann), names=["cruise_straight", "accel_brake", "slope_down_30"])
     for name, scenario in suite["scenarios"].items():
         assert scenario["figures"]["stretch_pct_max"] <= 3.0, name
+
+
+def test_the_real_dogs_plants_hold_where_its_transitions_meet_its_gaits(mann: Library) -> None:
+    """Issue 27's strict plant skate (p95 <= 3 mm) and issue 33's planted height on a terrain
+    (p95 <= 5 mm), after FK. A transition's swings before its first plant and after its last
+    skimmed the ground while moving (cruise 10.0 mm, jitter 11.1, a trotting corner 7.2), and
+    its plants stood at another take's paw height (8.3 mm on every terrain): docs/real_dog_plants.md."""
+    names = ["cruise_straight", "corner_trot", "jitter_10hz", "slope_down_30"]
+    suite = edge_suite(build_bank(mann), names=names)
+    for name, scenario in suite["scenarios"].items():
+        figures = scenario["figures"]
+        assert figures["strict_skate_mm_p95"] <= 3.0, (name, figures["strict_skate_mm_p95"])
+        assert figures["planted_ground_mm_p95"] <= 5.0, (name, figures["planted_ground_mm_p95"])
