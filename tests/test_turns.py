@@ -212,9 +212,10 @@ def test_turning_on_the_spot_steps_the_feet_round(animal: str) -> None:
     assert evaluate.passes("single_support_ratio_max", turn_figures(animal)["single_support_ratio_max"])
 
 
-@pytest.mark.xfail(strict=True, reason="not yet: a step is timed by the feet stepped before it, and during "
-                   "static -> walk the transition's own swings leave no window for some (horse 0.9956, "
-                   "dog 0.999 of walk frames with two feet down; docs/turns.md)")
+@pytest.mark.xfail(strict=True, reason="not yet: the built-in static -> walk clip lifts two feet at once "
+                   "(tracks.blend_track's duty drops ~0.3 in a frame where it switches to the stance blend), "
+                   "so a turn's step there finds no window with two others down (horse 0.9956, dog 0.999 of "
+                   "walk frames with two feet down; docs/turns.md)")
 @pytest.mark.parametrize("animal", ANIMALS)
 def test_turning_on_the_spot_keeps_two_feet_down_at_a_walk(animal: str) -> None:
     """Issue 27's support target through the turn, after FK: every walk frame has two feet down."""
