@@ -448,19 +448,18 @@ def advance(t0: int, v: Any, pts: Any, h: Any, tempo: Any, lead: Any, asked_spee
             source: Any, target: Any, tr_kind: Any, entry: Any, exit_: Any, total: Any, low: Any, high: Any,
             curve_at: Any, curves: Any, contacts_of: Any, slowest: int, fastest: int, max_rate: float,
             slow: float, share: float, still_step: float, still_frames: float, margin: int, creep: float,
-            out_step: int, workers: int, rows: Any, weights: Any, gait: Any, contacts: Any,
+            out_step: int, rows: Any, weights: Any, gait: Any, contacts: Any,
             stitches: Any) -> None:
     """:func:`_character` for every character ``c`` (row c of every array but the tables),
-    characters in parallel on ``workers`` threads."""
-    C = v.shape[0]
-    workers = min(C, workers)
-    for worker in prange(workers):
-        for c in range(worker, C, workers):
-            _character(t0, v[c], pts[c], h[c], tempo[c], lead[c], asked_speed[c], draws[c], k0, step, ints[c],
-                       floats[c], offset, frames_of, clips, cyclic, source, target, tr_kind, entry, exit_,
-                       total, low, high, curve_at, curves, contacts_of, slowest, fastest, max_rate, slow,
-                       share, still_step, still_frames, margin, creep, out_step, rows[c], weights[c], gait[c],
-                       contacts[c], stitches[c])
+    characters in parallel on numba's threads, each taking the next ones as it is free: split in
+    fixed shares, the thread done first (its characters' plans shorter, or the other's core busy
+    with another process) spun in the join until the other finished."""
+    for c in prange(v.shape[0]):
+        _character(t0, v[c], pts[c], h[c], tempo[c], lead[c], asked_speed[c], draws[c], k0, step, ints[c],
+                   floats[c], offset, frames_of, clips, cyclic, source, target, tr_kind, entry, exit_,
+                   total, low, high, curve_at, curves, contacts_of, slowest, fastest, max_rate, slow,
+                   share, still_step, still_frames, margin, creep, out_step, rows[c], weights[c], gait[c],
+                   contacts[c], stitches[c])
 
 
 @jit()

@@ -55,7 +55,6 @@ from numpy.typing import NDArray
 
 from synth_core.compiled import plan_kernels as pk
 from synth_core.compiled.backend import planner
-from synth_core.compiled.jit import threads
 from synth_core.runtime.bank import Bank
 from synth_core.runtime.draws import LEAD_STREAM, SCHEDULE_STREAM, uniform, uniform_streams
 from synth_core.runtime.trajectory import GROUND_AXES, Prepared
@@ -341,7 +340,7 @@ class Planner:
         tb = self.tables
         self.kernels.advance(t0, v, pts, self.scales, self.tempo, self.leads, decisions.speed,
                              decisions.draws, decisions.first, self.step, self.ints, self.floats, *tb.args(),
-                             self.margin, tb.creep, out_step, threads(), out.rows, out.weights, out.gait,
+                             self.margin, tb.creep, out_step, out.rows, out.weights, out.gait,
                              out.contacts, out.stitches)
 
 
