@@ -280,8 +280,7 @@ def _tick(f: Any, t: int, v: float, tempo: float, high: Any, max_rate: float, sl
 
 
 @jit(inline="always")
-def _tween(kind: int, d: float, local: int, speed: float, offset: Any, frames_of: Any, clips: Any,
-           cyclic: Any, curve_at: Any, curves: Any, contacts_of: Any, o: int, rows: Any,
+def _tween(kind: int, d: float, local: int, frames_of: Any, contacts_of: Any, o: int, rows: Any,
            weights: Any) -> None:
     """A gait's stride clock between clip frames: ``d`` (in [-0.5, 0.5)) from the frame shown,
     ``local``. Its neighbour that way goes into the free fading rows of output row ``o``, weighted
@@ -293,8 +292,10 @@ def _tween(kind: int, d: float, local: int, speed: float, offset: Any, frames_of
     skimmed the ground unpinned (the edge suite's strict skate and touchdown speeds)."""
     if d == 0.0:
         return
-    q0, q1, qw = _row(kind, local + (1 if d > 0 else -1), speed, 0.0, False, offset, frames_of, clips, cyclic,
-                      curve_at, curves)
+    # _row of the neighbour: output row o's speed clips and weight, one clip frame on (shifted).
+    frames = frames_of[kind]
+    shift = (local + (1 if d > 0 else -1)) % frames - local % frames
+    q0, q1, qw = rows[o, 0] + shift, rows[o, 1] + shift, weights[o, 0]
     for foot in range(4):
         if contacts_of[q0, foot] != contacts_of[rows[o, 0], foot]:
             return
@@ -432,8 +433,8 @@ def _character(t0: int, v: Any, pts: Any, h: float, tempo: float, lead: int, ask
                                   v[i], offset, frames_of, clips, cyclic, source, target, curve_at, curves,
                                   margin, o, rows, weights)
             if p_local < 0 and cyclic[kind]:  # the stride clock between two clip frames
-                _tween(kind, s[FIRST] + f[CLOCKS + min(kind, n_hubs)] - f[CLOCK0] - local, local, v[i],
-                       offset, frames_of, clips, cyclic, curve_at, curves, contacts_of, o, rows, weights)
+                _tween(kind, s[FIRST] + f[CLOCKS + min(kind, n_hubs)] - f[CLOCK0] - local, local, frames_of,
+                       contacts_of, o, rows, weights)
             _on_lead(lead, contacts_of, o, rows, contacts)
             stitches[o] = started and t >= 1
             sent, o = sent + out_step, o + 1
