@@ -267,11 +267,18 @@ def _eased(u: int, last_start: int, last_end: int, nxt: int, has_before: bool, h
 def ease_sink(sink: Any, limit: float, out: Any) -> None:
     """A per-frame sink ``(T,)`` spread in time and bounded by ``limit``, into ``out``: a running
     max over EASE_FRAMES, then a Gaussian (sigma EASE_FRAMES / 6, truncated at 4 sigma), the
-    ends held (scipy.ndimage's ``mode="nearest"``)."""
+    ends held (scipy.ndimage's ``mode="nearest"``). ``sink`` may be ``out``. A frame with no sink
+    above 0 within either pass's reach is 0, as the sums make it: the sink is 0 on most frames of
+    a walk on flat ground, fold_room's raise and reach given back on nearly all."""
     T = sink.shape[0]
     half = EASE_FRAMES // 2
     spread = np.empty(T)
+    nxt = 0  # the first frame from the window's start on with a sink above 0 (T: none)
     for t in range(T):
+        nxt = _next_above(sink, limit, max(nxt, t - half), T)
+        if nxt > t - half + EASE_FRAMES - 1:
+            spread[t] = 0.0
+            continue
         m = 0.0
         for u in range(t - half, t - half + EASE_FRAMES):
             m = max(m, min(sink[min(max(u, 0), T - 1)], limit))
@@ -283,11 +290,25 @@ def ease_sink(sink: Any, limit: float, out: Any) -> None:
     for i in range(-radius, radius + 1):
         kernel[i + radius] = math.exp(-0.5 * i * i / (sigma * sigma))
         total += kernel[i + radius]
+    nxt = 0
     for t in range(T):
+        nxt = _next_above(spread, np.inf, max(nxt, t - radius), T)
+        if nxt > t + radius:
+            out[t] = 0.0
+            continue
         acc = 0.0
         for i in range(-radius, radius + 1):
             acc += kernel[i + radius] * spread[min(max(t + i, 0), T - 1)]
         out[t] = acc / total
+
+
+@_jit(inline="always")
+def _next_above(x: Any, limit: float, u: int, T: int) -> int:
+    """The first frame from ``max(u, 0)`` on whose ``x``, bounded by ``limit``, is above 0 (T: none)."""
+    u = max(u, 0)
+    while u < T and not min(x[u], limit) > 0.0:
+        u += 1
+    return u
 
 
 @_jit()
