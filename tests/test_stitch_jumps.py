@@ -84,3 +84,38 @@ def test_a_swing_too_short_for_its_distance_is_retimed_not_left_jumping() -> Non
         assert np.array_equal(eased[:first], before[:first])
         assert np.all(np.diff(eased[:, 1, 2]) >= 0.0)
         assert np.all(eased[:, 1, 1] >= 0.0)
+
+
+def test_a_swing_of_a_frame_between_far_plants_is_widened_into_a_step() -> None:
+    """A walk -> static played by distance to a hard stop runs at 4-8x its clip (horse
+    accel_brake): a hoof's swing is one frame between plants 66 cm apart, 33 cm a frame twice,
+    and no ramp or retiming within it has frames to spread it over (16.6 cm after FK). The
+    swing takes frames off its plants' ends where two other feet stand (never where fewer
+    would: issue 27's walk support) and is stepped over them (jump_kernels.widen_swings): no
+    step then jumps past the ease bound, the plants stay where they were on the frames still
+    planted, and the frames taken are marked in the air."""
+    import numpy as np
+
+    from synth_core.compiled.jump_kernels import widen_swings
+    from synth_core.quality.metrics import one_frame_jumps_mm
+    from synth_core.runtime.footlock import JUMP_EASE
+
+    T = 24
+    out = np.zeros((T, 4, 3))
+    out[11:, 0, 2] = 0.66
+    out[10, 0] = (0.0, 0.04, 0.33)  # the one swing frame
+    down = np.ones(T, np.bool_)
+    down[10] = False
+    air = np.zeros((T, 4), np.bool_)
+    air[10, 0] = True
+    air[:8, 1] = air[:8, 2] = True  # before frame 8, the left fore alone with the right hind
+    air[13:, 2] = air[13:, 3] = True  # from frame 13, with the right fore
+    before = out.copy()
+    widen_swings(out, down, air, 0, 1.0, 0.08, np.empty((T + 4, 3)))
+    assert one_frame_jumps_mm(out[None, :, 0:1]).max() <= JUMP_EASE * 1000 + 1.0
+    assert np.array_equal(out[down, 0], before[down, 0])
+    assert np.array_equal(air[:, 0], ~down)
+    up = np.flatnonzero(~down)
+    assert up[0] >= 8 and up[-1] <= 12  # frames taken only where two other feet stand
+    assert up.size > 1 and np.all(np.diff(up) == 1)
+    assert np.all(np.diff(out[:, 0, 2]) >= 0.0) and np.all(out[:, 0, 1] >= 0.0)

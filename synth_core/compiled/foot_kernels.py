@@ -17,7 +17,7 @@ import numpy as np
 
 from synth_core.compiled.ground_kernels import ground_at
 from synth_core.compiled.jit import render_jit
-from synth_core.compiled.jump_kernels import ease_jumps, ease_unsent
+from synth_core.compiled.jump_kernels import ease_jumps, ease_unsent, widen_swings
 from synth_core.compiled.limb_kernels import unit4, world_position
 from synth_core.compiled.pose_kernels import lean_tilt
 from synth_core.compiled.replant_kernels import (
@@ -58,7 +58,8 @@ def plant_targets(feet: Any, contacts: Any, out: Any, most: int, pins: Any, pinn
     swing before no plant eases its correction out as there). A target's one-frame jump is then
     eased into a ramp over the swing frames around it (:func:`ease_jumps`; where ``most`` < T,
     whose swings are sent before their next plant is planned, in a live window only (``last`` >=
-    0), on its frames not sent yet, from the targets sent: :func:`ease_unsent`, ``body``'s last).
+    0), on its frames not sent yet, from the targets sent: :func:`ease_unsent`, ``body``'s last);
+    in a batch, a swing with no frames for one widened into its plants' ends (:func:`widen_swings`).
 
     A plant the body's turn carries out of its leg's reach (a body turning on the spot over a
     standing foot: :func:`~synth_core.compiled.replant_kernels.replant`) is stepped instead: split
@@ -84,9 +85,7 @@ def plant_targets(feet: Any, contacts: Any, out: Any, most: int, pins: Any, pinn
     plan's swings, and the steps and early lift-offs of plants stepped (:func:`held` reads it)."""
     T = feet.shape[0]
     down, saved = np.empty(T, np.bool_), np.empty((T + 4, 3))  # saved: ease_jumps' scratch, ease_unsent's
-    air = np.empty((feet.shape[0], 4), np.bool_)  # each foot off the ground (steps too, once made)
-    for f in range(4):
-        air[:, f] = ~contacts[:, f]
+    air = np.logical_not(contacts)  # each foot off the ground (steps too, once made)
     bends, legs, limit, posed, path, lift, yaw, root, h, steps, first, sent = body
     for f in range(4):
         out[:, f, :] = feet[:, f, :]
@@ -97,6 +96,7 @@ def plant_targets(feet: Any, contacts: Any, out: Any, most: int, pins: Any, pinn
                 pinned[f])
         if most >= T:  # a batch's or the exact live mode's: every frame free
             ease_jumps(out, down, f, h, saved, 0)
+            widen_swings(out, down, air, f, h, STEP_HEIGHT * bends[f, 4], saved)
         elif last >= 0:  # the low-latency mode sends a swing before its next plant is planned
             ease_unsent(out, down, f, h, saved, last, first, sent)
         u = last

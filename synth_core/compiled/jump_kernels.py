@@ -16,6 +16,7 @@ from typing import Any
 import numpy as np
 
 from synth_core.compiled.jit import render_jit
+from synth_core.compiled.replant_kernels import step_over, stood
 from synth_core.compiled.vec_kernels import smoothstep
 from synth_core.runtime.footlock import JUMP_EASE, SWING_CLEAR, SWING_MOVING
 
@@ -266,3 +267,67 @@ def ease_unsent(out: Any, down: Any, f: int, h: float, saved: Any, last: int, fi
         out[first - 2:first, f] = here
     if last >= 1:
         kept[:, f] = now
+
+
+@_jit()
+def _wider(out: Any, down: Any, air: Any, f: int, lo: int, hi: int, bound: float, height: float) -> Any:
+    """The frames (a, b) foot f's swing (lo, hi) is widened to by taking frames off the ends of
+    its plants either side, a frame at a time, before then after, while each keeps a frame and
+    two other feet stand on the frame taken (``air``): until a step over the widened swing,
+    its progress a parabola (:func:`_retime`), jumps no more than ``bound`` a frame (its path:
+    the plants' distance plus the lift there and back, ``height``)."""
+    T = out.shape[0]
+    length = _dist(out[lo, f], out[hi, f]) + 2.0 * height
+    a, b = lo, hi
+    while True:
+        n = b - a
+        if length * 6.0 / (n * (n + 1) * (n + 2)) <= bound:
+            return a, b
+        before = a >= 2 and down[a - 1] and stood(air, f, a, a + 1)
+        after = b + 2 < T and down[b + 1] and stood(air, f, b, b + 1)
+        if before and (n % 2 == 0 or not after):
+            a -= 1
+        elif after:
+            b += 1
+        else:
+            return a, b
+
+
+@_jit()
+def widen_swings(out: Any, down: Any, air: Any, f: int, h: float, height: float, saved: Any) -> None:
+    """Foot f's swings between two plants whose targets still jump further than JUMP_EASE over
+    the scale ``h`` in a frame once eased (:func:`ease_jumps`: a swing of a frame or two between
+    plants far apart, a transition played at 4-8x its clip to a stop -- issue 27's accel_brake,
+    66 cm in 2 frames), widened into the frames of its plants (:func:`_wider`: lifted off
+    earlier, set down later, other feet standing) and made a step over them, ``height`` high
+    (``replant_kernels.step_over``), its progress retimed (:func:`_retime`); kept only if its
+    worst step got better. ``down``, ``air`` unmarked / marked where the foot is now up.
+    ``saved (T, 3)``: scratch."""
+    T, bound = out.shape[0], JUMP_EASE / h
+    lengths = np.empty(T)
+    _lengths(out, f, 1, T, lengths)
+    t = 1
+    while t < T - 1:
+        if down[t]:
+            t += 1
+            continue
+        lo, hi = t - 1, t
+        while hi < T - 1 and not down[hi]:
+            hi += 1
+        t = hi
+        if not (down[lo] and down[hi]) or _worst(lengths, lo, hi + 1) <= bound:
+            continue
+        a, b = _wider(out, down, air, f, lo, hi, bound, height)
+        if b - a <= hi - lo:
+            continue
+        before = _worst(lengths, a, b + 1)
+        kept = out[a:b + 1, f].copy()
+        step_over(out, f, a + 1, b, height)
+        _retime(out, f, a, b, saved, bound)
+        _lengths(out, f, a + 1, min(b + 2, T), lengths)
+        if _worst(lengths, a, b + 1) >= before:
+            out[a:b + 1, f] = kept
+            _lengths(out, f, a + 1, min(b + 2, T), lengths)
+            continue
+        down[a + 1:b] = False
+        air[a + 1:b, f] = True

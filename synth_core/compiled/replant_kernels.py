@@ -160,7 +160,7 @@ def _lift_off(out: Any, down: Any, air: Any, f: int, a: int, b: int, t: int, ste
     while e < down.shape[0] and not down[e]:
         e += 1
     c = max(min(b, e - step), a + 1)
-    if _stood(air, f, c, e):
+    if stood(air, f, c, e):
         down[c:t] = False
         air[c:t, f] = True
         return
@@ -182,7 +182,7 @@ def _in_turn(air: Any, f: int, a: int, b: int, t: int, step: int) -> int:
         c = b + ((k + 1) // 2) * (1 if k % 2 == 1 else -1)
         if c < lo or c > hi:
             continue
-        two, pair = _stood(air, f, c, c + step), True
+        two, pair = stood(air, f, c, c + step), True
         for u in range(c, c + step):
             pair = pair and not air[u, f ^ 1]
         if two and pair:
@@ -193,7 +193,7 @@ def _in_turn(air: Any, f: int, a: int, b: int, t: int, step: int) -> int:
 
 
 @_jit()
-def _stood(air: Any, f: int, a: int, b: int) -> bool:
+def stood(air: Any, f: int, a: int, b: int) -> bool:
     """Whether at least two feet but f are down (``air``: off the ground) on every frame of [a, b)."""
     for u in range(a, b):
         down = 0
