@@ -266,3 +266,18 @@ def test_no_foot_carries_the_body_alone_past_its_gaits_longest_stance(clips: dic
     half = motion.n_frames // 2
     assert alone[:half].max() <= stance[source], (source, alone[:half].max(), stance[source])
     assert alone[half:].max() <= stance[target], (target, alone[half:].max(), stance[target])
+
+
+@pytest.mark.parametrize(("animal", "clip"), [(a, t) for a in ANIMALS for t in TRANSITIONS
+                                              if not t.endswith("static")])
+def test_a_transition_does_not_end_in_a_flight(clips: dict, animal: str, clip: str) -> None:
+    """A finished transition's last frame is held while it fades out under its gait
+    (plan_kernels._arrive). Ended in a flight (the dog's walk2trot, on the trot's suspension: every
+    paw 1-3 cm up, none planted), the held paws were dragged along the ground at the body's speed
+    for the fade's first frames: 0.066 of accel_brake's glide 0.165 (issue 27's target 0.10).
+    Planted, the foot lock holds the paw: one foot annotated down and on the ground within the
+    edge suite's strict 1 cm, after FK."""
+    motion = clips[animal][clip]
+    heights = M.foot_heights(motion.positions()[-1:, motion.skeleton.foot_joints])[0]
+    down = motion.contacts[-1] & (heights < M.STRICT_PLANT_M)
+    assert down.any(), (heights, motion.contacts[-1])

@@ -278,7 +278,8 @@ def transition_clip(skeleton: Skeleton, a: GaitSpec, b: GaitSpec, name: str,
     starts ``start`` frames into a stride of ``a`` (pass ``a``'s cyclic clip's loop start, and it
     plays seamlessly after that loop). It ends where the blend does, at whatever phase of ``b``
     that is (the motion graph carries on from the matching frame of ``b``'s cycle); or, given
-    ``end``, up to a stride later, one frame before ``end`` frames into a stride of ``b``.
+    ``end``, up to a stride later, one frame before ``end`` frames into a stride of ``b``. Where
+    its own end would be a flight of ``b`` (no foot planted), it ends at :func:`steadiest_frame`.
     Starting or ending to stand, it keeps ``STILL_FRAMES`` of standing, so it clearly begins or
     ends at rest.
     """
@@ -295,6 +296,8 @@ def transition_clip(skeleton: Skeleton, a: GaitSpec, b: GaitSpec, name: str,
     clock = np.concatenate([[0.0], np.cumsum(track.frequency[1:]) / FPS])
     nominal = pad + a.frames + ramp + settle
     stop = nominal
+    if end is None and b.name != "static" and _in_flight(b, clock[nominal - 1]):
+        end = steadiest_frame(b) + 1
     if end is not None:
         later = np.arange(nominal, nominal + b.frames)
         off = (clock[later] - end / b.frames + 0.5) % 1.0 - 0.5
@@ -306,6 +309,30 @@ def transition_clip(skeleton: Skeleton, a: GaitSpec, b: GaitSpec, name: str,
     alone = max(longest_alone(footfalls(constant_track(g, 3 * g.frames))) for g in (a, b))
     motion = synthesize(skeleton, track, name, None, max(alone, int(MIN_SWING_S * FPS)))
     return _at_origin(motion.slice(pad + a.frames - lead, stop), name, None)
+
+
+def _in_flight(spec: GaitSpec, clock: float) -> bool:
+    """Whether ``spec``'s stride has no foot planted at stride clock ``clock``."""
+    planted = footfalls(constant_track(spec, spec.frames))
+    return not planted[int(round(clock * spec.frames)) % spec.frames].any()
+
+
+def steadiest_frame(spec: GaitSpec) -> int:
+    """The frame of ``spec``'s stride a transition into it ends on where its own end would be a
+    flight: the middle of the longest run of frames with the most feet planted. A finished
+    transition's last frame is held while it fades out under the gait (plan_kernels._arrive);
+    ended in a flight (the dog's walk2trot, on the trot's suspension, every paw 1-3 cm up), its
+    low paws were dragged along the ground at the body's speed over the fade's first frames
+    (issue 27's glide: 0.066 of the dog's accel_brake 0.165). Planted, the foot lock holds them;
+    the other feet are mid-swing, at their highest."""
+    planted = footfalls(constant_track(spec, spec.frames)).sum(axis=1)
+    best = planted == planted.max()
+    doubled = np.concatenate([best, best])  # a run may wrap around the stride's end
+    length = np.zeros(len(doubled), np.int64)
+    for i in range(len(doubled)):
+        length[i] = length[i - 1] + 1 if doubled[i] and i > 0 else int(doubled[i])
+    last = int(length.argmax())
+    return (last - int(length[last]) // 2) % spec.frames
 
 
 def idle_clip(skeleton: Skeleton, seconds: float = 10.0) -> Motion:
