@@ -95,8 +95,8 @@ def plant_targets(feet: Any, contacts: Any, out: Any, most: int, pins: Any, pinn
         _swings(feet, down, contacts[:, f], out, f, most, STEP_HEIGHT * bends[f, 4], int(bends[f, 5]),
                 pinned[f])
         if most >= T:  # a batch's or the exact live mode's: every frame free
-            ease_jumps(out, down, f, h, saved, 0)
-            widen_swings(out, down, air, f, h, STEP_HEIGHT * bends[f, 4], saved)
+            if ease_jumps(out, down, f, h, saved, 0):  # a step left jumping: widened if it can be
+                widen_swings(out, down, air, f, h, STEP_HEIGHT * bends[f, 4], saved)
         elif last >= 0:  # the low-latency mode sends a swing before its next plant is planned
             ease_unsent(out, down, f, h, saved, last, first, sent)
         u = last

@@ -195,7 +195,7 @@ def _clear_retime(out: Any, down: Any, f: int, swing: Any, saved: Any, bound: fl
 
 
 @_jit()
-def ease_jumps(out: Any, down: Any, f: int, h: float, saved: Any, first: int) -> None:
+def ease_jumps(out: Any, down: Any, f: int, h: float, saved: Any, first: int) -> bool:
     """Foot f's targets ``out (T, 4, 3)`` with every step longer than the mean of the steps before
     and after it by more than ``bound`` (JUMP_EASE over the scale ``h``) made that mean, its
     excess spread instead over the frames around it that are not planted (``down (T,)``: its
@@ -211,10 +211,12 @@ def ease_jumps(out: Any, down: Any, f: int, h: float, saved: Any, first: int) ->
     it. Reads the swing the step is in and its plants' frames either side only (a live window's
     foot-lock context holds them: kernels.lock_context). ``saved (T, 3)``: scratch. ``first``:
     frames before it are never moved (a live window's frames sent already: a step into a frame
-    sent is left, a ramp that would reach back past ``first`` is shortened to the frames after)."""
+    sent is left, a ramp that would reach back past ``first`` is shortened to the frames after).
+    Returns whether a step may still jump past ``bound`` (a ramp left one, or none was made)."""
     T, bound = out.shape[0], JUMP_EASE / h
     lengths = np.empty(T)
     _lengths(out, f, 1, T, lengths)
+    left = False
     for t in range(max(2, first), T - 1):
         if (down[t - 1] and down[t]) or _excess(lengths, t) <= bound:
             continue
@@ -234,11 +236,14 @@ def ease_jumps(out: Any, down: Any, f: int, h: float, saved: Any, first: int) ->
         saved[a:b + 1] = out[a:b + 1, f]
         _ramp(out, down, f, t, a, b, (lo, hi, h))
         _lengths(out, f, a + 1, b + 1, lengths)  # the steps into the frames it moved, (a, b)
-        if _worst(lengths, a, b + 1) >= before:
+        after = _worst(lengths, a, b + 1)
+        left = left or min(after, before) > bound
+        if after >= before:
             out[a:b + 1, f] = saved[a:b + 1]
             _lengths(out, f, a + 1, b + 1, lengths)
             if down[hi]:  # no room for a ramp: the swing's progress reshaped
                 _clear_retime(out, down, f, (lo, hi, h), saved, bound, lengths)
+    return left
 
 
 @_jit()
