@@ -277,7 +277,7 @@ def ease_unsent(out: Any, down: Any, f: int, h: float, saved: Any, last: int, fi
 @_jit()
 def _wider(out: Any, down: Any, air: Any, f: int, lo: int, hi: int, bound: float, height: float) -> Any:
     """The frames (a, b) foot f's swing (lo, hi) is widened to by taking frames off the ends of
-    its plants either side, a frame at a time, before then after, while each keeps a frame and
+    its plants either side, a frame at a time, in turn before and after, while each keeps a frame and
     two other feet stand on the frame taken (``air``): until a step over the widened swing,
     its progress a parabola (:func:`_retime`), jumps no more than ``bound`` a frame (its path:
     the plants' distance plus the lift there and back, ``height``)."""
@@ -329,10 +329,10 @@ def widen_swings(out: Any, down: Any, air: Any, f: int, h: float, height: float,
         kept = out[a:b + 1, f].copy()
         step_over(out, f, a + 1, b, height)
         _retime(out, f, a, b, saved, bound)
-        _lengths(out, f, a + 1, min(b + 2, T), lengths)
+        _lengths(out, f, a + 1, b + 1, lengths)  # the steps into the frames it moved, (a, b)
         if _worst(lengths, a, b + 1) >= before:
             out[a:b + 1, f] = kept
-            _lengths(out, f, a + 1, min(b + 2, T), lengths)
+            _lengths(out, f, a + 1, b + 1, lengths)
             continue
         down[a + 1:b] = False
         air[a + 1:b, f] = True
