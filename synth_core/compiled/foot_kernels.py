@@ -51,9 +51,9 @@ _jit = render_jit
 def plant_targets(feet: Any, contacts: Any, out: Any, most: int, pins: Any, pinned: Any, last: int,
                   body: Any) -> Any:
     """Foot targets ``out (T, 4, 3)`` of one character from its feet ``(T, 4, 3)`` and ``contacts
-    (T, 4)``: each plant at the foot's average over it; a swinging foot on its own path plus a
-    correction eased (smoothstep) from the one its last plant needed at lift-off to the one its
-    next plant needs at touchdown, over the ground only (x and z: swing heights are the clip's).
+    (T, 4)``: each plant where the foot stands over it (:func:`_plants`); a swinging foot on its
+    own path plus a correction eased (smoothstep) from the one its last plant needed at lift-off
+    to the one its next plant needs at touchdown, over the ground only (swing heights: the clip's).
     ``most``: a plant's position averages its first so many frames at most (and, ``most`` < T, a
     swing before no plant eases its correction out as there). A target's one-frame jump is then
     eased into a ramp over the swing frames around it (:func:`ease_jumps`; where ``most`` < T,
@@ -111,10 +111,9 @@ def plant_targets(feet: Any, contacts: Any, out: Any, most: int, pins: Any, pinn
 
 @_jit()
 def hovering(air: Any, targets: Any, path: Any, terrain: bool, h: float, a: int, b: int) -> None:
-    """Marks in ``air`` the frames of ``[a, b)`` whose plant stands higher than PLANTED_UP over
-    the ground (targets as :func:`plant_targets` left them: on a terrain, over the body's ground;
-    else over the path's height): a plant taken from its frames while the foot still comes down
-    (a live window's first frames of it) holds the foot up there, not on the ground."""
+    """Marks in ``air`` the frames of ``[a, b)`` whose plant stands higher than PLANTED_UP over the
+    ground (targets as :func:`plant_targets` left them: on a terrain, over the body's ground; else
+    over the path's height): a plant taken while the foot still comes down holds it up there."""
     for t in range(a, b):
         ground = 0.0 if terrain else path[t, 1] / h
         for f in range(4):
@@ -145,9 +144,10 @@ def held(air: Any, targets: Any, legs: Any, bends: Any, eased: Any, h: float, a:
 @_jit()
 def _plants(feet: Any, down: Any, f: int, out: Any, most: int, pin: Any, pinned: int, reach: Any,
             air: Any, steps: bool) -> None:
-    """Foot f's plants at their average positions over their first ``most`` frames at most; the
-    one through frame ``pinned`` at ``pin`` over the ground; one the body carries out of reach,
-    stepped (:func:`~synth_core.compiled.replant_kernels.replant`; ``reach``: plant_targets'
+    """Foot f's plants at their average places over their first ``most`` frames at most, at their
+    heights' lower quartile (averaged, a plant fading between two pieces hovered 2 cm; the lowest
+    is a mocap's noisy frame); the one through ``pinned`` at ``pin``; one the body carries out of
+    reach, stepped (:func:`~synth_core.compiled.replant_kernels.replant`; ``reach``: plant_targets'
     legs, the foot's bends, limit, posed, path and its height's share, yaw, root and 1 / h).
     ``down (T,)``: its planted frames, those it lifts off early from unmarked; ``air (T, 4)``:
     each foot's frames off the ground, its steps marked as they are made; ``steps``: else none."""
@@ -161,12 +161,12 @@ def _plants(feet: Any, down: Any, f: int, out: Any, most: int, pin: Any, pinned:
         while t < T and down[t]:
             t += 1
         n = min(t - s, most)
-        acc0 = acc1 = acc2 = 0.0
+        acc0 = acc2 = 0.0
         for u in range(s, s + n):
             acc0 += feet[u, f, 0]
-            acc1 += feet[u, f, 1]
             acc2 += feet[u, f, 2]
-        x, y, z = acc0 / n, acc1 / n, acc2 / n
+        x, z = acc0 / n, acc2 / n
+        y = np.sort(feet[s:s + n, f, 1])[n // 4]
         if s <= pinned < t:
             x, z = pin[0], pin[2]
         for u in range(s, t):
