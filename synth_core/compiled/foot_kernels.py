@@ -45,6 +45,7 @@ from synth_core.runtime.footlock import (
 )
 
 _jit = render_jit
+CLEARANCE, CLEAR_UP, CLEAR_DOWN = 0.5, 0.25, 0.4
 
 
 @_jit()
@@ -216,11 +217,11 @@ def _swings(feet: Any, down: Any, planted: Any, out: Any, f: int, most: int, hei
         # What is left of the lift-off correction at touchdown, kept by a plant not sent yet.
         keep = has_before and has_after and most < T and not t <= pinned < e
         _swing(feet, out, f, s, t, e if keep else t, (last_start, last_end, has_before, has_after, most < T,
-                                                       step))
+                                                       step), CLEARANCE * height)
 
 
 @_jit()
-def _swing(feet: Any, out: Any, f: int, s: int, t: int, e: int, plants: Any) -> None:
+def _swing(feet: Any, out: Any, f: int, s: int, t: int, e: int, plants: Any, clear: float) -> None:
     """Foot f's swing [s, t) (:func:`_swings`; ``plants``: :func:`_eased`'s arguments but u and
     the next plant's start t), and the lift-off correction's share left at t added to its next
     plant's frames [t, e)."""
@@ -231,10 +232,15 @@ def _swing(feet: Any, out: Any, f: int, s: int, t: int, e: int, plants: Any) -> 
     lift_z = out[last_end, f, 2] - feet[last_end, f, 2] if has_before else 0.0
     touch_x = out[t, f, 0] - feet[t, f, 0] if has_after else 0.0
     touch_z = out[t, f, 2] - feet[t, f, 2] if has_after else 0.0
+    y0 = out[last_end, f, 1] if has_before else out[t, f, 1]
+    y1 = out[t, f, 1] if has_after else y0
     for u in range(s, t):
         eased, landed = _eased(u, last_start, last_end, t, has_before, has_after, unplanned, step)
         out[u, f, 0] = feet[u, f, 0] + (1 - eased) * lift_x + landed * touch_x
         out[u, f, 2] = feet[u, f, 2] + (1 - eased) * lift_z + landed * touch_z
+        p = (u - s + 1) / (t - s + 1)
+        lift = smoothstep(min(1.0, p / CLEAR_UP)) * smoothstep(min(1.0, (1.0 - p) / CLEAR_DOWN))
+        out[u, f, 1] = max(feet[u, f, 1], y0 + (y1 - y0) * p + clear * lift)
     for u in range(t, e):
         out[u, f, 0] += left * lift_x
         out[u, f, 2] += left * lift_z
