@@ -11,9 +11,11 @@ from synth_core.motion.skeleton import forward_kinematics
 from synth_core.quality import evaluate
 from synth_core.quality import herd_sim as crowd
 from synth_core.quality import metrics as M
+from synth_core.runtime import footlock
 from synth_core.runtime.bank import Bank, build_bank
 from synth_core.runtime.synthesis import Options, Result, headings, synthesize
 from synth_core.runtime.trajectory import TrajectoryError
+from tests.helpers.motion import plant_stands
 
 
 @pytest.fixture(scope="module")
@@ -109,10 +111,45 @@ def test_plant_targets_hold_each_plant_in_one_place() -> None:
         foot_kernels.plant_targets(feet[c], contacts[c], targets[c], kernels.WHOLE_PLANT, np.zeros((4, 3)),
                                    np.full(4, foot_kernels.NOWHERE), -1, foot_kernels.no_steps(60))
     for a, b in ((10, 25), (40, 55)):
-        assert np.allclose(targets[:, a:b], feet[:, a:b].mean(axis=1, keepdims=True))
+        for c, f in np.ndindex(2, 4):
+            assert np.allclose(targets[c, a:b, f], plant_stands(feet[c, a:b, f]))
     # Swings: no jump where a plant starts or ends (over the ground).
     step = np.linalg.norm(np.diff(targets[..., [0, 2]], axis=1), axis=-1)
     assert step.max() < 5 * np.linalg.norm(np.diff(feet[..., [0, 2]], axis=1), axis=-1).max()
+
+
+def _targets(feet: np.ndarray, contacts: np.ndarray, leg: float) -> np.ndarray:
+    T = len(feet)
+    body = list(foot_kernels.no_steps(T))
+    body[0] = np.zeros((4, 6))
+    body[0][:, 4] = leg  # each leg's reach: the swing's clearance is a share of it
+    targets = np.empty_like(feet)
+    foot_kernels.plant_targets(feet, contacts, targets, kernels.WHOLE_PLANT, np.zeros((4, 3)),
+                               np.full(4, foot_kernels.NOWHERE), -1, tuple(body))
+    return targets
+
+
+def test_a_plant_held_up_by_a_fade_stands_on_the_ground_and_a_swing_clears_it() -> None:
+    """Issue 27's glide: a foot near the ground while it moves slides. A plant whose last frames
+    a fade lifts 2 cm stands where its foot stood, on the ground; a swing whose clip pose drags
+    the foot along the ground (a fade under a held frame) is lifted off it, rising early and
+    setting down over its last frames."""
+    T, leg = 60, 1.0
+    feet = np.zeros((T, 4, 3))
+    feet[:, :, 2] = np.linspace(0.0, 3.0, T)[:, None]  # moving on, never off the ground
+    contacts = np.zeros((T, 4), bool)
+    contacts[10:25] = contacts[40:55] = True
+    feet[10:25, :, 2] = feet[10, :, 2]
+    feet[40:55, :, 2] = feet[40, :, 2]
+    feet[16:25, :, 1] = 0.02  # the plant's last frames lifted by a fade
+    targets = _targets(feet, contacts, leg)
+    assert np.allclose(targets[10:25, :, 1], 0.0)
+    swing = targets[25:40, :, 1]
+    clear = footlock.CLEARANCE * footlock.STEP_HEIGHT * leg
+    assert swing.max() >= 0.99 * clear and (swing > 0).all()
+    rise, fall = np.diff(swing[:4, 0]).max(), -np.diff(swing[-4:, 0]).min()
+    assert rise > fall > 0  # up fast, down slowly
+    assert np.allclose(targets[10:25, :, 2], feet[10:25, :, 2])
 
 
 def test_foot_lock_pins_planted_feet(bank: Bank, herd: np.ndarray, result: Result) -> None:

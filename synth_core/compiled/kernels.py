@@ -42,6 +42,7 @@ from synth_core.compiled import (
     limb_kernels,
     pose_kernels,
     replant_kernels,
+    swing_kernels,
     vec_kernels,
 )
 from synth_core.compiled.foot_kernels import (
@@ -491,7 +492,7 @@ class RenderKernels(NamedTuple):
 # interpreter, as the planner's (synth_core.compiled.plan_kernels.REFERENCE). Here at the end, so
 # every kernel of the module is in the scope it runs in.
 _HELPERS = (vars(foot_kernels), vars(pose_kernels), vars(limb_kernels), vars(vec_kernels),
-            vars(ground_kernels), vars(replant_kernels), vars(jump_kernels))
+            vars(ground_kernels), vars(replant_kernels), vars(jump_kernels), vars(swing_kernels))
 _PLAIN = {**interpreted(vars(foot_kernels), *_HELPERS[1:]), **interpreted(globals(), *_HELPERS)}
 REFERENCE = RenderKernels("numpy", *(_PLAIN.get(name, globals()[name])
                                      for name in ("_render_all", "_render_windows", "lock_contexts")))

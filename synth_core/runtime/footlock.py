@@ -74,6 +74,21 @@ TURN_CARRY = 4.0
 STEP_S = 0.2
 STEP_HEIGHT = 0.08
 STEP_LIFT = 0.15
+# A swing foot stands at least this share of a step's height (STEP_HEIGHT) over the line between
+# its plants, on a profile rising over the swing's first CLEAR_UP and setting down over its last
+# CLEAR_DOWN (smoothstep each), as the real dog's feet lift quickly and slow before touchdown
+# (issue 27's glide: a foot moving near the ground slides). Its clip pose alone let it skim the
+# ground where a fade blended it with a held frame (dog accel_brake: 3-4 frames on the ground at
+# 10 cm a frame before each touchdown after a transition) and through slow lift-offs.
+CLEARANCE = 0.5
+# A plant stands at its frames' average height, unless that is more than LIFTED_PLANT (library
+# metres) over their lower quartile: then part of it was lifted -- a finished transition's last
+# frame fading out under the gait held the horse's trot pair 16-20 mm up for a whole plant
+# (corner_gallop), read as not down after FK -- and it stands at the lower quartile. A real dog's
+# paw rolling on its pad spreads less, and its average is the gait's standing height.
+LIFTED_PLANT = 0.01
+CLEAR_UP = 0.25
+CLEAR_DOWN = 0.4
 # An ankle bent less than this has no side; bent this much or more on two frames in a row, it keeps
 # its side (limb_kernels.solve_legs): the limb flip's own threshold (metrics.FLIP_MIN_BEND_DEG,
 # issue 28), below which a dog's toe swings 10 deg one way to 10 the other at a paw strike.

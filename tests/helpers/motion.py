@@ -11,7 +11,7 @@ from synth_core.motion import quat
 from synth_core.motion.clip import Motion
 from synth_core.motion.skeleton import Skeleton
 from synth_core.runtime.bank import Bank
-from synth_core.runtime.footlock import MAX_SINK
+from synth_core.runtime.footlock import LIFTED_PLANT, MAX_SINK
 from synth_core.runtime.terrain import HeightField
 
 
@@ -110,3 +110,14 @@ def assert_far_root(bank: Bank, far: np.ndarray, full: np.ndarray, scales: np.nd
     sink = far[..., 1] - full[..., 1]
     bound = MAX_SINK * bank.skeleton.leg_length() * np.asarray(scales, np.float64).reshape(-1, 1)
     assert (np.abs(sink) <= bound + 1e-5).all()
+
+
+def plant_stands(frames: np.ndarray, h: float = 1.0) -> np.ndarray:
+    """Where foot_kernels._plants stands a plant of these frames of its foot ``(n, 3)`` (the
+    library's unit; ``h`` the scale): their average place, at their average height unless that is
+    more than footlock.LIFTED_PLANT (world) over their heights' lower quartile, then at that."""
+    place = frames.mean(axis=0)
+    low = np.sort(frames[:, 1])[len(frames) // 4]
+    if place[1] - low > LIFTED_PLANT / h:
+        place[1] = low
+    return place
