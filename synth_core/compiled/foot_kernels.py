@@ -163,14 +163,17 @@ def _plants(feet: Any, down: Any, f: int, out: Any, most: int, pin: Any, pinned:
             t += 1
         n = min(t - s, most)
         acc0 = acc1 = acc2 = 0.0
+        lowest = np.inf
         for u in range(s, s + n):
             acc0 += feet[u, f, 0]
             acc1 += feet[u, f, 1]
             acc2 += feet[u, f, 2]
+            lowest = min(lowest, feet[u, f, 1])
         x, y, z = acc0 / n, acc1 / n, acc2 / n
-        low = np.sort(feet[s:s + n, f, 1])[n // 4]
-        if y - low > LIFTED_PLANT * reach[8]:  # (world metres: the library's over 1 / h)
-            y = low
+        lifted = LIFTED_PLANT * reach[8]  # (world metres: the library's over 1 / h)
+        if y - lowest > lifted:  # (else so is the quartile, never under the lowest: no sort)
+            low = np.sort(feet[s:s + n, f, 1])[n // 4]
+            y = low if y - low > lifted else y
         if s <= pinned < t:
             x, z = pin[0], pin[2]
         for u in range(s, t):
