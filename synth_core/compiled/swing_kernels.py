@@ -9,22 +9,23 @@ from typing import Any
 from synth_core.compiled.jit import render_jit
 from synth_core.compiled.replant_kernels import step_over
 from synth_core.compiled.vec_kernels import smoothstep
-from synth_core.runtime.footlock import CLEAR_DOWN, CLEAR_UP, CLEARANCE
+from synth_core.runtime.footlock import CLEAR_DOWN, CLEAR_UP
 
 _jit = render_jit
 
 
 @_jit()
-def swings(feet: Any, down: Any, planted: Any, out: Any, f: int, most: int, height: float,
+def swings(feet: Any, down: Any, planted: Any, out: Any, f: int, most: int, heights: Any,
             step: int, pinned: int) -> None:
     """Foot f's swings (``down (T,)``: its planted frames): eased from the last plant's lift-off
-    correction to the next one's touchdown one (``out``: the plants' targets, by :func:`_plants`;
-    the shares: :func:`_eased`, ``step`` a step's frames). A plant whose swing in had not eased
+    correction to the next one's touchdown one (``out``: the plants' targets, by foot_kernels._plants;
+    the shares: :func:`_eased`, ``step`` a step's frames), at least ``heights[1]`` over the line
+    between them (:func:`_swing`). A plant whose swing in had not eased
     its lift-off correction out by its touchdown, where its next plant is planned late (``most``
     < T, the low-latency mode), keeps what is left (over the ground) unless it was sent already
     (its frame ``pinned``): the foot lands where its swing took it, the next swing eases it out.
     A swing a plant lifted off early into (its first frame ``planted``, as the clip has it: see
-    replant_kernels.replant) is a step instead, ``height`` high, from the one plant to the next:
+    replant_kernels.replant) is a step instead, ``heights[0]`` high, from the one plant to the next:
     the clip's own swing, a few frames of it at the plant's end, moved a foot the body had carried
     far 20-40 cm a frame (replant_kernels.step_over)."""
     T = feet.shape[0]
@@ -47,7 +48,7 @@ def swings(feet: Any, down: Any, planted: Any, out: Any, f: int, most: int, heig
         if not (has_before or has_after):
             continue
         if planted[s] and has_before and has_after:  # lifted off early: one step to the next plant
-            step_over(out, f, s, t, height)
+            step_over(out, f, s, t, heights[0])
             continue
         e = t
         while e < T and down[e]:
@@ -55,7 +56,7 @@ def swings(feet: Any, down: Any, planted: Any, out: Any, f: int, most: int, heig
         # What is left of the lift-off correction at touchdown, kept by a plant not sent yet.
         keep = has_before and has_after and most < T and not t <= pinned < e
         _swing(feet, out, f, s, t, e if keep else t, (last_start, last_end, has_before, has_after, most < T,
-                                                       step), CLEARANCE * height)
+                                                       step), heights[1])
 
 
 @_jit()

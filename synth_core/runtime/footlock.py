@@ -80,15 +80,18 @@ STEP_LIFT = 0.15
 # (issue 27's glide: a foot moving near the ground slides). Its clip pose alone let it skim the
 # ground where a fade blended it with a held frame (dog accel_brake: 3-4 frames on the ground at
 # 10 cm a frame before each touchdown after a transition) and through slow lift-offs.
+# Never less than CLEAR_LEAST (world metres): the band the issue's near-ground glide counts a
+# moving foot in (2.5 cm), which a half-size dog's swings (0.9 cm of clearance) never left.
 CLEARANCE = 0.5
-# A plant stands at its frames' average height, unless that is more than LIFTED_PLANT (library
+CLEAR_LEAST = 0.025
+CLEAR_UP = 0.25
+CLEAR_DOWN = 0.4
+# A plant stands at its frames' average height, unless that is more than LIFTED_PLANT (world
 # metres) over their lower quartile: then part of it was lifted -- a finished transition's last
 # frame fading out under the gait held the horse's trot pair 16-20 mm up for a whole plant
 # (corner_gallop), read as not down after FK -- and it stands at the lower quartile. A real dog's
 # paw rolling on its pad spreads less, and its average is the gait's standing height.
 LIFTED_PLANT = 0.01
-CLEAR_UP = 0.25
-CLEAR_DOWN = 0.4
 # An ankle bent less than this has no side; bent this much or more on two frames in a row, it keeps
 # its side (limb_kernels.solve_legs): the limb flip's own threshold (metrics.FLIP_MIN_BEND_DEG,
 # issue 28), below which a dog's toe swings 10 deg one way to 10 the other at a paw strike.
