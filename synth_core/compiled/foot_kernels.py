@@ -85,8 +85,7 @@ def plant_targets(feet: Any, contacts: Any, out: Any, most: int, pins: Any, pinn
     Returns ``air (T, 4)``: each foot's frames off the ground as the targets have them -- the
     plan's swings, and the steps and early lift-offs of plants stepped (:func:`held` reads it)."""
     T = feet.shape[0]
-    down, saved = np.empty(T, np.bool_), np.empty((T + 4, 3))  # saved: ease_jumps' scratch, ease_unsent's
-    lengths = np.empty(T)  # ease_jumps' steps, widen_swings reads them
+    down, saved, lengths = np.empty(T, np.bool_), np.empty((T + 4, 3)), np.empty(T)  # jump_kernels' scratch
     air = np.logical_not(contacts)  # each foot off the ground (steps too, once made)
     bends, legs, limit, posed, path, lift, yaw, root, h, steps, first, sent = body
     out[...] = feet  # every foot's at once (one contiguous copy); a foot's passes read its own alone
