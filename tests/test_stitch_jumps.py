@@ -73,7 +73,7 @@ def test_a_swing_too_short_for_its_distance_is_retimed_not_left_jumping() -> Non
     skimming[7, 1, 1] = 0.005  # a lift-off skimming the ground: keeps its own step (read as planted)
     for before, first in ((out, 0), (out, 7), (out, 8), (skimming, 0)):  # batch; low-latency windows
         eased = before.copy()
-        ease_jumps(eased, down, 1, 1.0, np.empty((steps.size + 4, 3)), first)
+        ease_jumps(eased, down, 1, 1.0, np.empty((steps.size + 4, 3)), first, np.empty(steps.size))
         # 1 mm: the rule spaces the frames along the path, a step's chord cuts its corners; with a
         # frame kept the rest cannot all come within the bound: issue 27's target then (6.7 before)
         limit = JUMP_TARGET_CM * 10 if before is skimming else JUMP_EASE * 1000 + 1.0
@@ -96,7 +96,7 @@ def test_a_swing_of_a_frame_between_far_plants_is_widened_into_a_step() -> None:
     planted, and the frames taken are marked in the air."""
     import numpy as np
 
-    from synth_core.compiled.jump_kernels import widen_swings
+    from synth_core.compiled.jump_kernels import step_lengths, widen_swings
     from synth_core.quality.metrics import one_frame_jumps_mm
     from synth_core.runtime.footlock import JUMP_EASE
 
@@ -111,7 +111,9 @@ def test_a_swing_of_a_frame_between_far_plants_is_widened_into_a_step() -> None:
     air[:8, 1] = air[:8, 2] = True  # before frame 8, the left fore alone with the right hind
     air[13:, 2] = air[13:, 3] = True  # from frame 13, with the right fore
     before = out.copy()
-    widen_swings(out, down, air, 0, 1.0, 0.08, np.empty((T + 4, 3)))
+    lengths = np.empty(T)
+    step_lengths(out, 0, lengths)
+    widen_swings(out, down, air, 0, 1.0, 0.08, np.empty((T + 4, 3)), lengths)
     assert one_frame_jumps_mm(out[None, :, 0:1]).max() <= JUMP_EASE * 1000 + 1.0
     assert np.array_equal(out[down, 0], before[down, 0])
     assert np.array_equal(air[:, 0], ~down)

@@ -87,11 +87,11 @@ def plant_targets(feet: Any, contacts: Any, out: Any, most: int, pins: Any, pinn
     Returns ``air (T, 4)``: each foot's frames off the ground as the targets have them -- the
     plan's swings, and the steps and early lift-offs of plants stepped (:func:`held` reads it)."""
     T = feet.shape[0]
-    down, saved = np.empty(T, np.bool_), np.empty((T + 4, 3))  # saved: ease_jumps' scratch, ease_unsent's
+    down, saved, lengths = np.empty(T, np.bool_), np.empty((T + 4, 3)), np.empty(T)  # jump_kernels' scratch
     air = np.logical_not(contacts)  # each foot off the ground (steps too, once made)
     bends, legs, limit, posed, path, lift, yaw, root, h, steps, first, sent = body
+    out[...] = feet  # every foot's at once (one contiguous copy); a foot's passes read its own alone
     for f in range(4):
-        out[:, f, :] = feet[:, f, :]
         down[:] = contacts[:, f]
         reach = (legs, bends[f], limit, posed, path, lift, yaw, root, 1.0 / h)
         _plants(feet, down, f, out, most, pins[f], pinned[f], reach, air, steps)
@@ -99,10 +99,10 @@ def plant_targets(feet: Any, contacts: Any, out: Any, most: int, pins: Any, pinn
         swings(feet, down, contacts[:, f], out, f, most, (step_up, max(CLEARANCE * step_up, CLEAR_LEAST / h)),
                int(bends[f, 5]), pinned[f])
         if most >= T:  # a batch's or the exact live mode's: every frame free
-            if ease_jumps(out, down, f, h, saved, 0):  # a step left jumping: widened if it can be
-                widen_swings(out, down, air, f, h, STEP_HEIGHT * bends[f, 4], saved)
+            if ease_jumps(out, down, f, h, saved, 0, lengths):  # a step left jumping: widened if it can be
+                widen_swings(out, down, air, f, h, STEP_HEIGHT * bends[f, 4], saved, lengths)
         elif last >= 0:  # the low-latency mode sends a swing before its next plant is planned
-            ease_unsent(out, down, f, h, saved, last, first, sent)
+            ease_unsent(out, down, f, h, (saved, lengths), last, first, sent)
         u = last
         while u >= 0 and not down[u]:
             u -= 1

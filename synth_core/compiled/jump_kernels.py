@@ -13,8 +13,6 @@ from __future__ import annotations
 import math
 from typing import Any
 
-import numpy as np
-
 from synth_core.compiled.jit import render_jit
 from synth_core.compiled.replant_kernels import step_over, stood
 from synth_core.compiled.vec_kernels import smoothstep
@@ -195,7 +193,14 @@ def _clear_retime(out: Any, down: Any, f: int, swing: Any, saved: Any, bound: fl
 
 
 @_jit()
-def ease_jumps(out: Any, down: Any, f: int, h: float, saved: Any, first: int) -> bool:
+def step_lengths(out: Any, f: int, lengths: Any) -> None:
+    """``lengths[t]``: how far foot f's target moves from frame t - 1 to frame t, for every t from
+    1 on (:func:`widen_swings` reads them so, as :func:`ease_jumps` leaves them)."""
+    _lengths(out, f, 1, out.shape[0], lengths)
+
+
+@_jit()
+def ease_jumps(out: Any, down: Any, f: int, h: float, saved: Any, first: int, lengths: Any) -> bool:
     """Foot f's targets ``out (T, 4, 3)`` with every step longer than the mean of the steps before
     and after it by more than ``bound`` (JUMP_EASE over the scale ``h``) made that mean, its
     excess spread instead over the frames around it that are not planted (``down (T,)``: its
@@ -209,12 +214,13 @@ def ease_jumps(out: Any, down: Any, f: int, h: float, saved: Any, first: int) ->
     no frames to spread it over); the swing's progress along its path is reshaped instead, if
     its next plant is known (:func:`_retime`). Scanned forward, each step read as the ramps before it left
     it. Reads the swing the step is in and its plants' frames either side only (a live window's
-    foot-lock context holds them: kernels.lock_context). ``saved (T, 3)``: scratch. ``first``:
+    foot-lock context holds them: kernels.lock_context). ``saved (T, 3)``: scratch; ``lengths
+    (T,)``: left holding :func:`step_lengths` of the targets eased (each ramp re-measures the
+    steps it moved), which :func:`widen_swings` reads rather than measure them again. ``first``:
     frames before it are never moved (a live window's frames sent already: a step into a frame
     sent is left, a ramp that would reach back past ``first`` is shortened to the frames after).
     Returns whether a step may still jump past ``bound`` (a ramp left one, or none was made)."""
     T, bound = out.shape[0], JUMP_EASE / h
-    lengths = np.empty(T)
     _lengths(out, f, 1, T, lengths)
     left = False
     for t in range(max(2, first), T - 1):
@@ -247,7 +253,7 @@ def ease_jumps(out: Any, down: Any, f: int, h: float, saved: Any, first: int) ->
 
 
 @_jit()
-def ease_unsent(out: Any, down: Any, f: int, h: float, saved: Any, last: int, first: int,
+def ease_unsent(out: Any, down: Any, f: int, h: float, scratch: Any, last: int, first: int,
                  sent: Any) -> None:
     """Foot f's targets' one-frame jumps eased (:func:`ease_jumps`) on the frames of a live
     window in the low-latency mode not sent yet (from frame ``first`` on). ``sent``: ``(kept (2,
@@ -256,16 +262,17 @@ def ease_unsent(out: Any, down: Any, f: int, h: float, saved: Any, last: int, fi
     next plant came since) and a ramp an earlier window began was sent in part, so the frames
     here are eased on from where the foot was sent (sent, a frame stays); put back after (the
     sink and the pins read the sent frames' targets as before). The targets of frames ``last -
-    1``, ``last`` (the window's last, sent now) are then kept there for the next one. ``saved (T +
-    4, 3)``: scratch."""
+    1``, ``last`` (the window's last, sent now) are then kept there for the next one.
+    ``scratch``: ``(saved (T + 4, 3), lengths (T,))``."""
     kept, at = sent
+    saved, lengths = scratch
     T = out.shape[0]
     here, now = saved[T:T + 2], saved[T + 2:T + 4]
     anchored = first >= 2 and at == first - 1
     if anchored:
         here[:] = out[first - 2:first, f]
         out[first - 2:first, f] = kept[:, f]
-    ease_jumps(out, down, f, h, saved, first)
+    ease_jumps(out, down, f, h, saved, first, lengths)
     if last >= 1:
         now[:] = out[last - 1:last + 1, f]
     if anchored:
@@ -299,7 +306,8 @@ def _wider(out: Any, down: Any, air: Any, f: int, lo: int, hi: int, bound: float
 
 
 @_jit()
-def widen_swings(out: Any, down: Any, air: Any, f: int, h: float, height: float, saved: Any) -> None:
+def widen_swings(out: Any, down: Any, air: Any, f: int, h: float, height: float, saved: Any,
+                 lengths: Any) -> None:
     """Foot f's swings between two plants whose targets still jump further than JUMP_EASE over
     the scale ``h`` in a frame once eased (:func:`ease_jumps`: a swing of a frame or two between
     plants far apart, a transition played at 4-8x its clip to a stop -- issue 27's accel_brake,
@@ -307,10 +315,9 @@ def widen_swings(out: Any, down: Any, air: Any, f: int, h: float, height: float,
     earlier, set down later, other feet standing) and made a step over them, ``height`` high
     (``replant_kernels.step_over``), its progress retimed (:func:`_retime`); kept only if its
     worst step got better. ``down``, ``air`` unmarked / marked where the foot is now up.
-    ``saved (T, 3)``: scratch."""
+    ``saved (T, 3)``: scratch; ``lengths (T,)``: :func:`step_lengths` of ``out`` (as ease_jumps
+    leaves them: measured once, not again here), kept so."""
     T, bound = out.shape[0], JUMP_EASE / h
-    lengths = np.empty(T)
-    _lengths(out, f, 1, T, lengths)
     t = 1
     while t < T - 1:
         if down[t]:

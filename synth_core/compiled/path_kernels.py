@@ -19,25 +19,48 @@ def _step(x: Any, a: int, b: int) -> Any:
 
 
 @jit(inline="always")
-def _shift(steps: Any, w: Any, t: int) -> Any:
-    """The Gaussian (weights ``w``, centre first) average of the distance along the path from
-    frame t's point (``steps (T - 1,)``: from each point to the next): the steps either side
-    summed outwards, in a fixed order (frames beyond an end repeat it: steps of 0)."""
-    T = steps.shape[0] + 1
-    d, ahead, behind = 0.0, 0.0, 0.0
+def _shifts(steps: Any, w: Any, first: int, d: Any, ahead: Any, behind: Any) -> None:
+    """``d[i]``: the Gaussian (weights ``w``, centre first) average of the distance along the path
+    from frame ``first + i``'s point (``steps (T - 1,)``: from each point to the next): the steps
+    either side summed outwards, in a fixed order (frames beyond an end repeat it: steps of 0).
+    Every frame's sums in the same order, one weight at a time for all frames (``ahead``,
+    ``behind``: scratch like ``d``): the frames' sums are independent, so they run side by side
+    (one frame's alone wait on each add before the next: most of the batch's path smoothing)."""
+    T, n = steps.shape[0] + 1, d.shape[0]
+    d[:], ahead[:], behind[:] = 0.0, 0.0, 0.0
     for j in range(1, len(w)):
-        if t + j < T:
-            ahead += steps[t + j - 1]
-        if t - j >= 0:
-            behind += steps[t - j]
-        d += w[j] * (ahead - behind)
-    return d
+        # Frames [lo, hi) have a step j either side (all but those within j of an end).
+        lo, hi = min(max(j - first, 0), n), min(max(T - j - first, 0), n)
+        lo = min(lo, hi)
+        for i in range(lo):
+            _shift_on(steps, w[j], first, j, i, d, ahead, behind)
+        wj, m = w[j], hi - lo  # (slices: indices known >= 0, no wraparound test to stop SIMD)
+        a_to, b_to, d_to = ahead[lo:hi], behind[lo:hi], d[lo:hi]
+        a_from, b_from = steps[first + lo + j - 1:first + hi + j - 1], steps[first + lo - j:first + hi - j]
+        for i in range(m):
+            a_to[i] += a_from[i]
+            b_to[i] += b_from[i]
+            d_to[i] += wj * (a_to[i] - b_to[i])
+        for i in range(max(hi, lo), n):
+            _shift_on(steps, w[j], first, j, i, d, ahead, behind)
+
+
+@jit(inline="always")
+def _shift_on(steps: Any, wj: float, first: int, j: int, i: int, d: Any, ahead: Any, behind: Any) -> None:
+    """Weight j's term of frame ``first + i``'s average (:func:`_shifts`), near an end: a step
+    beyond it is 0."""
+    t = first + i
+    if t + j < steps.shape[0] + 1:
+        ahead[i] += steps[t + j - 1]
+    if t - j >= 0:
+        behind[i] += steps[t - j]
+    d[i] += wj * (ahead[i] - behind[i])
 
 
 @jit(parallel=True)  # characters side by side: each writes its own rows
 def along(x: Any, w: Any, first: int, out: Any) -> None:
     """``out (C, n, 3)``: frames ``[first, first + n)`` of the paths ``x (C, T, 3)``, each frame's
-    point moved along its path by :func:`_shift` (forward where the path ahead is longer). Each
+    point moved along its path by :func:`_shifts` (forward where the path ahead is longer). Each
     step's length is one number whatever the window (a live one gives the batch's bits)."""
     T = x.shape[1]
     for c in prange(x.shape[0]):
@@ -46,9 +69,11 @@ def along(x: Any, w: Any, first: int, out: Any) -> None:
         steps = np.zeros(max(T - 1, 0))  # only [lo, hi - 1) is read
         for k in range(lo, hi - 1):
             steps[k] = _step(xc, k, k + 1)
+        shifts, ahead, behind = np.empty(out.shape[1]), np.empty(out.shape[1]), np.empty(out.shape[1])
+        _shifts(steps, w, first, shifts, ahead, behind)
         for i in range(out.shape[1]):
             t = first + i
-            d = _shift(steps, w, t)
+            d = shifts[i]
             way = 1 if d >= 0.0 else -1
             k, left = t, abs(d)
             while 0 <= k + way < T:
