@@ -36,8 +36,6 @@ from synth_core.compiled.replant_kernels import no_steps as no_steps
 from synth_core.compiled.swing_kernels import swings
 from synth_core.compiled.vec_kernels import conj, norm3, q4, qmul, qrot, v3, vadd, vscale, vsub
 from synth_core.runtime.footlock import (
-    CLEAR_LEAST,
-    CLEARANCE,
     EASE_FRAMES,
     LIFTED_PLANT,
     LONGEST_OVER,
@@ -95,9 +93,8 @@ def plant_targets(feet: Any, contacts: Any, out: Any, most: int, pins: Any, pinn
         down[:] = contacts[:, f]
         reach = (legs, bends[f], limit, posed, path, lift, yaw, root, 1.0 / h)
         _plants(feet, down, f, out, most, pins[f], pinned[f], reach, air, steps)
-        step_up = STEP_HEIGHT * bends[f, 4]  # a step's height; a swing's clearance (world metres over h)
-        swings(feet, down, contacts[:, f], out, f, most, (step_up, max(CLEARANCE * step_up, CLEAR_LEAST / h)),
-               int(bends[f, 5]), pinned[f])
+        swings(feet, down, contacts[:, f], out, f, most, (STEP_HEIGHT * bends[f, 4], h), int(bends[f, 5]),
+               pinned[f])
         if most >= T:  # a batch's or the exact live mode's: every frame free
             if ease_jumps(out, down, f, h, saved, 0, lengths):  # a step left jumping: widened if it can be
                 widen_swings(out, down, air, f, h, STEP_HEIGHT * bends[f, 4], saved, lengths)

@@ -9,7 +9,7 @@ from typing import Any
 from synth_core.compiled.jit import render_jit
 from synth_core.compiled.replant_kernels import step_over
 from synth_core.compiled.vec_kernels import smoothstep
-from synth_core.runtime.footlock import CLEAR_DOWN, CLEAR_UP
+from synth_core.runtime.footlock import CLEAR_DOWN, CLEAR_LEAST, CLEAR_UP, CLEARANCE
 
 _jit = render_jit
 
@@ -19,8 +19,9 @@ def swings(feet: Any, down: Any, planted: Any, out: Any, f: int, most: int, heig
             step: int, pinned: int) -> None:
     """Foot f's swings (``down (T,)``: its planted frames): eased from the last plant's lift-off
     correction to the next one's touchdown one (``out``: the plants' targets, by foot_kernels._plants;
-    the shares: :func:`_eased`, ``step`` a step's frames), at least ``heights[1]`` over the line
-    between them (:func:`_swing`). A plant whose swing in had not eased
+    the shares: :func:`_eased`, ``step`` a step's frames), clear of the line between them
+    (:func:`_swing`): by CLEARANCE of a step's height ``heights[0]``, CLEAR_LEAST at least
+    (world metres, over the scale ``heights[1]``). A plant whose swing in had not eased
     its lift-off correction out by its touchdown, where its next plant is planned late (``most``
     < T, the low-latency mode), keeps what is left (over the ground) unless it was sent already
     (its frame ``pinned``): the foot lands where its swing took it, the next swing eases it out.
@@ -55,8 +56,9 @@ def swings(feet: Any, down: Any, planted: Any, out: Any, f: int, most: int, heig
             e += 1
         # What is left of the lift-off correction at touchdown, kept by a plant not sent yet.
         keep = has_before and has_after and most < T and not t <= pinned < e
+        clear = max(CLEARANCE * heights[0], CLEAR_LEAST / heights[1])
         _swing(feet, out, f, s, t, e if keep else t, (last_start, last_end, has_before, has_after, most < T,
-                                                       step), heights[1])
+                                                       step), clear)
 
 
 @_jit()
