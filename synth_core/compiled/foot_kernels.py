@@ -170,7 +170,8 @@ def _plants(feet: Any, down: Any, f: int, out: Any, most: int, pin: Any, pinned:
             acc2 += feet[u, f, 2]
             lowest = min(lowest, feet[u, f, 1])
         x, y, z = acc0 / n, acc1 / n, acc2 / n
-        lifted = LIFTED_PLANT * reach[8]  # (world metres: the library's over 1 / h)
+        lifted = LIFTED_PLANT * reach[8] if most >= T else np.inf  # (world metres over h; low
+        # latency: a plant from its first frames, re-read as they leave the context, hovered 7 mm)
         if y - lowest > lifted:  # (else so is the quartile, never under the lowest: no sort)
             low = np.sort(feet[s:s + n, f, 1])[n // 4]
             y = low if y - low > lifted else y

@@ -90,7 +90,9 @@ CLEAR_DOWN = 0.4
 # metres) over their lower quartile: then part of it was lifted -- a finished transition's last
 # frame fading out under the gait held the horse's trot pair 16-20 mm up for a whole plant
 # (corner_gallop), read as not down after FK -- and it stands at the lower quartile. A real dog's
-# paw rolling on its pad spreads less, and its average is the gait's standing height.
+# paw rolling on its pad spreads less, and its average is the gait's standing height. Batch and
+# the exact live mode only: the low-latency mode's plants are their first frames' (its horse's
+# plants hovered 7 mm, 26 in corner_gallop, with it).
 LIFTED_PLANT = 0.01
 # An ankle bent less than this has no side; bent this much or more on two frames in a row, it keeps
 # its side (limb_kernels.solve_legs): the limb flip's own threshold (metrics.FLIP_MIN_BEND_DEG,

@@ -112,12 +112,13 @@ def assert_far_root(bank: Bank, far: np.ndarray, full: np.ndarray, scales: np.nd
     assert (np.abs(sink) <= bound + 1e-5).all()
 
 
-def plant_stands(frames: np.ndarray, h: float = 1.0) -> np.ndarray:
+def plant_stands(frames: np.ndarray, h: float = 1.0, whole: bool = True) -> np.ndarray:
     """Where foot_kernels._plants stands a plant of these frames of its foot ``(n, 3)`` (the
     library's unit; ``h`` the scale): their average place, at their average height unless that is
-    more than footlock.LIFTED_PLANT (world) over their heights' lower quartile, then at that."""
+    more than footlock.LIFTED_PLANT (world) over their heights' lower quartile, then at that --
+    where every frame is free (``whole``: a batch or the exact live mode; not the low-latency one)."""
     place = frames.mean(axis=0)
     low = np.sort(frames[:, 1])[len(frames) // 4]
-    if place[1] - low > LIFTED_PLANT / h:
+    if whole and place[1] - low > LIFTED_PLANT / h:
         place[1] = low
     return place
