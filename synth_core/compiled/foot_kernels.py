@@ -245,7 +245,7 @@ def _swing_share(targets: Any, f: int, last: int, u: int, nxt: int) -> float:
 
 @_jit()
 def ground_targets(targets: Any, contacts: Any, heights: Any, x0: float, z0: float, spacing: float,
-                    h: float, under: Any) -> None:
+                    h: float, under: Any, whole: bool = False) -> None:
     """One character's foot targets ``(T, 4, 3)`` (the library's unit: world / h) whose y is the
     height above the body's ground, put on the terrain ``heights`` (origin x0, z0; ``spacing``),
     in place (``under (T,)``: scratch). Planted: on the terrain under the target. Swinging
@@ -256,7 +256,10 @@ def ground_targets(targets: Any, contacts: Any, heights: Any, x0: float, z0: flo
     of its share of the way and of the time), and never below the terrain under it. A foot so
     rises onto a step or over a bump from lift-off on, reaches the top as it gets there and no
     higher; it does not jump onto it in the frame it crosses the edge. A swing with no plant
-    before or after it (a window's ends): the terrain under it."""
+    before or after it (a window's ends): the terrain under it. ``whole`` (every frame free: a
+    batch, the exact live mode): the terrain's own one-frame jumps then eased as plant_targets
+    eases the clip's (a hoof planted on a step's edge is over the top in its first swing frame:
+    13.7 cm up in one frame; :func:`~synth_core.compiled.jump_kernels.ease_jumps`)."""
     T = targets.shape[0]
     lift = np.empty(T)  # a swing's envelope of the terrain's excess over its straight line
     for f in range(4):
@@ -291,6 +294,24 @@ def ground_targets(targets: Any, contacts: Any, heights: Any, x0: float, z0: flo
             for u in range(s, t):
                 e = under[last] + (under[nxt] - under[last]) * _swing_share(targets, f, last, u, nxt)
                 targets[u, f, 1] = max(targets[u, f, 1], 0.0) + max(e + lift[u], under[u])
+    _jumps_eased(targets, contacts, (heights, x0, z0, spacing), h, whole)
+
+
+@_jit()
+def _jumps_eased(targets: Any, contacts: Any, ground: Any, h: float, whole: bool) -> None:
+    """ground_targets' last pass (``whole``: else none): each foot's one-frame jumps eased, no
+    frame left under the terrain (``ground``: its heights, origin and spacing)."""
+    if not whole:
+        return
+    T = targets.shape[0]
+    down, saved, lengths = np.empty(T, np.bool_), np.empty((T + 4, 3)), np.empty(T)
+    for f in range(4):
+        down[:] = contacts[:, f]
+        ease_jumps(targets, down, f, h, saved, 0, lengths)
+        for t in range(T):  # (a ramp over the frames after a step's edge took them into it: 4 cm)
+            floor = ground_at(ground[0], ground[1], ground[2], ground[3], targets[t, f, 0] * h,
+                              targets[t, f, 2] * h) / h
+            targets[t, f, 1] = max(targets[t, f, 1], floor)
 
 
 @_jit()
