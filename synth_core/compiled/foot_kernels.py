@@ -54,7 +54,7 @@ def plant_targets(feet: Any, contacts: Any, out: Any, most: int, pins: Any, pinn
     """Foot targets ``out (T, 4, 3)`` of one character from its feet ``(T, 4, 3)`` and ``contacts
     (T, 4)``: each plant where the foot stands over it (:func:`_plants`); a swinging foot on its
     own path plus a correction eased (smoothstep) from the one its last plant needed at lift-off
-    to the one its next plant needs at touchdown, over the ground only (swing heights: the clip's).
+    to the one its next plant needs at touchdown, over the ground, and clear of it (swing_kernels).
     ``most``: a plant's position averages its first so many frames at most (and, ``most`` < T, a
     swing before no plant eases its correction out as there). A target's one-frame jump is then
     eased into a ramp over the swing frames around it (:func:`ease_jumps`; where ``most`` < T,
@@ -146,10 +146,11 @@ def held(air: Any, targets: Any, legs: Any, bends: Any, eased: Any, h: float, a:
 def _plants(feet: Any, down: Any, f: int, out: Any, most: int, pin: Any, pinned: int, reach: Any,
             air: Any, steps: bool) -> None:
     """Foot f's plants at their average places over their first ``most`` frames at most, at their
-    heights' lower quartile (averaged, a plant fading between two pieces hovered 2 cm; the lowest
-    is a mocap's noisy frame); the one through ``pinned`` at ``pin``; one the body carries out of
-    reach, stepped (:func:`~synth_core.compiled.replant_kernels.replant`; ``reach``: plant_targets'
-    legs, the foot's bends, limit, posed, path and its height's share, yaw, root and 1 / h).
+    average height unless more than LIFTED_PLANT over their lower quartile where every frame is
+    free (a fade lifted part of it: then at the quartile); the one through ``pinned`` at ``pin``;
+    one the body carries out of reach, stepped (:func:`~synth_core.compiled.replant_kernels.replant`;
+    ``reach``: plant_targets' legs, the foot's bends, limit, posed, path and its height's share,
+    yaw, root and 1 / h).
     ``down (T,)``: its planted frames, those it lifts off early from unmarked; ``air (T, 4)``:
     each foot's frames off the ground, its steps marked as they are made; ``steps``: else none."""
     T = feet.shape[0]
@@ -245,7 +246,7 @@ def _swing_share(targets: Any, f: int, last: int, u: int, nxt: int) -> float:
 
 @_jit()
 def ground_targets(targets: Any, contacts: Any, heights: Any, x0: float, z0: float, spacing: float,
-                    h: float, under: Any, whole: bool = False) -> None:
+                    h: float, under: Any, most: int = 0) -> None:
     """One character's foot targets ``(T, 4, 3)`` (the library's unit: world / h) whose y is the
     height above the body's ground, put on the terrain ``heights`` (origin x0, z0; ``spacing``),
     in place (``under (T,)``: scratch). Planted: on the terrain under the target. Swinging
@@ -256,10 +257,10 @@ def ground_targets(targets: Any, contacts: Any, heights: Any, x0: float, z0: flo
     of its share of the way and of the time), and never below the terrain under it. A foot so
     rises onto a step or over a bump from lift-off on, reaches the top as it gets there and no
     higher; it does not jump onto it in the frame it crosses the edge. A swing with no plant
-    before or after it (a window's ends): the terrain under it. ``whole`` (every frame free: a
-    batch, the exact live mode): the terrain's own one-frame jumps then eased as plant_targets
-    eases the clip's (a hoof planted on a step's edge is over the top in its first swing frame:
-    13.7 cm up in one frame; :func:`~synth_core.compiled.jump_kernels.ease_jumps`)."""
+    before or after it (a window's ends): the terrain under it. ``most`` >= T (plant_targets':
+    every frame free, a batch or the exact live mode): the terrain's own one-frame jumps then
+    eased as plant_targets eases the clip's (a hoof planted on a step's edge is over the top in its
+    first swing frame: 13.7 cm up at once; :func:`~synth_core.compiled.jump_kernels.ease_jumps`)."""
     T = targets.shape[0]
     lift = np.empty(T)  # a swing's envelope of the terrain's excess over its straight line
     for f in range(4):
@@ -294,7 +295,7 @@ def ground_targets(targets: Any, contacts: Any, heights: Any, x0: float, z0: flo
             for u in range(s, t):
                 e = under[last] + (under[nxt] - under[last]) * _swing_share(targets, f, last, u, nxt)
                 targets[u, f, 1] = max(targets[u, f, 1], 0.0) + max(e + lift[u], under[u])
-    _jumps_eased(targets, contacts, (heights, x0, z0, spacing), h, whole)
+    _jumps_eased(targets, contacts, (heights, x0, z0, spacing), h, most >= T)
 
 
 @_jit()

@@ -133,8 +133,7 @@ def _character(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, yaw
     body = (bends, legs, sink_limit, a, path, terrain / h, yaw, out_root, h, steps, keep_from, sent)
     air = plant_targets(feet, contacts, targets, plant_frames, pins, pinned, last, body)
     if terrain:
-        ground_targets(targets, contacts, heights, ground_x0, ground_z0, spacing, h, sink,
-                       plant_frames == WHOLE_PLANT)
+        ground_targets(targets, contacts, heights, ground_x0, ground_z0, spacing, h, sink, plant_frames)
     reach_sink(targets, legs, bends, path, h, terrain, s, T, sink)
     # Eased from frame s on: the wanted frames, PAD or more after it, read nothing before it.
     ease_sink(sink[s:], sink_limit, eased[s:])
