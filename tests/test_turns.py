@@ -221,3 +221,29 @@ def test_turning_on_the_spot_keeps_two_feet_down_at_a_walk(animal: str) -> None:
     """Issue 27's support target through the turn, after FK: every walk frame has two feet down."""
     fig = turn_figures(animal)
     assert evaluate.passes("walk_support_share", fig["walk_support_share"]), fig["walk_support_share"]
+
+
+@pytest.mark.parametrize("animal", ANIMALS)
+def test_a_simulators_jitter_does_not_turn_a_standing_animal(animal: str) -> None:
+    """A 10 Hz simulator's points jitter 2 cm round a standing agent (edge suite, jitter_10hz: half
+    a second standing, then off along a gentle curve at walk, trot and canter speed). The standing
+    body turned after the jitter at the yaw rate's limit (a horse 121 -> 162 -> 3 deg in 70
+    frames), carrying its planted feet, and walked off with one foot down (walk support 0.975).
+    After FK: the heading holds while it stands, and every walk frame has two feet down."""
+    bank = animal_bank(animal)
+    sc, result = run(animal, "jitter_10hz")
+    pos = np.asarray(evaluate.world_positions(bank, result), np.float64)
+    top = np.array([f.chain[0] for f in bank.skeleton.feet])
+    axis = pos[..., top[:2], :].mean(axis=-2) - pos[..., top[2:], :].mean(axis=-2)
+    heading = np.degrees(np.unwrap(np.arctan2(axis[..., 0], axis[..., 2]), axis=-1))
+    for c in range(len(heading)):  # standing: until the path meant (not the points sent) moves
+        moves = np.linalg.norm(np.diff(sc.reference[c][:, [0, 2]], axis=0), axis=-1) > 1e-6
+        # (a start, chosen on the speed ahead, may step off a few frames before)
+        standing = slice(0, min(np.flatnonzero(moves)[0], np.flatnonzero(result.gait[c] != STATIC)[0]))
+        assert standing.stop >= bank.fps // 4
+        turned = heading[c, standing].max() - heading[c, standing].min()
+        assert turned < 2.0, (c, turned)
+    fk = evaluate.feet_after_fk(bank, result, evaluate.library_reference(bank))
+    walk = result.gait == HUBS.index("walk")
+    assert walk.any()
+    assert (fk.down.sum(axis=-1)[walk] >= 2).all(), np.argwhere(walk & (fk.down.sum(axis=-1) < 2))[:8]

@@ -26,21 +26,70 @@ def _direction(g: Any, j: int) -> Any:
     return (g[j + 1, 0] - g[j - 1, 0]) / 2.0, (g[j + 1, 1] - g[j - 1, 1]) / 2.0
 
 
+@jit(inline="always")
+def _leash(ax: float, az: float, px: float, pz: float, pull: float, length: float) -> Any:
+    """The anchor ``(ax, az)`` moved ``pull`` toward the point ``(px, pz)`` (no further), then
+    dragged to within ``length`` of it; and whether it was dragged (the point moving away faster
+    than the pull: a move, not a jitter round where it stands)."""
+    dx, dz = px - ax, pz - az
+    d = math.sqrt(dx * dx + dz * dz)
+    if d <= pull:
+        return px, pz, False
+    ax, az, d = ax + dx / d * pull, az + dz / d * pull, d - pull
+    if d < length:
+        return ax, az, False
+    return px - dx / (d + pull) * length, pz - dz / (d + pull) * length, True
+
+
+@jit(inline="always")
+def _moving(g: Any, j: int, fps: float, min_speed: float, free_speed: float, length: float, pull: float,
+            still_frames: float, a: Any) -> Any:
+    """Whether the path moves at its point j, and its direction there: at ``free_speed`` or
+    faster; at ``min_speed`` or faster where it drags the anchor ``length`` behind it
+    (:func:`_leash`) or leaves a stop (still for ``still_frames``) and has not yet. Faced away
+    from the anchor instead, a slow pivot's body lagged its path (mann_dog turn_on_spot, r 0.2 m:
+    a lone stance 1.23 times its gait's longest). ``a``: the anchor's x, z and the frames still,
+    moved on to point j."""
+    dx, dz = _direction(g, j)
+    speed = math.sqrt(dx * dx + dz * dz) * fps
+    still = speed < min_speed
+    a[0], a[1], taut = _leash(a[0], a[1], g[j, 0], g[j, 1], np.inf if still else pull, length)
+    if still:
+        a[2] += 1.0
+    elif taut or a[2] < still_frames:
+        a[2] = 0.0
+    if speed >= free_speed or (not still and a[2] >= still_frames):
+        return True, dx, dz
+    return taut and not still, dx, dz
+
+
 @jit(parallel=True)  # characters side by side: each writes its own rows
-def headings(g: Any, off: int, ends: bool, fps: float, min_speed: float, last_dir: Any, moved: Any,
+def headings(g: Any, off: int, ends: bool, fps: float, min_speed: float, free_speed: float, length: float,
+             pull: float, still_frames: float, start_speed: float, last_dir: Any, moved: Any, anchor: Any,
              held: Any) -> None:
     """Each character's heading direction ``held (C, n, 2)`` over frames ``[t0, t0 + n)``, its path's
     ground points ``g (C, m, 2)`` holding frame t0 at ``off`` and (for a character standing until
-    then) as far ahead as known (``ends``: to the path's end): the path's direction, held where it
-    moves slower than ``min_speed``; before the first move, the first move's; NaN where none is
-    known yet. ``last_dir (C, 2)`` and ``moved (C,)`` carried on."""
+    then) as far ahead as known (``ends``: to the path's end): the path's way where it moves
+    (:func:`_moving`), held elsewhere; before the first move, the first move's; NaN where none is
+    known yet. A simulator's jitter round a standing point, or across a slow start, turned the
+    body 270 deg/s back and forth (edge suite, jitter_10hz): slower than ``free_speed``, only a
+    path dragging an anchor behind it, or starting from a stop, moves; a path moving at
+    ``start_speed`` or faster at its first point starts as from a stop (the low-latency mode knows
+    too few points ahead to find its first move: a dog walking off at once faced +Z, then turned
+    135 deg, a paw alone). ``last_dir (C, 2)``, ``moved (C,)``, ``anchor (C, 3)`` (x NaN: at the
+    first point) carried on."""
     n = held.shape[1]
     for c in prange(g.shape[0]):
         hx, hz = last_dir[c, 0], last_dir[c, 1]
+        a = anchor[c]
+        if math.isnan(a[0]):
+            dx, dz = _direction(g[c], off)
+            a[0], a[1] = g[c, off, 0], g[c, off, 1]
+            a[2] = still_frames if math.sqrt(dx * dx + dz * dz) * fps >= start_speed else 0.0
         first = -1
         for i in range(n):
-            dx, dz = _direction(g[c], off + i)
-            if math.sqrt(dx * dx + dz * dz) * fps >= min_speed:
+            move, dx, dz = _moving(g[c], off + i, fps, min_speed, free_speed, length, pull, still_frames, a)
+            if move:
                 hx, hz = dx, dz
                 if first < 0:
                     first = i
@@ -53,9 +102,10 @@ def headings(g: Any, off: int, ends: bool, fps: float, min_speed: float, last_di
         if first >= 0:
             fx, fz = held[c, first, 0], held[c, first, 1]
         else:
+            ahead = a.copy()
             for j in range(off + n, g.shape[1] if ends else g.shape[1] - 1):
-                dx, dz = _direction(g[c], j)
-                if math.sqrt(dx * dx + dz * dz) * fps >= min_speed:
+                move, dx, dz = _moving(g[c], j, fps, min_speed, free_speed, length, pull, still_frames, ahead)
+                if move:
                     fx, fz = dx, dz
                     break
         for i in range(n if first < 0 else first):

@@ -75,6 +75,15 @@ STAND_SHARE = 0.05
 # or its held points would read as stops.
 STILL_S = 0.2
 MIN_TURN_SPEED = 0.05  # m/s: slower than this the heading holds (a standing animal does not spin)
+# ... and slower than FREE_TURN_SPEED it holds unless the path drags an anchor HOLD_RADIUS (metres)
+# behind it, the anchor drawn toward the path at HOLD_PULL (m/s), or leaves a stop (STILL_S still):
+# a 10 Hz simulator's 2 cm jitter, smoothed, moves 0.3-0.4 m/s back and forth round a standing
+# agent, and the body swung after it at the yaw rate's limit, its planted feet carried 50-79 cm
+# (edge suite, jitter_10hz: a standing horse turned 121 -> 162 -> 3 deg in 70 frames).
+FREE_TURN_SPEED = 1.5
+START_TURN_SPEED = 0.5  # ... and a path this fast at its first point starts as from a stop
+HOLD_RADIUS = 0.05
+HOLD_PULL = 0.04
 # The body turns toward the path's heading at most MAX_YAW_RATE (pivoting, and at a walk: a horse
 # turns on its haunches through 180 deg in about a second, quicker when hurried) and, faster,
 # no faster than MAX_LATERAL allows (v omega, the grip's lateral acceleration: 2.5 g, between a
@@ -258,6 +267,7 @@ class Headings:
         self.moved = np.zeros(characters, bool)  # moved yet (else it faces where it will first go)
         self.last_yaw = np.full(characters, np.nan)  # the yaw of the frame before (NaN: none yet)
         self.last_lean = np.zeros(characters)  # the lean of the frame before
+        self.anchor = np.full((characters, 3), np.nan)  # drawn after the path (heading_kernels._moving)
 
     def advance(self, ground: Floats, off: int, n: int, fps: float, facing: Floats, ends: bool = False,
                 ahead: Callable[[NDArray[np.int64]], Floats] | None = None,
@@ -273,13 +283,16 @@ class Headings:
         root follows, if not ``ground`` (its speed caps the turn: a smoothed path cutting a corner
         is slower through it than the body)."""
         held = np.empty((ground.shape[0], n, 2))
-        self.kernels.headings(ground, off, ends, fps, MIN_TURN_SPEED, self.last_dir, self.moved, held)
+        hold = (MIN_TURN_SPEED, FREE_TURN_SPEED, HOLD_RADIUS, HOLD_PULL / fps, STILL_S * fps,
+                START_TURN_SPEED)
+        anchor = self.anchor.copy()  # as it was, for the ones asked again
+        self.kernels.headings(ground, off, ends, fps, *hold, self.last_dir, self.moved, self.anchor, held)
         unknown = np.flatnonzero(np.isnan(held[:, 0, 0]))  # NaN over every frame before a first move
         if len(unknown) and ahead is not None:  # standing so far: where will they go? (their state
             # is as it was: no move in these frames, so they are asked again, on the longer path)
             again = held[unknown]
-            self.kernels.headings(ahead(unknown), off, ends, fps, MIN_TURN_SPEED, self.last_dir[unknown],
-                                  self.moved[unknown], again)
+            self.kernels.headings(ahead(unknown), off, ends, fps, *hold, self.last_dir[unknown],
+                                  self.moved[unknown], anchor[unknown], again)
             held[unknown] = again
         yaw = np.arctan2(held[..., 0], held[..., 1])
         if len(unknown):
