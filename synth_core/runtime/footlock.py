@@ -83,7 +83,7 @@ STEP_LIFT = 0.15
 # Never less than CLEAR_LEAST (world metres): a swing must leave the band the near-ground
 # glide counts a moving foot in (2.5 cm), which a half-size dog's swings (0.9 cm of clearance)
 # never did; at 2.5 cm a swing only touched its edge at mid-swing and spent its rise and fall in
-# it (half-size dog: glide 0.18 at 2.5 cm, 0.12 at 3.5; the real dog's paws, skimming between
+# it (half-size dog: glide 0.18 at 2.5 cm, 0.16 at 3.5; the real dog's paws, skimming between
 # clip frames, strict skate p95 in its gallop corners 5.4 -> 2.4 mm).
 CLEARANCE = 0.5
 CLEAR_LEAST = 0.035
