@@ -38,9 +38,10 @@ of frames, the animal frozen mid-stride); it leaves standing by the static -> wa
 from the start, once its path moves (chosen on the speed ahead, the transition crept on the spot
 with a hoof up for as long as the path still stood).
 
-The heading follows the path's direction (:class:`Headings`), turning no faster than
-``MAX_YAW_RATE``, and at speed than ``MAX_LATERAL / v``: the root stays on the path, the body lags
-where the path turns faster.
+The heading follows the path's direction (:class:`Headings`) where it moves (a slow path only
+while it drags an anchor ``HOLD_RADIUS`` behind it: a simulator's jitter round a standing agent
+does not turn it), turning no faster than ``MAX_YAW_RATE``, and at speed than ``MAX_LATERAL / v``:
+the root stays on the path, the body lags where the path turns faster.
 """
 
 from __future__ import annotations
