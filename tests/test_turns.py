@@ -36,13 +36,17 @@ def run(animal: str, name: str) -> tuple[edge.Scenario, Result]:
     return sc, synthesize(bank, sc.positions, bank.fps, scales=sc.scales, options=Options(seed=0))
 
 
-def heading_rates_deg(bank: Bank, positions: np.ndarray) -> np.ndarray:
-    """``(..., T - 1)`` deg/s: how fast the body's heading (hips' midpoint to shoulders', over the
-    ground) turns, from world joint positions ``(..., T, J, 3)`` (a roll does not turn it)."""
+def body_heading(bank: Bank, positions: np.ndarray) -> np.ndarray:
+    """``(..., T)`` radians, unwrapped over time: the body's heading (hips' midpoint to shoulders',
+    over the ground) from world joint positions ``(..., T, J, 3)`` (a roll does not turn it)."""
     top = np.array([f.chain[0] for f in bank.skeleton.feet])
     axis = positions[..., top[:2], :].mean(axis=-2) - positions[..., top[2:], :].mean(axis=-2)
-    heading = np.unwrap(np.arctan2(axis[..., 0], axis[..., 2]), axis=-1)
-    return np.asarray(np.abs(np.diff(heading, axis=-1)) * np.degrees(bank.fps))
+    return np.asarray(np.unwrap(np.arctan2(axis[..., 0], axis[..., 2]), axis=-1))
+
+
+def heading_rates_deg(bank: Bank, positions: np.ndarray) -> np.ndarray:
+    """``(..., T - 1)`` deg/s: how fast the body's heading (:func:`body_heading`) turns."""
+    return np.asarray(np.abs(np.diff(body_heading(bank, positions), axis=-1)) * np.degrees(bank.fps))
 
 
 def own_yaw_rate(bank: Bank) -> float:
@@ -232,10 +236,7 @@ def test_a_simulators_jitter_does_not_turn_a_standing_animal(animal: str) -> Non
     After FK: the heading holds while it stands, and every walk frame has two feet down."""
     bank = animal_bank(animal)
     sc, result = run(animal, "jitter_10hz")
-    pos = np.asarray(evaluate.world_positions(bank, result), np.float64)
-    top = np.array([f.chain[0] for f in bank.skeleton.feet])
-    axis = pos[..., top[:2], :].mean(axis=-2) - pos[..., top[2:], :].mean(axis=-2)
-    heading = np.degrees(np.unwrap(np.arctan2(axis[..., 0], axis[..., 2]), axis=-1))
+    heading = np.degrees(body_heading(bank, np.asarray(evaluate.world_positions(bank, result), np.float64)))
     for c in range(len(heading)):  # standing: until the path meant (not the points sent) moves
         moves = np.linalg.norm(np.diff(sc.reference[c][:, [0, 2]], axis=0), axis=-1) > 1e-6
         # (a start, chosen on the speed ahead, may step off a few frames before)

@@ -46,7 +46,7 @@ def _moving(g: Any, j: int, fps: float, min_speed: float, free_speed: float, len
             still_frames: float, a: Any) -> Any:
     """Whether the path moves at its point j, and its direction there: at ``free_speed`` or
     faster; at ``min_speed`` or faster where it drags the anchor ``length`` behind it
-    (:func:`_leash`) or leaves a stop (still for ``still_frames``) and has not yet. Faced away
+    (:func:`_leash`) or has left a stop (still for ``still_frames``) and not dragged it yet. Faced away
     from the anchor instead, a slow pivot's body lagged its path (mann_dog turn_on_spot, r 0.2 m:
     a lone stance 1.23 times its gait's longest). ``a``: the anchor's x, z and the frames still,
     moved on to point j."""
