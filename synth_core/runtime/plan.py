@@ -25,10 +25,11 @@ the current one while its range covers the speed (hysteresis), else one of the g
 time. A transition starts when the stride reaches the phase the clip starts from and plays by
 distance; the next gait picks up at the phase the transition ends in, so the footfall sequence
 carries on across it. Within a gait every speed-map clip has the same frames and contacts, so the
-stride phase runs on (k clip frames per output frame, up to ``MAX_RATE`` faster above the fastest
-clip, down to ``STAND_SHARE`` below the slowest gait's slowest) and the speed only moves the pair
-of clips blended, ``M = (1 - a) M_i + a M_j``. Where a piece starts, the piece before it fades
-out over ``margin`` frames; where it starts within the margin of the one before's start, what
+stride phase runs on (k clip frames per output frame; above its fastest clip, the fastest gait up to
+``MAX_RATE`` faster, a slower one waiting for its transition as fast as the path; down to
+``STAND_SHARE`` below the slowest gait's slowest) and the speed only moves the pair of clips
+blended, ``M = (1 - a) M_i + a M_j``. Where a piece starts, the piece before it fades out over
+``margin`` frames; where it starts within the margin of the one before's start, what
 fades out is the blend shown (the one before over the one before that, each by its nearer row),
 so no piece vanishes in one frame (issue 27: 25-38 cm hoof jumps between two transitions). A
 character whose path stops (slower than a standing one's, or still for ``STILL_S``) stands at
@@ -104,7 +105,7 @@ LEAN_RATE = float(np.radians(90.0))  # rad/s
 GENTLE_LEAN = float(np.radians(3.0))  # rad
 LOOKAHEAD = 2  # segments: gaits are chosen on the speed this far ahead, as transitions take time
 DECISION_SHARE = 4  # gait decisions this many times a segment
-MAX_RATE = 1.6  # a gait asked to go faster than its fastest clip plays its stride up to this fast
+MAX_RATE = 1.6  # the fastest gait asked to go faster than its fastest clip plays its stride up to this fast
 
 
 @dataclass(frozen=True, eq=False)
