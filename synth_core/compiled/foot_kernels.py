@@ -49,12 +49,12 @@ _jit = render_jit
 
 
 @_jit()
-def plant_targets(feet: Any, contacts: Any, out: Any, most: int, pins: Any, pinned: Any, last: int,
-                  body: Any) -> Any:
-    """Foot targets ``out (T, 4, 3)`` of one character from its feet ``(T, 4, 3)`` and ``contacts
-    (T, 4)``: each plant where the foot stands over it (:func:`_plants`); a swinging foot on its
-    own path plus a correction eased (smoothstep) from the one its last plant needed at lift-off
-    to the one its next plant needs at touchdown, over the ground, and clear of it (swing_kernels).
+def plant_targets(feet: Any, soles: Any, contacts: Any, out: Any, most: int, pins: Any, pinned: Any,
+                  last: int, body: Any) -> Any:
+    """Foot targets ``out (T, 4, 3)`` of one character from its feet ``(T, 4, 3)``, their heights
+    as its clips stand them (``soles (T, 4)``: pose_kernels.clip_soles) and ``contacts (T, 4)``:
+    each plant where the foot stands (:func:`_plants`); a swing on its own path plus a correction
+    eased (smoothstep) from its last plant's at lift-off to its next's, clear of the ground (swing_kernels).
     ``most``: a plant's position averages its first so many frames at most (and, ``most`` < T, a
     swing before no plant eases its correction out as there). A target's one-frame jump is then
     eased into a ramp over the swing frames around it (:func:`ease_jumps`; where ``most`` < T,
@@ -92,7 +92,7 @@ def plant_targets(feet: Any, contacts: Any, out: Any, most: int, pins: Any, pinn
     for f in range(4):
         down[:] = contacts[:, f]
         reach = (legs, bends[f], limit, posed, path, lift, yaw, root, 1.0 / h)
-        _plants(feet, down, f, out, most, pins[f], pinned[f], reach, air, steps)
+        _plants(feet, soles, down, f, out, most, pins[f], pinned[f], reach, air, steps)
         swings(feet, down, contacts[:, f], out, f, most, (STEP_HEIGHT * bends[f, 4], h), int(bends[f, 5]),
                pinned[f])
         if most >= T:  # a batch's or the exact live mode's: every frame free
@@ -143,10 +143,10 @@ def held(air: Any, targets: Any, legs: Any, bends: Any, eased: Any, h: float, a:
 
 
 @_jit()
-def _plants(feet: Any, down: Any, f: int, out: Any, most: int, pin: Any, pinned: int, reach: Any,
-            air: Any, steps: bool) -> None:
+def _plants(feet: Any, soles: Any, down: Any, f: int, out: Any, most: int, pin: Any, pinned: int,
+            reach: Any, air: Any, steps: bool) -> None:
     """Foot f's plants at their average places over their first ``most`` frames at most, at their
-    average height unless more than LIFTED_PLANT over their lower quartile where every frame is
+    average height in ``soles`` unless more than LIFTED_PLANT over their lower quartile where every frame is
     free (a fade lifted part of it: then at the quartile); the one through ``pinned`` at ``pin``;
     one the body carries out of reach, stepped (:func:`~synth_core.compiled.replant_kernels.replant`;
     ``reach``: plant_targets' legs, the foot's bends, limit, posed, path and its height's share,
@@ -167,14 +167,14 @@ def _plants(feet: Any, down: Any, f: int, out: Any, most: int, pin: Any, pinned:
         lowest = np.inf
         for u in range(s, s + n):
             acc0 += feet[u, f, 0]
-            acc1 += feet[u, f, 1]
+            acc1 += soles[u, f]
             acc2 += feet[u, f, 2]
-            lowest = min(lowest, feet[u, f, 1])
+            lowest = min(lowest, soles[u, f])
         x, y, z = acc0 / n, acc1 / n, acc2 / n
         lifted = LIFTED_PLANT * reach[8] if most >= T else np.inf  # (world metres over h; low
         # latency: a plant from its first frames, re-read as they leave the context, hovered 7 mm)
         if y - lowest > lifted:  # (else so is the quartile, never under the lowest: no sort)
-            low = np.sort(feet[s:s + n, f, 1])[n // 4]
+            low = np.sort(soles[s:s + n, f])[n // 4]
             y = low if y - low > lifted else y
         if s <= pinned < t:
             x, z = pin[0], pin[2]

@@ -4,10 +4,8 @@ and the foot lock beyond the paper: :mod:`synth_core.runtime.footlock`).
 Character by character in parallel (``prange``), frame by frame in registers, so nothing the size
 of (characters, frames, joints) is made more than once (the output). Numba compiles these
 functions (:func:`synth_core.compiled.jit.render_jit`); :data:`REFERENCE` is the same source --
-these and their helpers in :mod:`~synth_core.compiled.pose_kernels`,
-:mod:`~synth_core.compiled.foot_kernels`, :mod:`~synth_core.compiled.limb_kernels`,
-:mod:`~synth_core.compiled.vec_kernels` and :mod:`~synth_core.compiled.ground_kernels` -- run
-by the interpreter, as the planner's is (slow: for tests and for a machine without numba).
+these and their helpers in the pose, foot, limb, vec and ground kernels' modules -- run by the
+interpreter, as the planner's is (slow: for tests and for a machine without numba).
 ``compiled=False`` asks the wrappers for it; :mod:`synth_core.compiled.backend` names the two.
 
 One character, in four passes over its frames:
@@ -60,13 +58,14 @@ from synth_core.compiled.foot_kernels import (
 from synth_core.compiled.jit import AVAILABLE as AVAILABLE  # callers ask kernels.AVAILABLE
 from synth_core.compiled.jit import interpreted, prange, render_jit, threads
 from synth_core.compiled.limb_kernels import LANES, fk, solve_legs
-from synth_core.compiled.pose_kernels import assemble, root_only
+from synth_core.compiled.pose_kernels import assemble, clip_soles, root_only
 from synth_core.compiled.scratch import Scratch
 from synth_core.compiled.vec_kernels import (
     put,
     q4,
     qmul,
 )
+from synth_core.runtime.bank import standing_heights
 from synth_core.runtime.footlock import MAX_SINK, PAD, STEP_S, TERRAIN_MAX_SINK
 
 if TYPE_CHECKING:
@@ -86,14 +85,13 @@ WHOLE_PLANT = 1 << 62  # plant_frames: a plant's target averages all its frames
 # --- the four passes ---------------------------------------------------------------------------
 
 @_jit()
-def _character(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, yaw: Any, lean: Any, path: Any,
-                    h: float, contacts: Any, parents: Any, offsets: Any, fk_joints: Any, rigs: Any,
-                    bends: Any, sink_limit: float, foot_lock: bool, out_rot: Any, out_root: Any,
-                    world: Any, feet: Any, legs: Any, targets: Any, sink: Any, eased: Any,
-                    keep_from: int, keep_to: int, known_feet: Any, known: int, recent: Any,
-                    recent_known: bool, tilt: Any, tilt_at: int, heights: Any, ground_x0: float,
-                    ground_z0: float, spacing: float, plant_frames: int, pins: Any, pinned: Any,
-                    steps: bool, sent: Any, kept: Any) -> bool:
+def _character(poses: Any, height: Any, surge: Any, paws: Any, rows: Any, weights: Any, yaw: Any, lean: Any,
+               path: Any, h: float, contacts: Any, parents: Any, offsets: Any, fk_joints: Any, rigs: Any,
+               bends: Any, sink_limit: float, foot_lock: bool, out_rot: Any, out_root: Any, world: Any,
+               feet: Any, legs: Any, targets: Any, sink: Any, eased: Any, keep_from: int, keep_to: int,
+               known_feet: Any, known: int, recent: Any, recent_known: bool, tilt: Any, tilt_at: int,
+               heights: Any, ground_x0: float, ground_z0: float, spacing: float, plant_frames: int, pins: Any,
+               pinned: Any, steps: bool, sent: Any, kept: Any) -> bool:
     """All four passes for one character (scratch arrays given). Only frames ``[keep_from, keep_to)``
     are wanted (a window over its foot lock's context): the legs' IK is solved for those alone.
     ``known_feet (T, 4, 3)``: the feet of frames ``[0, known)`` made already (a live session's
@@ -131,7 +129,8 @@ def _character(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, yaw
         known_feet[a:] = feet[a:]
     last = -1 if plant_frames == WHOLE_PLANT or known_feet.shape[0] == 0 else keep_to - 1
     body = (bends, legs, sink_limit, a, path, terrain / h, yaw, out_root, h, steps, keep_from, sent)
-    air = plant_targets(feet, contacts, targets, plant_frames, pins, pinned, last, body)
+    soles = clip_soles(paws, rows, weights, path, terrain, h)
+    air = plant_targets(feet, soles, contacts, targets, plant_frames, pins, pinned, last, body)
     if terrain:
         ground_targets(targets, contacts, heights, ground_x0, ground_z0, spacing, h, sink, plant_frames)
     reach_sink(targets, legs, bends, path, h, terrain, s, T, sink)
@@ -148,12 +147,11 @@ def _character(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, yaw
 
 
 @_jit(parallel=True)
-def _render_all(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, yaw: Any, lean: Any, path: Any,
-                scales: Any, contacts: Any, parents: Any, offsets: Any, fk_joints: Any, rigs: Any,
-                bends: Any, sink_limit: float, foot_lock: bool, out_rot: Any, out_root: Any,
-                w_world: Any, w_feet: Any, w_legs: Any, w_targets: Any, w_sink: Any, w_eased: Any,
-                tilt: Any, heights: Any, ground_x0: float, ground_z0: float, spacing: float,
-                pose: Any, kept: Any) -> None:
+def _render_all(poses: Any, height: Any, surge: Any, paws: Any, rows: Any, weights: Any, yaw: Any, lean: Any,
+                path: Any, scales: Any, contacts: Any, parents: Any, offsets: Any, fk_joints: Any, rigs: Any,
+                bends: Any, sink_limit: float, foot_lock: bool, out_rot: Any, out_root: Any, w_world: Any,
+                w_feet: Any, w_legs: Any, w_targets: Any, w_sink: Any, w_eased: Any, tilt: Any, heights: Any,
+                ground_x0: float, ground_z0: float, spacing: float, pose: Any, kept: Any) -> None:
     """``w_*``: one working set per worker (first axis), reused for its characters: a fresh
     megabyte per character would cost more in page faults than the lock's arithmetic.
     ``pose (C,)``: the characters posed; the others get their root alone (:func:`root_only`)
@@ -172,7 +170,7 @@ def _render_all(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, ya
                 kept[c] = contacts[c]
                 continue
             own_tilt = tilt[c] if heights.shape[0] > 0 else tilt[0]
-            _character(poses, height, surge, rows[c], weights[c], yaw[c], lean[c], path[c], scales[c],
+            _character(poses, height, surge, paws, rows[c], weights[c], yaw[c], lean[c], path[c], scales[c],
                        contacts[c], parents, offsets, fk_joints, rigs, bends, sink_limit, foot_lock,
                        out_rot[c], out_root[c], world, feet, legs, targets, sink, eased, 0,
                        out_rot.shape[1], none_known, 0, recent, False, own_tilt, 0, heights, ground_x0,
@@ -180,9 +178,9 @@ def _render_all(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, ya
 
 
 @_jit(parallel=True)
-def _render_windows(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, yaw: Any, lean: Any,
-                    path: Any, scales: Any, contacts: Any, parents: Any, offsets: Any, fk_joints: Any,
-                    rigs: Any, bends: Any, sink_limit: float, foot_lock: bool, workers: int,
+def _render_windows(poses: Any, height: Any, surge: Any, paws: Any, rows: Any, weights: Any, yaw: Any,
+                    lean: Any, path: Any, scales: Any, contacts: Any, parents: Any, offsets: Any,
+                    fk_joints: Any, rigs: Any, bends: Any, sink_limit: float, foot_lock: bool, workers: int,
                     begin: Any, end: Any, start: int, out_rot: Any, out_root: Any, tilt: Any, heights: Any,
                     ground_x0: float, ground_z0: float, spacing: float, pose: Any, known_feet: Any,
                     known: Any, known_legs: Any, legs_at: Any, pins: Any, pinned: Any, sent: Any,
@@ -221,12 +219,13 @@ def _render_windows(poses: Any, height: Any, surge: Any, rows: Any, weights: Any
             own_tilt = tilt[c] if heights.shape[0] > 0 else tilt[0]
             own_legs = known_legs[c] if keep else no_recent
             pinned[c] -= b  # in the context's frames
-            made = _character(poses, height, surge, rows[c, b:e], weights[c, b:e], yaw[c, b:e], lean[c, b:e],
-                              path[c, b:e], scales[c], contacts[c, b:e], parents, offsets, fk_joints, rigs,
-                              bends, sink_limit, foot_lock, rot[:k], root[:k], world, feet[:k], legs[:k],
-                              targets[:k], sink[:k], eased[:k], start - b, start - b + n, known_feet[b:e, c],
-                              kn, own_legs, recent_known, own_tilt, b, heights, ground_x0, ground_z0, spacing,
-                              plant_frames, pins[c], pinned[c], steps, (sent[c], sent_at[c] - b), kept[c])
+            made = _character(poses, height, surge, paws, rows[c, b:e], weights[c, b:e], yaw[c, b:e],
+                              lean[c, b:e], path[c, b:e], scales[c], contacts[c, b:e], parents, offsets,
+                              fk_joints, rigs, bends, sink_limit, foot_lock, rot[:k], root[:k], world,
+                              feet[:k], legs[:k], targets[:k], sink[:k], eased[:k], start - b, start - b + n,
+                              known_feet[b:e, c], kn, own_legs, recent_known, own_tilt, b, heights, ground_x0,
+                              ground_z0, spacing, plant_frames, pins[c], pinned[c], steps,
+                              (sent[c], sent_at[c] - b), kept[c])
             pinned[c] += b
             sent_at[c] = start + n - 1  # sent[c]: the targets of its last two frames (none kept: not read)
             out_rot[c] = rot[start - b:start - b + n]
@@ -273,9 +272,10 @@ def _plan_arrays(plan: Plan) -> tuple[Any, Any, Any, Any, Any, Any, Any]:
 
 
 @functools.lru_cache(maxsize=8)
-def _bank_tables(bank: Bank) -> tuple[tuple[Any, Any, Any], tuple[Any, Any, Any, Any, Any, float]]:
+def _bank_tables(bank: Bank) -> tuple[tuple[Any, Any, Any, Any], tuple[Any, Any, Any, Any, Any, float]]:
     """The bank's arrays as the kernels take them (made once per bank: a small batch's call
-    would otherwise spend a third of its time here): (pose table, heights, surges) and (parents,
+    would otherwise spend a third of its time here): (pose table, heights, surges, each row's feet's
+    standing heights: pose_kernels.clip_soles) and (parents,
     offsets, the joints above the feet (FK needs no others), the legs' rig table, bend axes and
     ranges (``(4, 6)``: the axis for limb_kernels.solve_legs, the furthest fold's cosine and the
     longest reach (ik.leg_ranges) for the sink and the IK's reach, the frames of a step replanting a
@@ -290,7 +290,8 @@ def _bank_tables(bank: Bank) -> tuple[tuple[Any, Any, Any], tuple[Any, Any, Any,
             needed[j] = True
             j = int(sk.parents[j])
     poses = np.ascontiguousarray(bank.poses.transpose(0, 2, 1))  # components first: see nlerp_into
-    return ((poses, bank.height.astype(np.float64), bank.surge.astype(np.float64)),
+    return ((poses, bank.height.astype(np.float64), bank.surge.astype(np.float64),
+             np.ascontiguousarray(standing_heights(bank), np.float64)),
             (sk.parents.astype(np.int64), sk.offsets.astype(np.float64),
              np.flatnonzero(needed).astype(np.int64), rig_table,
              np.concatenate([bank.bends, leg_ranges(sk, bank.poses, rigs),
@@ -299,7 +300,7 @@ def _bank_tables(bank: Bank) -> tuple[tuple[Any, Any, Any], tuple[Any, Any, Any,
 
 
 def _sink_limit(bank: Bank, ground: Grounding | None
-                ) -> tuple[tuple[Any, Any, Any], tuple[Any, Any, Any, Any, Any, float]]:
+                ) -> tuple[tuple[Any, Any, Any, Any], tuple[Any, Any, Any, Any, Any, float]]:
     """:func:`_bank_tables`, the sink limit that on a terrain (footlock.TERRAIN_MAX_SINK)."""
     table, skeleton = _bank_tables(bank)
     if ground is None:

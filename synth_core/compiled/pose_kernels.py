@@ -73,6 +73,29 @@ def _put_root(ht: float, sg: float, yaw: float, path: Any, h: float, out: Any) -
 
 
 @_jit()
+def clip_soles(paws: Any, rows: Any, weights: Any, path: Any, terrain: bool, h: float) -> Any:
+    """Each foot's standing height ``(T, 4)`` as the frame's clips have it: its rows' (``paws (K,
+    4)``, bank.standing_heights) blended linearly by the weights the pose is blended by, in the
+    feet's unit space (:func:`~synth_core.compiled.foot_kernels.measure_feet`: over the path's
+    height, on a terrain over the body's ground). A plant stands there, not at its frames' FK:
+    a pose blended from two frames apart in a stance (a piece fading out, held on its last frame,
+    while the next plays on) swings the planted leg through the chord between them, and FK put the
+    foot up to 4 cm under either frame's (the real dog accelerating through its walk), while a
+    row lifting the foot raised it."""
+    out = np.empty((rows.shape[0], 4))
+    for t in range(rows.shape[0]):
+        r0, r1, p0, p1 = rows[t, 0], rows[t, 1], rows[t, 2], rows[t, 3]
+        w, pw, keep = weights[t, 0], weights[t, 1], weights[t, 2]
+        base = 0.0 if terrain else path[t, 1] / h
+        for f in range(4):
+            v = paws[r0, f] * (1 - w) + paws[r1, f] * w
+            if keep > 0:
+                v = v * (1 - keep) + (paws[p0, f] * (1 - pw) + paws[p1, f] * pw) * keep
+            out[t, f] = base + v
+    return out
+
+
+@_jit()
 def root_only(height: Any, surge: Any, rows: Any, weights: Any, yaw: Any, path: Any, h: float,
                out_root: Any) -> None:
     """Pass 1's root alone (:func:`assemble` without the pose): a character at root_gait detail,

@@ -34,7 +34,7 @@ from synth_core.build.speed_map import cycle_displacement
 from synth_core.motion import quat
 from synth_core.motion.clip import Motion
 from synth_core.motion.mirror import FOOT_SWAP, mirror_poses, skeleton_mirror
-from synth_core.motion.skeleton import Skeleton
+from synth_core.motion.skeleton import Skeleton, forward_kinematics
 
 Floats = NDArray[np.float64]
 STATIC = 0  # hub index of standing
@@ -222,3 +222,39 @@ def build_bank(library: Library, mirror: bool = True) -> Bank:
     return Bank(library.skeleton, library.fps, poses, height.astype(np.float32), surge.astype(np.float32),
                 contacts, tuple(h for h in HUBS if h == "static" or h in library.maps),
                 gaits, speeds, idle, transitions, distance, creep, bends, ground, half)
+
+
+def standing_heights(bank: Bank) -> Floats:
+    """``(K, 4)`` each row's feet's standing heights over the ground they plant on: per plant of
+    each clip (a speed map's, the idle, a transition; their mirror images apart), the foot's low
+    tenth of its heights over the plant (FK of the rows, the root at ``height``: a paw rolling on
+    its pad, its toe's end site rises); a row between plants, its clip's nearest plant's. A mocap
+    paw stands higher in one take than in another (the real dog's right hind: 0.9 cm over its
+    clips, 2 cm in its walk), and a transition goes from one take's to the other's."""
+    root = np.zeros((len(bank.poses), 3))
+    root[:, UP_AXIS] = bank.height
+    feet = forward_kinematics(bank.skeleton, root, bank.poses)[0][:, bank.skeleton.foot_joints]
+    raw = np.asarray(feet[..., UP_AXIS], np.float64)
+    out = raw.copy()
+    for piece in [bank.idle, *bank.gaits.values(), *bank.transitions.values()]:
+        for half in ({0, bank.mirror} if bank.mirror else {0}):
+            for k in range(piece.clips):
+                first = half + piece.offset + k * piece.frames
+                for f in range(4):
+                    _stand(raw[first:first + piece.frames, f], bank.contacts[first:first + piece.frames, f],
+                           out[first:first + piece.frames, f])
+    return out
+
+
+def _stand(heights: Floats, down: NDArray[np.bool_], out: Floats) -> None:
+    """One clip's foot: each plant at the low tenth of its ``heights``, frames between at the
+    nearest plant's (``out``, in place; a foot never planted keeps its own heights)."""
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], down.astype(np.int8), [0]])))
+    if not len(edges):
+        return
+    starts, stops = edges[::2], edges[1::2]
+    levels = np.array([np.percentile(heights[a:b], 10.0) for a, b in zip(starts, stops, strict=True)])
+    frames = np.arange(len(heights))
+    # The nearest plant of each frame: its distance to each plant's span.
+    gap = np.maximum(starts[None, :] - frames[:, None], frames[:, None] - (stops[None, :] - 1))
+    out[:] = levels[np.argmin(np.maximum(gap, 0), axis=1)]
