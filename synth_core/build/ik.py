@@ -117,19 +117,16 @@ def bend_axes(skeleton: Skeleton, rotations: NDArray[np.floating],
                                pos[..., r.ankle, :] - pos[..., r.hinge, :], root_rot) for r in rigs])
 
 
-def leg_ranges(skeleton: Skeleton, rotations: NDArray[np.floating],
-                 rigs: tuple[LimbRig, ...] | None = None) -> Floats:
-    """Each leg's range over poses ``(..., J, 4)``, ``(4, 2)``: its furthest fold, the least cosine
-    of the angle between thigh and shin (1: straight, -1: the shin folded back onto the thigh),
-    and its longest reach, upper joint to ankle (the poses' unit). The render's sink lowers the
-    body no further than lets every leg reach its target folded no more than this, nor raises it
-    for that further than every leg reaches its own within the longest (foot_kernels.fold_room);
+def leg_ranges(positions: NDArray[np.floating], rigs: tuple[LimbRig, ...]) -> Floats:
+    """Each leg's range, ``(4, 2)``, over poses (their joints' positions ``(..., J, 3)``): its
+    furthest fold, the least cosine of the angle between thigh and shin (1: straight, -1: the
+    shin folded back onto the thigh), and its longest reach, upper joint to ankle (the poses'
+    unit). The render's sink lowers the body no further than lets every leg reach its target
+    folded no more than this, nor raises it for that further than every leg reaches its own
+    within the longest (foot_kernels.fold_room);
     it sinks it where a leg would reach past the longest and footlock.LONGEST_OVER, and the IK
     reaches no further (foot_kernels.reach_sink, limb_kernels.solve_legs)."""
-    rigs = limb_rigs(skeleton) if rigs is None else rigs
-    rotations = np.asarray(rotations, np.float64)
-    pos = np.asarray(forward_kinematics(skeleton, np.zeros((*rotations.shape[:-2], 3)), rotations)[0],
-                     np.float64)
+    pos = np.asarray(positions, np.float64)
     out = np.empty((len(rigs), 2))
     for k, r in enumerate(rigs):
         thigh, shin = pos[..., r.hinge, :] - pos[..., r.upper, :], pos[..., r.ankle, :] - pos[..., r.hinge, :]

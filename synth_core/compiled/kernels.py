@@ -65,7 +65,7 @@ from synth_core.compiled.vec_kernels import (
     q4,
     qmul,
 )
-from synth_core.runtime.bank import standing_heights
+from synth_core.runtime.bank import standing_heights, table_positions
 from synth_core.runtime.footlock import MAX_SINK, PAD, STEP_S, TERRAIN_MAX_SINK
 
 if TYPE_CHECKING:
@@ -289,12 +289,12 @@ def _bank_tables(bank: Bank) -> tuple[tuple[Any, Any, Any, Any], tuple[Any, Any,
         while j >= 0:
             needed[j] = True
             j = int(sk.parents[j])
-    poses = np.ascontiguousarray(bank.poses.transpose(0, 2, 1))  # components first: see nlerp_into
+    poses, pos = np.ascontiguousarray(bank.poses.transpose(0, 2, 1)), table_positions(bank)  # (nlerp_into)
     return ((poses, bank.height.astype(np.float64), bank.surge.astype(np.float64),
-             np.ascontiguousarray(standing_heights(bank), np.float64)),
+             np.ascontiguousarray(standing_heights(bank, pos), np.float64)),
             (sk.parents.astype(np.int64), sk.offsets.astype(np.float64),
              np.flatnonzero(needed).astype(np.int64), rig_table,
-             np.concatenate([bank.bends, leg_ranges(sk, bank.poses, rigs),
+             np.concatenate([bank.bends, leg_ranges(pos, rigs),
                              np.full((4, 1), max(round(STEP_S * bank.fps), 1))], axis=1),
              MAX_SINK * sk.leg_length()))
 

@@ -224,37 +224,54 @@ def build_bank(library: Library, mirror: bool = True) -> Bank:
                 gaits, speeds, idle, transitions, distance, creep, bends, ground, half)
 
 
-def standing_heights(bank: Bank) -> Floats:
+def table_positions(bank: Bank) -> Floats:
+    """``(K, J, 3)`` every row's joints (float64), its root at ``height`` over its feet's ground."""
+    root = np.zeros((len(bank.poses), 3))
+    root[:, UP_AXIS] = bank.height
+    return np.asarray(forward_kinematics(bank.skeleton, root, bank.poses.astype(np.float64))[0])
+
+
+def standing_heights(bank: Bank, positions: Floats) -> Floats:
     """``(K, 4)`` each row's feet's standing heights over the ground they plant on: per plant of
     each clip (a speed map's, the idle, a transition; their mirror images apart), the foot's low
-    tenth of its heights over the plant (FK of the rows, the root at ``height``: a paw rolling on
+    tenth of its heights over the plant (``positions``: :func:`table_positions`; a paw rolling on
     its pad, its toe's end site rises); a row between plants, its clip's nearest plant's. A mocap
     paw stands higher in one take than in another (the real dog's right hind: 0.9 cm over its
     clips, 2 cm in its walk), and a transition goes from one take's to the other's."""
-    root = np.zeros((len(bank.poses), 3))
-    root[:, UP_AXIS] = bank.height
-    feet = forward_kinematics(bank.skeleton, root, bank.poses)[0][:, bank.skeleton.foot_joints]
-    raw = np.asarray(feet[..., UP_AXIS], np.float64)
-    out = raw.copy()
+    raw = np.asarray(positions[:, bank.skeleton.foot_joints, UP_AXIS], np.float64)
+    starts = np.zeros(len(raw), bool)  # each clip's first row
+    starts[0] = True
     for piece in [bank.idle, *bank.gaits.values(), *bank.transitions.values()]:
         for half in ({0, bank.mirror} if bank.mirror else {0}):
-            for k in range(piece.clips):
-                first = half + piece.offset + k * piece.frames
-                for f in range(4):
-                    _stand(raw[first:first + piece.frames, f], bank.contacts[first:first + piece.frames, f],
-                           out[first:first + piece.frames, f])
+            starts[half + piece.offset + piece.frames * np.arange(piece.clips)] = True
+    return np.stack([_stand(raw[:, f], bank.contacts[:, f], starts) for f in range(4)], axis=1)
+
+
+def _stand(heights: Floats, down: NDArray[np.bool_], starts: NDArray[np.bool_]) -> Floats:
+    """One foot over the table: each plant (a run of ``down`` within a clip) at the low tenth of
+    its ``heights`` (as np.percentile), a row between plants at its clip's nearest plant's (the
+    earlier on a tie), a clip where the foot is never down at its own heights."""
+    if not down.any():
+        return heights.copy()
+    rows = np.arange(len(heights))
+    begins = down & (starts | ~np.concatenate([[False], down[:-1]]))
+    run = np.cumsum(begins) - 1
+    ids, values = run[down], heights[down]
+    ordered = values[np.lexsort((values, ids))]
+    counts = np.bincount(ids)
+    first = np.concatenate([[0], np.cumsum(counts)[:-1]])
+    at = 0.1 * (counts - 1)
+    low = np.floor(at).astype(np.int64)
+    high = np.minimum(low + 1, counts - 1)
+    level = ordered[first + low] + (at - low) * (ordered[first + high] - ordered[first + low])
+    clip = np.cumsum(starts) - 1
+    before = np.maximum.accumulate(np.where(down, rows, -1))
+    after = np.minimum.accumulate(np.where(down, rows, len(rows))[::-1])[::-1]
+    has_before = (before >= 0) & (clip[np.maximum(before, 0)] == clip)
+    has_after = (after < len(rows)) & (clip[np.minimum(after, len(rows) - 1)] == clip)
+    use_before = has_before & (~has_after | (rows - before <= after - rows))
+    out = heights.copy()
+    out[use_before] = level[run[before[use_before]]]
+    use_after = has_after & ~use_before
+    out[use_after] = level[run[after[use_after]]]
     return out
-
-
-def _stand(heights: Floats, down: NDArray[np.bool_], out: Floats) -> None:
-    """One clip's foot: each plant at the low tenth of its ``heights``, frames between at the
-    nearest plant's (``out``, in place; a foot never planted keeps its own heights)."""
-    edges = np.flatnonzero(np.diff(np.concatenate([[0], down.astype(np.int8), [0]])))
-    if not len(edges):
-        return
-    starts, stops = edges[::2], edges[1::2]
-    levels = np.array([np.percentile(heights[a:b], 10.0) for a, b in zip(starts, stops, strict=True)])
-    frames = np.arange(len(heights))
-    # The nearest plant of each frame: its distance to each plant's span.
-    gap = np.maximum(starts[None, :] - frames[:, None], frames[:, None] - (stops[None, :] - 1))
-    out[:] = levels[np.argmin(np.maximum(gap, 0), axis=1)]
