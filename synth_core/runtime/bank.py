@@ -237,7 +237,8 @@ def standing_heights(bank: Bank, positions: Floats) -> Floats:
     tenth of its heights over the plant (``positions``: :func:`table_positions`; a paw rolling on
     its pad, its toe's end site rises); a row between plants, its clip's nearest plant's. A mocap
     paw stands higher in one take than in another (the real dog's right hind: 0.9 cm over its
-    clips, 2 cm in its walk), and a transition goes from one take's to the other's."""
+    clips, 2 cm in its walk), and a transition goes from one take's to the other's. Rows past the
+    pieces (the on-the-fly baseline's clips made at run time) are read as one clip."""
     raw = np.asarray(positions[:, bank.skeleton.foot_joints, UP_AXIS], np.float64)
     starts = np.zeros(len(raw), bool)  # each clip's first row
     starts[0] = True

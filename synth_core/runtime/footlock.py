@@ -89,11 +89,12 @@ CLEARANCE = 0.5
 CLEAR_LEAST = 0.035
 CLEAR_UP = 0.25
 CLEAR_DOWN = 0.4
-# A plant stands at its frames' average height, unless that is more than LIFTED_PLANT (world
+# A plant stands at its frames' average standing height (the heights its clips stand the foot
+# at, blended as the pose is: pose_kernels.clip_soles), unless that is more than LIFTED_PLANT (world
 # metres) over their lower quartile: then part of it was lifted -- a finished transition's last
 # frame fading out under the gait held the horse's trot pair 16-20 mm up for a whole plant
 # (corner_gallop), read as not down after FK -- and it stands at the lower quartile. A real dog's
-# paw rolling on its pad spreads less, and its average is the gait's standing height. Batch and
+# paw rolling on its pad stands at its clip plant's low tenth (bank.standing_heights). Batch and
 # the exact live mode only: the low-latency mode's plants are their first frames' (its horse's
 # plants hovered 7 mm, 26 in corner_gallop, with it).
 LIFTED_PLANT = 0.01
