@@ -128,7 +128,7 @@ def _targets(feet: np.ndarray, contacts: np.ndarray, most: int, compiled: bool =
     # Every frame counted as sent before: the plants and swings alone, no jump eased on any
     # (jump_kernels.ease_unsent: tests/test_stitch_jumps.py for ease_jumps).
     body = (*foot_kernels.no_steps(len(feet))[:-2], len(feet), (np.zeros((2, 4, 3)), foot_kernels.NOWHERE))
-    up = run(feet, contacts, out, most, pins, pinned, last, body)
+    up = run(feet, np.ascontiguousarray(feet[..., 1]), contacts, out, most, pins, pinned, last, body)
     if air is not None:
         air[:] = up
     return out
@@ -230,8 +230,9 @@ def test_a_swing_eases_out_a_held_plants_correction_before_its_next_plant_is_pla
     for k in range(T - lag):  # each window: the frames planned so far, the last one sent pinned
         out = np.empty((k + lag + 1, 4, 3))
         body[-2:] = k, (kept, k - 1)  # frame k sent now, those before it by earlier windows
-        foot_kernels.plant_targets(feet[:k + lag + 1], contacts[:k + lag + 1], out, 3, pins, pinned, k,
-                                   tuple(body))
+        seen = feet[:k + lag + 1]
+        soles = np.ascontiguousarray(seen[..., 1])  # the clips stand each foot where it is
+        foot_kernels.plant_targets(seen, soles, contacts[:k + lag + 1], out, 3, pins, pinned, k, tuple(body))
         sent[k] = out[k]
     assert np.abs(sent[90:, 0, 0] - 1.6).max() < 1e-9  # the next plant where the clip sets it down
     assert M.one_frame_jumps_mm(sent[:, :1]).max() <= 60.0

@@ -108,8 +108,10 @@ def test_plant_targets_hold_each_plant_in_one_place() -> None:
     contacts[:, 10:25] = contacts[:, 40:55] = True
     targets = np.empty_like(feet)
     for c in range(2):
-        foot_kernels.plant_targets(feet[c], contacts[c], targets[c], kernels.WHOLE_PLANT, np.zeros((4, 3)),
-                                   np.full(4, foot_kernels.NOWHERE), -1, foot_kernels.no_steps(60))
+        soles = np.ascontiguousarray(feet[c, ..., 1])  # the clips stand each foot where it is
+        foot_kernels.plant_targets(feet[c], soles, contacts[c], targets[c], kernels.WHOLE_PLANT,
+                                   np.zeros((4, 3)), np.full(4, foot_kernels.NOWHERE), -1,
+                                   foot_kernels.no_steps(60))
     for a, b in ((10, 25), (40, 55)):
         for c, f in np.ndindex(2, 4):
             assert np.allclose(targets[c, a:b, f], plant_stands(feet[c, a:b, f]))
@@ -124,7 +126,8 @@ def _targets(feet: np.ndarray, contacts: np.ndarray, leg: float) -> np.ndarray:
     body[0] = np.zeros((4, 6))
     body[0][:, 4] = leg  # each leg's reach: the swing's clearance is a share of it
     targets = np.empty_like(feet)
-    foot_kernels.plant_targets(feet, contacts, targets, kernels.WHOLE_PLANT, np.zeros((4, 3)),
+    soles = np.ascontiguousarray(feet[..., 1])  # the clips stand each foot where it is
+    foot_kernels.plant_targets(feet, soles, contacts, targets, kernels.WHOLE_PLANT, np.zeros((4, 3)),
                                np.full(4, foot_kernels.NOWHERE), -1, tuple(body))
     return targets
 
