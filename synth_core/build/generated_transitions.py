@@ -34,9 +34,9 @@ def _heading(motion: Motion) -> float:
 
 def _turned(motion: Motion, yaw: float, start: np.ndarray) -> Motion:
     """The motion turned by ``yaw`` about +Y around its first root position, moved over ``start``
-    on the ground: its root keeps its own heights (moved to ``start``'s, the second clip stood
-    every paw as high as the first's root was over its own at the switch: the real dog's
-    generated trot2canter 15 mm up, and its plants with it)."""
+    on the ground: its root keeps its own heights (moved to ``start``'s height too, a transition's
+    second clip stood every paw as far up or down as the two roots' heights differed at the
+    switch: the real dog's generated trot2canter 15 mm over the canter's soles)."""
     q = quat.from_axis_angle(np.array([0.0, 1.0, 0.0]), yaw)
     start = np.array(start, np.float64)
     start[UP_AXIS] = motion.root_pos[0, UP_AXIS]
