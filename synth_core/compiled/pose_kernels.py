@@ -48,17 +48,23 @@ def assemble(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, yaw: 
 
 
 @_jit(inline="always")
+def _blend(a0: float, a1: float, b0: float, b1: float, w: float, pw: float, keep: float) -> float:
+    """A value of a frame's table rows blended as its pose is: its rows' ``a0``, ``a1`` by ``w``,
+    over the piece fading out's ``b0``, ``b1`` (by ``pw``) by ``keep``."""
+    v = a0 * (1 - w) + a1 * w
+    if keep > 0:
+        v = v * (1 - keep) + (b0 * (1 - pw) + b1 * pw) * keep
+    return v
+
+
+@_jit(inline="always")
 def _height_surge(height: Any, surge: Any, row: Any, weight: Any) -> tuple[float, float]:
     """A frame's root height and surge blended from its table rows ``row`` (r0, r1, and the piece
     fading out: p0, p1) by ``weight`` (w, pw, keep), as its pose is."""
     r0, r1, p0, p1 = row[0], row[1], row[2], row[3]
     w, pw, keep = weight[0], weight[1], weight[2]
-    ht = height[r0] * (1 - w) + height[r1] * w
-    sg = surge[r0] * (1 - w) + surge[r1] * w
-    if keep > 0:
-        ht = ht * (1 - keep) + (height[p0] * (1 - pw) + height[p1] * pw) * keep
-        sg = sg * (1 - keep) + (surge[p0] * (1 - pw) + surge[p1] * pw) * keep
-    return ht, sg
+    return (_blend(height[r0], height[r1], height[p0], height[p1], w, pw, keep),
+            _blend(surge[r0], surge[r1], surge[p0], surge[p1], w, pw, keep))
 
 
 @_jit()
@@ -88,10 +94,7 @@ def clip_soles(paws: Any, rows: Any, weights: Any, path: Any, terrain: bool, h: 
         w, pw, keep = weights[t, 0], weights[t, 1], weights[t, 2]
         base = 0.0 if terrain else path[t, 1] / h
         for f in range(4):
-            v = paws[r0, f] * (1 - w) + paws[r1, f] * w
-            if keep > 0:
-                v = v * (1 - keep) + (paws[p0, f] * (1 - pw) + paws[p1, f] * pw) * keep
-            out[t, f] = base + v
+            out[t, f] = base + _blend(paws[r0, f], paws[r1, f], paws[p0, f], paws[p1, f], w, pw, keep)
     return out
 
 

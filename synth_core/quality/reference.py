@@ -9,10 +9,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from synth_core import UP_AXIS
-from synth_core.motion.skeleton import forward_kinematics
 from synth_core.quality import metrics as M
-from synth_core.runtime.bank import STATIC, Bank, Piece
+from synth_core.runtime.bank import STATIC, Bank, Piece, table_positions
 from synth_core.runtime.synthesis import N_HUBS
 
 Floats = NDArray[np.float64]
@@ -59,9 +57,7 @@ def _lead(bank: Bank, first: int) -> tuple[Floats, Floats, Floats, NDArray[np.bo
     ``[first, first + bank.own)``: the library's own clips, or their mirror images."""
     sk = bank.skeleton
     own = slice(first, first + bank.own)
-    root = np.zeros((bank.own, 3))
-    root[:, UP_AXIS] = bank.height[own]
-    pos = np.asarray(forward_kinematics(sk, root, bank.poses[own])[0], np.float64)
+    pos = table_positions(bank, own)
     # The root stands at bank.height, already over the clips' ground (build_bank subtracts it):
     # taking bank.ground off again put every sole that much low (the real dog's 2.7 mm), and
     # every paw the synthesis plants on its sole read 2.7 mm up -- lifting off and landing a frame

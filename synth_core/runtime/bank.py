@@ -224,11 +224,13 @@ def build_bank(library: Library, mirror: bool = True) -> Bank:
                 gaits, speeds, idle, transitions, distance, creep, bends, ground, half)
 
 
-def table_positions(bank: Bank) -> Floats:
-    """``(K, J, 3)`` every row's joints (float64), its root at ``height`` over its feet's ground."""
-    root = np.zeros((len(bank.poses), 3))
-    root[:, UP_AXIS] = bank.height
-    return np.asarray(forward_kinematics(bank.skeleton, root, bank.poses.astype(np.float64))[0])
+def table_positions(bank: Bank, rows: slice = slice(None)) -> Floats:
+    """``(K, J, 3)`` the joints of the table's ``rows`` (float64), each root at ``height`` over its
+    feet's ground."""
+    height = bank.height[rows]
+    root = np.zeros((len(height), 3))
+    root[:, UP_AXIS] = height
+    return np.asarray(forward_kinematics(bank.skeleton, root, bank.poses[rows].astype(np.float64))[0])
 
 
 def standing_heights(bank: Bank, positions: Floats) -> Floats:
