@@ -71,6 +71,22 @@ def own_yaw_rate(bank: Bank) -> float:
 
 
 @pytest.mark.parametrize("animal", ANIMALS)
+def test_a_simulators_jitter_does_not_swing_the_body(animal: str) -> None:
+    """A 10 Hz simulator's held, 2 cm-noisy points along a 15 m curve: while it moves, the body
+    turns as the clean curve does, plus the clips' own body swing (a lean's roll too) -- read
+    across the path, not one frame's step of it, the noise swung it 150-270 deg/s (p95)."""
+    bank = animal_bank(animal)
+    sc, result = run(animal, "jitter_10hz")
+    rate = heading_rates_deg(bank, np.asarray(evaluate.world_positions(bank, result), np.float64))
+    step = np.diff(np.asarray(sc.reference)[result.kept][..., [0, 2]], axis=1)
+    way = np.unwrap(np.arctan2(step[..., 0], step[..., 1]), axis=1)
+    clean = np.abs(np.degrees(np.diff(way, axis=1))) * bank.fps  # (C, T - 2): frame t -> t + 1
+    moving = np.linalg.norm(step[:, 1:], axis=-1) * bank.fps > 0.5
+    body = float(np.percentile(rate[:, :clean.shape[1]][moving], 95))
+    assert body <= float(np.percentile(clean[moving], 95)) + own_yaw_rate(bank) + 1.0, body
+
+
+@pytest.mark.parametrize("animal", ANIMALS)
 @pytest.mark.parametrize("name", ["turn_on_spot", "uturn_gallop", "jitter_10hz"])
 def test_the_body_turns_no_faster_than_a_body_can(animal: str, name: str) -> None:
     """Leaving at 90 and 180 degrees from a stand, U-turns at a gallop on radii of 0.5-5 m, a
@@ -87,7 +103,8 @@ def test_the_body_turns_no_faster_than_a_body_can(animal: str, name: str) -> Non
     over = rate - (cap * 1.05 + own_yaw_rate(bank) + 1.0)
     c, t = np.unravel_index(int(np.argmax(over)), over.shape)
     assert over.max() <= 0, (c, t, rate[c, t], cap[c, t])
-    assert rate.max() > 0.9 * np.degrees(min(MAX_YAW_RATE, MAX_LATERAL / v.max()))  # it does turn, at the cap
+    if name != "jitter_10hz":  # it does turn, at the cap (the jitter's curve is gentle: below)
+        assert rate.max() > 0.9 * np.degrees(min(MAX_YAW_RATE, MAX_LATERAL / v.max()))
     # The root stays on the path it was given (the body's surge along its heading aside).
     path = M.path_distance_cm(result.root_pos.astype(np.float64), np.asarray(sc.reference)[result.kept])
     clean = evaluate.edge_figures(bank, result, sc.reference, sc.positions.shape[1],

@@ -26,6 +26,30 @@ def _direction(g: Any, j: int) -> Any:
     return (g[j + 1, 0] - g[j - 1, 0]) / 2.0, (g[j + 1, 1] - g[j - 1, 1]) / 2.0
 
 
+# The way a path goes is read across this much of it (metres each side, at most CHORD_FRAMES
+# frames each side): one frame's step of a 10 Hz simulator's held, 2 cm-noisy points swung a
+# walking horse's body 10 degrees to and fro (edge suite jitter_10hz: yaw 130 deg/s p95 on a
+# 15 m curve). A chord centred on a point of a circle is parallel to its tangent there.
+CHORD = 0.25
+CHORD_FRAMES = 15
+
+
+@jit(inline="always")
+def _way(g: Any, j: int, dx: float, dz: float, chord_frames: int) -> Any:
+    """The path's direction at its point j (:func:`_direction`'s ``dx, dz``, its length kept)
+    read across about CHORD of it each side at its pace there, within ``chord_frames`` (at most
+    CHORD_FRAMES; 1: one step) and the path."""
+    d = math.sqrt(dx * dx + dz * dz)
+    k = min(j, g.shape[0] - 1 - j, chord_frames, int(math.ceil(CHORD / max(d, 1e-9))))
+    if k <= 1:
+        return dx, dz
+    cx, cz = g[j + k, 0] - g[j - k, 0], g[j + k, 1] - g[j - k, 1]
+    c = math.sqrt(cx * cx + cz * cz)
+    if c <= 0.0:
+        return dx, dz
+    return cx * d / c, cz * d / c
+
+
 @jit(inline="always")
 def _leash(ax: float, az: float, px: float, pz: float, pull: float, length: float) -> Any:
     """The anchor ``(ax, az)`` moved ``pull`` toward the point ``(px, pz)`` (no further), then
@@ -43,7 +67,7 @@ def _leash(ax: float, az: float, px: float, pz: float, pull: float, length: floa
 
 @jit(inline="always")
 def _moving(g: Any, j: int, fps: float, min_speed: float, free_speed: float, length: float, pull: float,
-            still_frames: float, a: Any) -> Any:
+            still_frames: float, chord_frames: int, a: Any) -> Any:
     """Whether the path moves at its point j, and its direction there: at ``free_speed`` or
     faster; at ``min_speed`` or faster where it drags the anchor ``length`` behind it
     (:func:`_leash`) or has left a stop (still for ``still_frames``) and not dragged it yet. Faced away
@@ -59,14 +83,14 @@ def _moving(g: Any, j: int, fps: float, min_speed: float, free_speed: float, len
     elif taut or a[2] < still_frames:
         a[2] = 0.0
     if speed >= free_speed or (not still and a[2] >= still_frames):
-        return True, dx, dz
-    return taut and not still, dx, dz
+        return True, *_way(g, j, dx, dz, chord_frames)
+    return taut and not still, *_way(g, j, dx, dz, chord_frames)
 
 
 @jit(parallel=True)  # characters side by side: each writes its own rows
 def headings(g: Any, off: int, ends: bool, fps: float, min_speed: float, free_speed: float, length: float,
-             pull: float, still_frames: float, start_speed: float, last_dir: Any, moved: Any, anchor: Any,
-             held: Any) -> None:
+             pull: float, still_frames: float, start_speed: float, chord_frames: int, last_dir: Any,
+             moved: Any, anchor: Any, held: Any) -> None:
     """Each character's heading direction ``held (C, n, 2)`` over frames ``[t0, t0 + n)``, its path's
     ground points ``g (C, m, 2)`` holding frame t0 at ``off`` and (for a character standing until
     then) as far ahead as known (``ends``: to the path's end): the path's way where it moves
@@ -88,7 +112,8 @@ def headings(g: Any, off: int, ends: bool, fps: float, min_speed: float, free_sp
             a[2] = still_frames if math.sqrt(dx * dx + dz * dz) * fps >= start_speed else 0.0
         first = -1
         for i in range(n):
-            move, dx, dz = _moving(g[c], off + i, fps, min_speed, free_speed, length, pull, still_frames, a)
+            move, dx, dz = _moving(g[c], off + i, fps, min_speed, free_speed, length, pull, still_frames,
+                                   chord_frames, a)
             if move:
                 hx, hz = dx, dz
                 if first < 0:
@@ -104,7 +129,8 @@ def headings(g: Any, off: int, ends: bool, fps: float, min_speed: float, free_sp
         else:
             ahead = a.copy()
             for j in range(off + n, g.shape[1] if ends else g.shape[1] - 1):
-                move, dx, dz = _moving(g[c], j, fps, min_speed, free_speed, length, pull, still_frames, ahead)
+                move, dx, dz = _moving(g[c], j, fps, min_speed, free_speed, length, pull, still_frames,
+                                       chord_frames, ahead)
                 if move:
                     fx, fz = dx, dz
                     break

@@ -57,6 +57,7 @@ from numpy.typing import NDArray
 
 from synth_core.compiled import plan_kernels as pk
 from synth_core.compiled.backend import planner
+from synth_core.compiled.heading_kernels import CHORD_FRAMES
 from synth_core.runtime.bank import Bank
 from synth_core.runtime.draws import LEAD_STREAM, SCHEDULE_STREAM, uniform, uniform_streams
 from synth_core.runtime.trajectory import GROUND_AXES, Prepared
@@ -263,8 +264,9 @@ class Headings:
     """The headings of ``characters`` characters, frame block by frame block: the heading held
     and whether each has moved yet, carried between blocks."""
 
-    def __init__(self, characters: int, backend: str = "auto") -> None:
+    def __init__(self, characters: int, backend: str = "auto", chord_frames: int = CHORD_FRAMES) -> None:
         self.kernels = planner(backend)
+        self.chord_frames = chord_frames  # the path's way read across so many frames each side, at most
         self.last_dir = np.zeros((characters, 2))  # the heading held, as a ground direction
         self.moved = np.zeros(characters, bool)  # moved yet (else it faces where it will first go)
         self.last_yaw = np.full(characters, np.nan)  # the yaw of the frame before (NaN: none yet)
@@ -275,7 +277,8 @@ class Headings:
                 ahead: Callable[[NDArray[np.int64]], Floats] | None = None,
                 moving: Floats | None = None) -> tuple[Floats, Floats]:
         """(C, n) yaw (about +Y, 0 = +Z) of frames ``[t0, t0 + n)``: the tangent of the path's
-        ground points ``ground (C, m, 2)`` (frame t0 at ``off``), held where the character moves
+        ground points ``ground (C, m, 2)`` (frame t0 at ``off``; read across up to ``chord_frames``
+        either side, heading_kernels._way), held where the character moves
         slower than MIN_TURN_SPEED (a standing animal does not spin with its trajectory's jitter),
         reached no faster than MAX_YAW_RATE and MAX_LATERAL allow, and (C, n) the lean into the
         turn (:func:`heading_kernels.turn`);
@@ -286,7 +289,7 @@ class Headings:
         is slower through it than the body)."""
         held = np.empty((ground.shape[0], n, 2))
         hold = (MIN_TURN_SPEED, FREE_TURN_SPEED, HOLD_RADIUS, HOLD_PULL / fps, STILL_S * fps,
-                START_TURN_SPEED)
+                START_TURN_SPEED, self.chord_frames)
         anchor = self.anchor.copy()  # as it was, for the ones asked again
         self.kernels.headings(ground, off, ends, fps, *hold, self.last_dir, self.moved, self.anchor, held)
         unknown = np.flatnonzero(np.isnan(held[:, 0, 0]))  # NaN over every frame before a first move
