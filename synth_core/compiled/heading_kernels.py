@@ -82,9 +82,9 @@ def _moving(g: Any, j: int, fps: float, min_speed: float, free_speed: float, len
         a[2] += 1.0
     elif taut or a[2] < still_frames:
         a[2] = 0.0
-    if speed >= free_speed or (not still and a[2] >= still_frames):
+    if speed >= free_speed or (not still and a[2] >= still_frames) or (taut and not still):
         return True, *_way(g, j, dx, dz, chord_frames)
-    return taut and not still, *_way(g, j, dx, dz, chord_frames)
+    return False, dx, dz  # (its direction not read)
 
 
 @jit(parallel=True)  # characters side by side: each writes its own rows

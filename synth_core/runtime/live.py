@@ -200,7 +200,6 @@ class LiveSynth(LivePath):
         self.planner = Planner(self.bank, self.scales, self.tempo, self.leads, margin, backend)
         # The exact mode's heading reads the path as the batch's; the low-latency one a step either side.
         self.heading_state = Headings(C, backend) if self.latency_ms is None else Headings(C, backend, 1)
-        self.chord = self.heading_state.chord_frames if self.latency_ms is None else 0
         self.decisions = 0
         self.planned = 0
         self.emitted = 0
@@ -364,7 +363,8 @@ class LiveSynth(LivePath):
         self._smooth()
         t0 = self.planned
         v_ready = self._speed_ready()
-        ready = min(v_ready, self.n_path - 1 - (self.chord if limit is None else 0))  # the heading's points
+        ahead = self.heading_state.chord_frames if limit is None else 1  # the points a heading reads
+        ready = min(v_ready, self.n_path - ahead)
         if limit is not None:
             ready = min(ready, limit)
         first, aheads = self.decisions, list[int]()
@@ -402,9 +402,9 @@ class LiveSynth(LivePath):
     def _headings(self, t0: int, t1: int) -> tuple[Floats, Floats]:
         """(C, n) yaw and lean of frames [t0, t1) (plan.Headings); a character standing until then
         faces where it will first go if that is known yet, else ``heading``."""
-        lo = max(t0 - 1 - self.chord, 0)
+        lo = max(t0 - self.heading_state.chord_frames, 0)
         facing = np.full(len(self.scales), self.heading)
-        ground = self._facing(lo, min(t1 + 1 + self.chord, self.n_path))[..., GROUND]
+        ground = self._facing(lo, min(t1 + self.heading_state.chord_frames, self.n_path))[..., GROUND]
         return self.heading_state.advance(ground, t0 - lo, t1 - t0, self.bank.fps, facing,
                                           ahead=lambda who: self._facing(lo, self.n_path)[who][..., GROUND],
                                           moving=self._path(lo, t1 + 1)[..., GROUND])
@@ -488,7 +488,7 @@ class LiveSynth(LivePath):
             # averaged over the same frames).
             self.buffer.drop_before(-(-(stop - self.kept_frames) // k))
             self.feet.drop_before(self.buffer.start)
-        self.path.drop_before(self.planned - 2 - self.chord)  # the path the next block and heading read
+        self.path.drop_before(self.planned - 1 - self.heading_state.chord_frames)  # what the next block reads
         if self.latency_ms is not None:  # the speeds still read: the next block's, on
             drop = self.planned - self.frame_speed_start
             self.frame_speed, self.frame_speed_start = self.frame_speed[:, drop:], self.planned
