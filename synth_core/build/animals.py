@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import time
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -17,7 +18,9 @@ from synth_core.build.speed_map import (
     cycle_displacement,
     default_ranges,
 )
+from synth_core.build.straight_crossings import ease_crossings
 from synth_core.motion import contacts as C
+from synth_core.motion.clip import Motion
 from synth_core.motion.contacts import detect_contacts_at
 from synth_core.motion.skeleton import forward_kinematics
 from synth_core.quality import metrics as M
@@ -34,10 +37,23 @@ def build_builtin(animal: str, ranges: dict[str, SpeedRange] | None = None) -> L
     ranges = ranges or default_ranges({g: clips[g].speed_mps() for g in GAITS})
     maps = {g: build_speed_map(clips[g], ranges[g].speeds()) for g in GAITS}
     return Library(animal, clips["walk"].skeleton, clips["walk"].fps, maps, clips["idle"],
-                   {name: clips[name] for name in TRANSITIONS}, frozenset(),
+                   {name: eased_transition(clips[name]) for name in TRANSITIONS}, frozenset(),
                    source=f"built-in {animal} (synth_core.builtin: generated from gait biomechanics)",
                    extra={"ranges": {g: [r.low, r.high, r.count] for g, r in ranges.items()},
                           "build_seconds": round(time.perf_counter() - started, 3)})
+
+
+def eased_transition(motion: Motion) -> Motion:
+    """A generated transition with each paw's ankle through straight no faster than a stride rate
+    can play it, as the speed maps' are (:func:`straight_crossings.ease_crossings`): played by
+    distance at up to twice its rate (a character accelerating through it), the dog's toes passed
+    through straight in one shown frame at its lift-offs, a limb flip. Its legs are not solved
+    again, so its stances are kept whole (a passage is slowed on its swing side alone): its feet
+    stand where the generator put them."""
+    rigs = ik.limb_rigs(motion.skeleton)
+    rotations = ease_crossings(motion.skeleton, motion.rotations, [(r.ankle, r.effector) for r in rigs],
+                               cyclic=False, contacts=motion.contacts, breakover=0.0)
+    return replace(motion, rotations=rotations)
 
 
 def map_positions(speed_map: SpeedMap) -> np.ndarray:

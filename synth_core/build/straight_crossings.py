@@ -79,9 +79,10 @@ def _passages(bend: Floats, cyclic: bool) -> tuple[Floats, Floats]:
     return speed, centre
 
 
-def flat_stance(contacts: NDArray[np.bool_], cyclic: bool) -> NDArray[np.bool_]:
-    """``(F, 4)``: frames of each foot's stance before its breakover (the last
-    :data:`BREAKOVER_SHARE` of the stance), where a foot stands flat."""
+def flat_stance(contacts: NDArray[np.bool_], cyclic: bool,
+                breakover: float = BREAKOVER_SHARE) -> NDArray[np.bool_]:
+    """``(F, 4)``: frames of each foot's stance before its breakover (the last ``breakover`` of
+    the stance), where a foot stands flat."""
     down = np.asarray(contacts, bool)
     F = len(down)
     out = np.zeros_like(down)
@@ -94,7 +95,7 @@ def flat_stance(contacts: NDArray[np.bool_], cyclic: bool) -> NDArray[np.bool_]:
         rolled = np.roll(col, -shift)
         edges = np.flatnonzero(np.diff(np.concatenate([[False], rolled, [False]]).astype(np.int8)))
         for a, b in zip(edges[::2], edges[1::2], strict=True):
-            keep = int(np.ceil((b - a) * (1.0 - BREAKOVER_SHARE)))
+            keep = int(np.ceil((b - a) * (1.0 - breakover)))
             out[(np.arange(a, a + keep) + shift) % F, f] = True
     return out
 
@@ -157,12 +158,14 @@ def _resampled(q: Floats, times: Floats, cyclic: bool) -> Floats:
 
 def ease_crossings(skeleton: Skeleton, rotations: NDArray[np.floating],
                    joints: Sequence[tuple[int, int]], cyclic: bool,
-                   contacts: NDArray[np.bool_] | None = None) -> NDArray[np.float32]:
+                   contacts: NDArray[np.bool_] | None = None,
+                   breakover: float = BREAKOVER_SHARE) -> NDArray[np.float32]:
     """Local rotations ``(..., F, J, 4)`` (frames the last leading axis) with each of ``joints``
     (joint, the child its bone points to) passing through straight no faster than
     :data:`CROSS_STEP_DEG` a frame (:func:`crossing_times`). ``cyclic``: the clip loops.
-    ``contacts (F, len(joints))``: each joint's foot planted; none is warped in its flat stance."""
-    flat = None if contacts is None else flat_stance(contacts, cyclic)
+    ``contacts (F, len(joints))``: each joint's foot planted; none is warped in its flat stance
+    (:func:`flat_stance`; ``breakover`` 0: in none of its stance)."""
+    flat = None if contacts is None else flat_stance(contacts, cyclic, breakover)
     out = np.array(rotations, np.float32)
     F, J = out.shape[-3:-1]
     clips = out.reshape(-1, F, J, 4)  # a speed map's 60, one for a transition
