@@ -17,7 +17,6 @@ from synth_core.build.artifact import Library
 from synth_core.build.generated_transitions import walk_frames
 from synth_core.build.manifest import build_from_manifest, gait_cycles
 from synth_core.build.motion_graph import HUBS
-from synth_core.build.speed_map import cycle_displacement
 from synth_core.motion import contacts as C
 from synth_core.quality import herd_sim as crowd
 from synth_core.quality import metrics as M
@@ -26,6 +25,7 @@ from synth_core.quality.reference import library_reference
 from synth_core.runtime.bank import Bank, build_bank, library_ground, standing_heights, table_positions
 from synth_core.runtime.synthesis import Options, Result, synthesize
 from tests.helpers.mocap import MANN_DIR
+from tests.helpers.motion import clip_flips, looped
 
 FIXTURE = Path(__file__).parent / "fixtures" / "mann_dog.toml"
 pytestmark = pytest.mark.skipif(not MANN_DIR.is_dir(), reason="real dog mocap not found beside the repo "
@@ -71,12 +71,6 @@ def paw_jumps(feet: np.ndarray) -> np.ndarray:
     return np.asarray(M.one_frame_jumps_mm(feet)) / 1000.0
 
 
-def looped(positions: np.ndarray, root: np.ndarray) -> np.ndarray:
-    """A speed map's clips ``(N, F, J, 3)`` with their first two frames again, a loop on."""
-    advance = np.stack([cycle_displacement(r) for r in root])[:, None, None]
-    return np.concatenate([positions, positions[:, :2] + advance], axis=1)
-
-
 def test_the_herd_never_flips_a_limb(mann: Library, herd: tuple[Bank, Result, np.ndarray]) -> None:
     bank, _, positions = herd
     assert not hinge_flips(positions, ik.limb_rigs(bank.skeleton)).any()
@@ -117,23 +111,12 @@ def test_the_librarys_clips_never_flip_a_limb_or_jump(mann: Library) -> None:
         assert paw_jumps(positions[:, feet]).max() <= JUMP_M, name
 
 
-def joint_flips(mann: Library, skip: int) -> dict[str, int]:
-    """Limb flips (the edge figure: every joint along each leg, the wrist too) of every speed-map
-    clip (looped) and transition, showing every ``skip``-th clip frame from each start."""
-    flips = {}
-    clips = {g: looped(map_positions(m), m.root_pos) for g, m in mann.maps.items()}
-    clips |= {n: np.asarray(c.positions(), np.float64)[None] for n, c in mann.transitions.items()}
-    for name, positions in clips.items():
-        flips[name] = sum(int(M.limb_flips(positions[:, k::skip], mann.skeleton).sum()) for k in range(skip))
-    return flips
-
-
 def test_the_librarys_clips_flip_no_joint_at_their_own_rate(mann: Library) -> None:
     """Issue 28: no limb flip after FK. The wrist passes through straight at lift-off and
     touchdown, in the real dog's mocap at up to 60-70 deg in a frame; the speed maps' gallop
     inherited it (4 flips at the wrist before ``straight_crossings`` slowed such passages; 1 in
     canter2gallop while a passage next to a flat stance could only be slowed symmetrically)."""
-    flips = joint_flips(mann, 1)
+    flips = clip_flips(mann, 1)
     assert not any(flips.values()), flips
 
 
@@ -146,7 +129,7 @@ def test_the_librarys_clips_flip_no_joint_at_their_own_rate(mann: Library) -> No
 def test_the_librarys_clips_flip_no_joint_skipping_a_frame(mann: Library) -> None:
     """A character faster than its clips' rate (a small one's Froude tempo, up to MAX_RATE 1.6)
     is shown whole clip frames at touchdowns and lift-offs: now and then one is skipped."""
-    flips = joint_flips(mann, 2)
+    flips = clip_flips(mann, 2)
     assert not any(flips.values()), flips
 
 

@@ -27,6 +27,7 @@ from synth_core.build.speed_map import (
     default_ranges,
     relocate_root,
 )
+from synth_core.build.straight_crossings import ease_crossings, paw_joints
 from synth_core.motion import quat
 from synth_core.runtime.bank import library_ground
 from tests.helpers.motion import PEAK_JOINT_SPEED
@@ -127,7 +128,13 @@ def test_plants_move_along_the_stride_by_the_root_shift(libraries: dict[str, Lib
     trot = build_clips("horse")["trot"]
     own = trot.speed_mps()
     sm = build_speed_map(trot, [own * 2 / 3, own, own * 4 / 3])
-    assert np.allclose(sm.rotations[1], trot.rotations, atol=2e-4)  # own speed: (almost) unchanged
+    # Own speed: (almost) unchanged, but where a paw's joint passes through straight faster than
+    # a stride rate can play (straight_crossings: the hind fetlocks' lift-offs, eased a degree).
+    joints, legs = paw_joints(ik.limb_rigs(trot.skeleton))
+    eased = ease_crossings(trot.skeleton, trot.rotations, joints, True, trot.contacts[:, legs])
+    kept = ~np.any(eased != trot.rotations, axis=(1, 2))
+    assert 0 < kept.sum() < len(kept)
+    assert np.allclose(sm.rotations[1][kept], trot.rotations[kept], atol=2e-4)
     feet = map_positions(sm)[:, :, sm.skeleton.foot_joints]
     assert not sm.contacts[[0, -1], 1].any()  # RF's plant lies inside the clip (no wrap)
     for i in (0, 2):

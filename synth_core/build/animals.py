@@ -18,7 +18,7 @@ from synth_core.build.speed_map import (
     cycle_displacement,
     default_ranges,
 )
-from synth_core.build.straight_crossings import ease_crossings
+from synth_core.build.straight_crossings import ease_crossings, paw_joints
 from synth_core.motion import contacts as C
 from synth_core.motion.clip import Motion
 from synth_core.motion.contacts import detect_contacts_at
@@ -50,9 +50,9 @@ def eased_transition(motion: Motion) -> Motion:
     through straight in one shown frame at its lift-offs, a limb flip. Its legs are not solved
     again, so its stances are kept whole (a passage is slowed on its swing side alone): its feet
     stand where the generator put them."""
-    rigs = ik.limb_rigs(motion.skeleton)
-    rotations = ease_crossings(motion.skeleton, motion.rotations, [(r.ankle, r.effector) for r in rigs],
-                               cyclic=False, contacts=motion.contacts, breakover=0.0)
+    joints, legs = paw_joints(ik.limb_rigs(motion.skeleton))
+    rotations = ease_crossings(motion.skeleton, motion.rotations, joints, cyclic=False,
+                               contacts=motion.contacts[:, legs], breakover=0.0)
     return replace(motion, rotations=rotations)
 
 

@@ -1,7 +1,7 @@
 """Joints that pass through straight slowly enough to be played at any stride rate (issue 28).
 
-A dog's wrist (and a toe, a hock) bends both ways: hyperextended under the load of a stance,
-flexed in the swing. At lift-off and touchdown it passes through straight, in the real dog's
+A dog's wrist (and a toe, a hock, a horse's fetlock) bends both ways: hyperextended under the
+load of a stance, flexed in the swing. At lift-off and touchdown it passes through straight, in the real dog's
 mocap at up to 60-70 deg in one frame (the gallop's wrist: 34 deg one way, 34 the other). Played
 at the clip's rate, one frame is then bent one way and the next the other way; played faster
 (a small character's Froude tempo, a character asked to go faster than the fastest clip: up to
@@ -26,6 +26,7 @@ from numpy.typing import NDArray
 from synth_core.build import ik
 from synth_core.motion import quat
 from synth_core.motion.skeleton import Skeleton
+from synth_core.quality.metrics import FLIP_MIN_BEND_DEG
 
 Floats = NDArray[np.float64]
 
@@ -113,6 +114,41 @@ def _room(flat: NDArray[np.bool_], tc: float, cyclic: bool) -> tuple[float, floa
     return (float(before.min()) if before.size else np.inf), (float(after.min()) if after.size else np.inf)
 
 
+def _flips(bend: Floats, i: int, cyclic: bool) -> bool:
+    """Two of frames ``i``, ``i + 1``, ``i + 2`` bent the two ways, each at least
+    metrics.FLIP_MIN_BEND_DEG: a limb flip where they are shown in a row (the second and third
+    frames shown one after the other, or the first and third, skipping a clip frame)."""
+    F = len(bend)
+    rows = [bend[(i + k) % F] if cyclic else bend[min(i + k, F - 1)] for k in range(3)]
+    bent = [float(np.linalg.norm(r)) >= FLIP_MIN_BEND_DEG for r in rows]
+    return any(bent[a] and bent[b] and rows[a] @ rows[b] < 0 for a, b in ((0, 1), (1, 2), (0, 2)))
+
+
+def _touchdown(flat: NDArray[np.bool_], i: int, tc: float, cyclic: bool) -> tuple[float, int] | None:
+    """For a passage from frame ``i`` in the swing centred at ``tc`` inside the flat stance
+    ``flat (F,)`` (both frames around it flat): the stance's first frame and how many swing frames
+    lie before it (at most EASE_FRAMES + 1); None for any other passage. The horse's hind
+    fetlock, bent 16 deg the frame before its gallop's touchdown, passes through straight over
+    the stance's first two frames as the leg sweeps over the hoof: no window fits beside the flat
+    stance, and frames shown either side of the touchdown straddle straight."""
+    F = len(flat)
+
+    def at(j: int) -> bool:
+        return bool(flat[j % F]) if cyclic else 0 <= j < F and bool(flat[j])
+
+    k = int(np.floor(tc))
+    if at(i) or not (at(k) and at(k + 1)):
+        return None
+    for _ in range(F):  # back to the stance's first frame
+        if not at(k - 1):
+            break
+        k -= 1
+    room = 0
+    while room <= EASE_FRAMES and not at(k - room - 1):  # at() is False off a clip's ends
+        room += 1
+    return (float(k), room) if room else None
+
+
 def crossing_times(bend: Floats, cyclic: bool, flat: NDArray[np.bool_] | None = None) -> Floats:
     """``(F,)``: the clip time (fractional frame) each frame shows the joint at, from its bend
     vectors ``(F, 3)``: the identity except around each passage through straight
@@ -123,20 +159,32 @@ def crossing_times(bend: Floats, cyclic: bool, flat: NDArray[np.bool_] | None = 
     window (its own h) stops short of ``flat (F,)`` (the foot's stance before breakover:
     :func:`flat_stance`), which keeps its own timing: a passage at a lift-off or a touchdown is
     slowed on its swing side alone (issue 28: a symmetric window left every such passage of the
-    real dog's transitions, next to a stance, at 17-24 deg a frame -- flips when played faster)."""
+    real dog's transitions, next to a stance, at 17-24 deg a frame -- flips when played faster).
+    A passage centred inside the flat stance but begun in the swing (a fetlock loaded at
+    touchdown), that a shown frame skipping one would see as a flip, is eased on its swing side
+    alone, toward the touchdown's pose (:func:`_touchdown`)."""
     F = len(bend)
     speed, centre = _passages(bend, cyclic)
     times = np.arange(F, dtype=np.float64)
     taken = np.zeros(F, bool)
     for i in sorted(np.flatnonzero(speed > CROSS_STEP_DEG), key=lambda i: -speed[i]):  # a few per clip
         tc = float(centre[i])
-        h_l = EASE_FRAMES if cyclic else min(EASE_FRAMES, tc)
-        h_r = EASE_FRAMES if cyclic else min(EASE_FRAMES, F - 1 - tc)
-        if flat is not None and flat.any():  # each side stops short of the flat stance
-            before, after = _room(flat, tc, cyclic)
-            h_l, h_r = min(h_l, before), min(h_r, after)
+        edge = None
+        if flat is not None and flat.any() and _flips(bend, int(i), cyclic):
+            edge = _touchdown(flat, int(i), tc, cyclic)
+        if edge is not None:  # centred in the flat stance: the swing comes to the touchdown's pose
+            tc, room = edge
+            h_l, h_r = min(EASE_FRAMES, room), 0.0
+        else:
+            h_l, h_r = EASE_FRAMES, EASE_FRAMES
+            if flat is not None and flat.any():  # each side stops short of the flat stance
+                before, after = _room(flat, tc, cyclic)
+                h_l, h_r = min(h_l, before), min(h_r, after)
+        if not cyclic:
+            h_l, h_r = min(h_l, tc), min(h_r, F - 1 - tc)
         t = np.arange(int(np.floor(tc - h_l)) + 1, int(np.ceil(tc + h_r)))
-        if max(h_l, h_r) < 1.0 or min(h_l, h_r) <= 0.0 or t.size == 0 or taken[t % F].any():
+        if (max(h_l, h_r) < 1.0 or (min(h_l, h_r) <= 0.0 and edge is None) or t.size == 0
+                or taken[t % F].any()):
             continue
         s = CROSS_STEP_DEG / speed[i]
         h = np.where(t < tc, h_l, h_r)
@@ -154,6 +202,18 @@ def _resampled(q: Floats, times: Floats, cyclic: bool) -> Floats:
     a = first % F if cyclic else np.clip(first, 0, F - 1)
     b = (first + 1) % F if cyclic else np.clip(first + 1, 0, F - 1)
     return np.asarray(quat.nlerp(q[a], q[b], w))
+
+
+def paw_joints(rigs: Sequence[ik.LimbRig]) -> tuple[list[tuple[int, int]], list[int]]:
+    """Each leg's joints below its hinge (its shin's: a horse's hock or carpus, fetlock and coffin
+    joint; a dog's hock or wrist and toe), each with the child its bone points to, and the leg of
+    each. The IK keeps their local rotations but the ankle's (whose world orientation it keeps)."""
+    joints, legs = [], []
+    for leg, rig in enumerate(rigs):
+        chain = [*rig.shin, rig.effector]
+        joints += list(zip(chain[:-1], chain[1:], strict=True))
+        legs += [leg] * (len(chain) - 1)
+    return joints, legs
 
 
 def ease_crossings(skeleton: Skeleton, rotations: NDArray[np.floating],
@@ -186,9 +246,9 @@ def solve_eased(skeleton: Skeleton, rotations: NDArray[np.floating], place: Plac
                 rigs: tuple[ik.LimbRig, ...], ground: float, axes: NDArray[np.floating],
                 cyclic: bool, contacts: NDArray[np.bool_] | None = None
                 ) -> tuple[NDArray[np.float32], ik.IKResult, NDArray[np.floating]]:
-    """:func:`ik.solve` with flips mended (:func:`ik.mend_flips`), then each paw's ankle (the
-    wrist, hock or toe the IK keeps the world orientation of) eased through straight
-    (:func:`ease_crossings`) and the legs solved again around the paws' new orientation, so the
+    """:func:`ik.solve` with flips mended (:func:`ik.mend_flips`), then each paw's joints below
+    its hinge (:func:`paw_joints`: the wrist, hock or toe; a horse's fetlock too) eased through
+    straight (:func:`ease_crossings`) and the legs solved again around the paws' new orientation, so the
     feet stay on their targets. ``place``: the root (lowered where a leg would lock straight)
     and the toe targets for a pose -- asked again for the eased one, whose ankles sit elsewhere
     (kept from the first solve, a real dog's gallop locked a fore leg straight). Returns the
@@ -196,7 +256,8 @@ def solve_eased(skeleton: Skeleton, rotations: NDArray[np.floating], place: Plac
     root, targets = place(rotations)
     result = ik.solve(skeleton, root, rotations, targets, rigs, ground=ground, axes=axes)
     solved = ik.mend_flips(result.rotations, result.wrong_side, rigs, cyclic=cyclic)
-    eased = ease_crossings(skeleton, solved, [(r.ankle, r.effector) for r in rigs], cyclic, contacts)
+    joints, legs = paw_joints(rigs)
+    eased = ease_crossings(skeleton, solved, joints, cyclic, None if contacts is None else contacts[:, legs])
     if np.array_equal(eased, solved):  # nothing eased: the first solve stands
         return solved, result, root
     root, targets = place(eased)

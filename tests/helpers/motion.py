@@ -5,11 +5,15 @@ from __future__ import annotations
 import numpy as np
 
 from synth_core import FOOT_NAMES
+from synth_core.build.animals import map_positions
+from synth_core.build.artifact import Library
+from synth_core.build.speed_map import cycle_displacement
 from synth_core.builtin.clips import GAITS
 from synth_core.builtin.gaits import GAIT_SPECS
 from synth_core.motion import quat
 from synth_core.motion.clip import Motion
 from synth_core.motion.skeleton import Skeleton
+from synth_core.quality import metrics as M
 from synth_core.runtime.bank import Bank
 from synth_core.runtime.footlock import LIFTED_PLANT, MAX_SINK
 from synth_core.runtime.terrain import HeightField
@@ -122,3 +126,22 @@ def plant_stands(frames: np.ndarray, h: float = 1.0, whole: bool = True) -> np.n
     if whole and place[1] - low > LIFTED_PLANT / h:
         place[1] = low
     return place
+
+
+def looped(positions: np.ndarray, root: np.ndarray) -> np.ndarray:
+    """A speed map's clips ``(N, F, J, 3)`` with their first two frames again, a loop on."""
+    advance = np.stack([cycle_displacement(r) for r in root])[:, None, None]
+    return np.concatenate([positions, positions[:, :2] + advance], axis=1)
+
+
+def clip_flips(library: Library, skip: int) -> dict[str, int]:
+    """Limb flips (the edge figure: every joint along each leg, the wrist too) of every speed-map
+    clip (looped) and transition, showing every ``skip``-th clip frame from each start (a
+    character playing it ``skip`` times as fast)."""
+    flips = {}
+    clips = {g: looped(map_positions(m), m.root_pos) for g, m in library.maps.items()}
+    clips |= {n: np.asarray(c.positions(), np.float64)[None] for n, c in library.transitions.items()}
+    for name, positions in clips.items():
+        shown = (positions[:, k::skip] for k in range(skip))
+        flips[name] = sum(int(M.limb_flips(p, library.skeleton).sum()) for p in shown)
+    return flips
