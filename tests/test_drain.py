@@ -21,6 +21,12 @@ from tests.helpers.servers import free_port, running, start, wait_for, wait_unti
 from tests.helpers.stream import ws_url
 
 MSGPACK = "application/vnd.msgpack"
+# A request reset sooner than this after it was sent was reset by the listening socket's final
+# close, not held in a queue nobody accepted from: a copy of the socket kept past the last worker's
+# close (the supervisor's, issue 34) lasts until that worker exits, at least the 0.1 s uvicorn's
+# shutdown sleeps after closing its listeners (0.15-0.27 s measured with service.supervisor not
+# closing its copy).
+RESET_AT_CLOSE_S = 0.1
 
 
 def test_sigterm_with_two_workers_is_not_ready_at_once_then_refuses_connections(tmp_path: Path) -> None:
@@ -34,17 +40,29 @@ def test_sigterm_with_two_workers_is_not_ready_at_once_then_refuses_connections(
             ready = ready + 1 if httpx.get(f"{url}/readyz").status_code == 200 else 0
         proc.send_signal(signal.SIGTERM)
         answers: list[int | str] = []
+        took: list[float] = []  # how long each request took, s
         while not answers or answers[-1] != "refused":
             assert len(answers) < 2000, answers[-20:]
+            t0 = time.monotonic()
             try:
                 answers.append(httpx.get(f"{url}/readyz", timeout=5).status_code)
             except httpx.ConnectError:
                 answers.append("refused")
             except httpx.TransportError as exc:  # taken, then reset or dropped
                 answers.append(type(exc).__name__)
+            took.append(time.monotonic() - t0)
         # Ready no more at once (one answer may have been on its way as the signal came), then
-        # refused: no connection taken into the queue and reset.
-        assert answers.count(200) <= 1 and set(answers[1:]) <= {503, "refused"}, answers
+        # refused: no connection taken into the queue and reset. One exception the kernel makes
+        # and no server can avoid: a connection completed in the instant between the last
+        # worker's last accept() and its close() of the shared listening socket sits in the accept
+        # queue, and Linux resets every queued connection when the socket's last descriptor
+        # closes. That one is the request just before the first refusal and is reset at once; a
+        # queue held open without accepting makes its request wait, and fails here.
+        last = len(answers) - 2  # the answer before the refusal
+        at_close = answers[last] not in (200, 503) and took[last] < RESET_AT_CLOSE_S
+        rest = [a for i, a in enumerate(answers) if i >= 1 and not (at_close and i == last)]
+        timed = list(zip(answers, took, strict=True))
+        assert answers.count(200) <= 1 and set(rest) <= {503, "refused"}, timed
         for _ in range(5):
             with pytest.raises(httpx.ConnectError):
                 httpx.get(f"{url}/readyz", timeout=5)
