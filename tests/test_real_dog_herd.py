@@ -220,8 +220,11 @@ def test_a_paw_leaving_the_ground_does_not_drag_along_it(mann: Library) -> None:
     within 1 cm of the ground for 2-3 frames after lift-off while the paw rolls forward 2-4 cm a
     frame: played as is, the corner_walk herd's paws slid 10 mm p95 (its walk clips 5-13 mm),
     and over the true soles 5.5-5.8 mm where the pace's handover kept the lifting paw low (now
-    held planted until its partner lands, and cleared as it lifts)."""
-    suite = edge_suite(build_bank(mann), names=["corner_walk", "uturn_walk"])
+    held planted until its partner lands, and cleared as it lifts). The canters' first swing
+    frame rose 8 mm while moving 5-15 mm, inside the 1 cm band (corner_canter 5.5, uturn_canter
+    5.0, mixed_sizes 5.0 mm): a swing now rises over its first 15 % (footlock.CLEAR_UP)."""
+    names = ["corner_walk", "uturn_walk", "corner_canter", "uturn_canter", "mixed_sizes"]
+    suite = edge_suite(build_bank(mann), names=names)
     for name, scenario in suite["scenarios"].items():
         assert scenario["figures"]["strict_skate_mm_p95"] <= 3.0, name
 

@@ -9,7 +9,7 @@ from typing import Any
 from synth_core.compiled.jit import render_jit
 from synth_core.compiled.replant_kernels import step_over
 from synth_core.compiled.vec_kernels import smoothstep
-from synth_core.runtime.footlock import CLEAR_DOWN, CLEAR_LEAST, CLEAR_UP, CLEARANCE
+from synth_core.runtime.footlock import CLEAR_DOWN, CLEAR_LEAST, CLEAR_RISE_S, CLEAR_UP, CLEARANCE, STEP_S
 
 _jit = render_jit
 
@@ -80,7 +80,8 @@ def _swing(feet: Any, out: Any, f: int, s: int, t: int, e: int, plants: Any, cle
         out[u, f, 0] = feet[u, f, 0] + (1 - eased) * lift_x + landed * touch_x
         out[u, f, 2] = feet[u, f, 2] + (1 - eased) * lift_z + landed * touch_z
         p = (u - s + 1) / (t - s + 1)
-        lift = smoothstep(min(1.0, p / CLEAR_UP)) * smoothstep(min(1.0, (1.0 - p) / CLEAR_DOWN))
+        rise = (u - s + 1) / max(CLEAR_UP * (t - s + 1), step * (CLEAR_RISE_S / STEP_S))
+        lift = smoothstep(min(1.0, rise)) * smoothstep(min(1.0, (1.0 - p) / CLEAR_DOWN))
         out[u, f, 1] = max(feet[u, f, 1], y0 + (y1 - y0) * p + clear * lift)
     for u in range(t, e):
         out[u, f, 0] += left * lift_x
