@@ -44,10 +44,11 @@ def build_builtin(animal: str, ranges: dict[str, SpeedRange] | None = None) -> L
 
 
 def eased_transition(motion: Motion) -> Motion:
-    """A generated transition with each paw's ankle through straight no faster than a stride rate
-    can play it, as the speed maps' are (:func:`straight_crossings.ease_crossings`): played by
-    distance at up to twice its rate (a character accelerating through it), the dog's toes passed
-    through straight in one shown frame at its lift-offs, a limb flip. Its legs are not solved
+    """A generated transition with each paw's joints below the hinge through straight no faster
+    than a stride rate can play them, as the speed maps' are
+    (:func:`straight_crossings.ease_crossings`): played by distance at up to twice its rate (a
+    character accelerating through it), the dog's toes passed through straight in one shown frame
+    at its lift-offs, a limb flip. Its legs are not solved
     again, so its stances are kept whole (a passage is slowed on its swing side alone): its feet
     stand where the generator put them."""
     joints, legs = paw_joints(ik.limb_rigs(motion.skeleton))

@@ -1,8 +1,8 @@
 """Joints that pass through straight slowly enough to be played at any stride rate (issue 28).
 
 A dog's wrist (and a toe, a hock, a horse's fetlock) bends both ways: hyperextended under the
-load of a stance, flexed in the swing. At lift-off and touchdown it passes through straight, in the real dog's
-mocap at up to 60-70 deg in one frame (the gallop's wrist: 34 deg one way, 34 the other). Played
+load of a stance, flexed in the swing. At lift-off and touchdown it passes through straight, in
+the real dog's mocap at up to 60-70 deg in one frame (the gallop's wrist: 34 deg one way, 34 the other). Played
 at the clip's rate, one frame is then bent one way and the next the other way; played faster
 (a small character's Froude tempo, a character asked to go faster than the fastest clip: up to
 ``MAX_RATE`` 1.6, so a shown frame may skip one clip frame) or blended, two shown frames straddle
@@ -248,8 +248,8 @@ def solve_eased(skeleton: Skeleton, rotations: NDArray[np.floating], place: Plac
                 ) -> tuple[NDArray[np.float32], ik.IKResult, NDArray[np.floating]]:
     """:func:`ik.solve` with flips mended (:func:`ik.mend_flips`), then each paw's joints below
     its hinge (:func:`paw_joints`: the wrist, hock or toe; a horse's fetlock too) eased through
-    straight (:func:`ease_crossings`) and the legs solved again around the paws' new orientation, so the
-    feet stay on their targets. ``place``: the root (lowered where a leg would lock straight)
+    straight (:func:`ease_crossings`) and the legs solved again around the paws' new orientation,
+    so the feet stay on their targets. ``place``: the root (lowered where a leg would lock straight)
     and the toe targets for a pose -- asked again for the eased one, whose ankles sit elsewhere
     (kept from the first solve, a real dog's gallop locked a fore leg straight). Returns the
     rotations, the last solve's result and its root."""
