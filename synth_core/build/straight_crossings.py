@@ -2,8 +2,8 @@
 
 A dog's wrist (and a toe, a hock, a horse's fetlock) bends both ways: hyperextended under the
 load of a stance, flexed in the swing. At lift-off and touchdown it passes through straight, in
-the real dog's mocap at up to 60-70 deg in one frame (the gallop's wrist: 34 deg one way, 34 the other). Played
-at the clip's rate, one frame is then bent one way and the next the other way; played faster
+the real dog's mocap at up to 60-70 deg in one frame (the gallop's wrist: 34 deg one way, 34 the
+other). Played at the clip's rate, one frame is then bent one way and the next the other way; played faster
 (a small character's Froude tempo, a character asked to go faster than the fastest clip: up to
 ``MAX_RATE`` 1.6, so a shown frame may skip one clip frame) or blended, two shown frames straddle
 straight while both are clearly bent -- the joint reads as flipping its bend side in one frame
