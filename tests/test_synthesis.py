@@ -149,7 +149,10 @@ def test_a_plant_held_up_by_a_fade_stands_on_the_ground_and_a_swing_clears_it() 
     assert np.allclose(targets[10:25, :, 1], 0.0)
     swing = targets[25:40, :, 1]
     clear = footlock.CLEARANCE * footlock.STEP_HEIGHT * leg
-    assert swing.max() >= 0.99 * clear and (swing > 0).all()
+    # Up to its clearance, less what the jump easing takes off a swing rising this fast while the
+    # foot speeds up 3 -> 10 cm a frame (jump_kernels.ease_jumps: 38 mm of 40): never under the
+    # least clearance in the world, well out of the glide's 2.5 cm band.
+    assert footlock.CLEAR_LEAST <= swing.max() <= clear and (swing > 0).all()
     rise, fall = np.diff(swing[:4, 0]).max(), -np.diff(swing[-4:, 0]).min()
     assert rise > fall > 0  # up fast, down slowly
     assert np.allclose(targets[10:25, :, 2], feet[10:25, :, 2])
