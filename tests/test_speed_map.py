@@ -27,7 +27,7 @@ from synth_core.build.speed_map import (
     default_ranges,
     relocate_root,
 )
-from synth_core.build.straight_crossings import ease_crossings, paw_joints
+from synth_core.build.straight_crossings import ease_paws
 from synth_core.motion import quat
 from synth_core.runtime.bank import library_ground
 from tests.helpers.motion import PEAK_JOINT_SPEED
@@ -130,8 +130,7 @@ def test_plants_move_along_the_stride_by_the_root_shift(libraries: dict[str, Lib
     sm = build_speed_map(trot, [own * 2 / 3, own, own * 4 / 3])
     # Own speed: (almost) unchanged, but where a paw's joint passes through straight faster than
     # a stride rate can play (straight_crossings: the hind fetlocks' lift-offs, eased a degree).
-    joints, legs = paw_joints(ik.limb_rigs(trot.skeleton))
-    eased = ease_crossings(trot.skeleton, trot.rotations, joints, True, trot.contacts[:, legs])
+    eased = ease_paws(trot.skeleton, trot.rotations, ik.limb_rigs(trot.skeleton), True, trot.contacts)
     kept = ~np.any(eased != trot.rotations, axis=(1, 2))
     assert 0 < kept.sum() < len(kept)
     assert np.allclose(sm.rotations[1][kept], trot.rotations[kept], atol=2e-4)

@@ -18,7 +18,7 @@ from synth_core.build.speed_map import (
     cycle_displacement,
     default_ranges,
 )
-from synth_core.build.straight_crossings import ease_crossings, paw_joints
+from synth_core.build.straight_crossings import ease_paws
 from synth_core.motion import contacts as C
 from synth_core.motion.clip import Motion
 from synth_core.motion.contacts import detect_contacts_at
@@ -46,14 +46,13 @@ def build_builtin(animal: str, ranges: dict[str, SpeedRange] | None = None) -> L
 def eased_transition(motion: Motion) -> Motion:
     """A generated transition with each paw's joints below the hinge through straight no faster
     than a stride rate can play them, as the speed maps' are
-    (:func:`straight_crossings.ease_crossings`): played by distance at up to twice its rate (a
+    (:func:`straight_crossings.ease_paws`): played by distance at up to twice its rate (a
     character accelerating through it), the dog's toes passed through straight in one shown frame
     at its lift-offs, a limb flip. Its legs are not solved
     again, so its stances are kept whole (a passage is slowed on its swing side alone): its feet
     stand where the generator put them."""
-    joints, legs = paw_joints(ik.limb_rigs(motion.skeleton))
-    rotations = ease_crossings(motion.skeleton, motion.rotations, joints, cyclic=False,
-                               contacts=motion.contacts[:, legs], breakover=0.0)
+    rotations = ease_paws(motion.skeleton, motion.rotations, ik.limb_rigs(motion.skeleton), cyclic=False,
+                          contacts=motion.contacts, breakover=0.0)
     return replace(motion, rotations=rotations)
 
 

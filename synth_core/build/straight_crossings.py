@@ -204,7 +204,7 @@ def _resampled(q: Floats, times: Floats, cyclic: bool) -> Floats:
     return np.asarray(quat.nlerp(q[a], q[b], w))
 
 
-def paw_joints(rigs: Sequence[ik.LimbRig]) -> tuple[list[tuple[int, int]], list[int]]:
+def _paw_joints(rigs: Sequence[ik.LimbRig]) -> tuple[list[tuple[int, int]], list[int]]:
     """Each leg's joints below its hinge (its shin's: a horse's hock or carpus, fetlock and coffin
     joint; a dog's hock or wrist and toe), each with the child its bone points to, and the leg of
     each. The IK keeps their local rotations but the ankle's (whose world orientation it keeps)."""
@@ -238,6 +238,16 @@ def ease_crossings(skeleton: Skeleton, rotations: NDArray[np.floating],
     return clips.reshape(out.shape)
 
 
+def ease_paws(skeleton: Skeleton, rotations: NDArray[np.floating], rigs: Sequence[ik.LimbRig],
+              cyclic: bool, contacts: NDArray[np.bool_] | None = None,
+              breakover: float = BREAKOVER_SHARE) -> NDArray[np.float32]:
+    """:func:`ease_crossings` of every leg's joints below its hinge (:func:`_paw_joints`), each
+    kept out of its own foot's flat stance (``contacts (F, 4)``, a column per leg)."""
+    joints, legs = _paw_joints(rigs)
+    feet = None if contacts is None else contacts[:, legs]
+    return ease_crossings(skeleton, rotations, joints, cyclic, feet, breakover)
+
+
 # A pose -> the root and the toe targets to solve it for.
 Placing = Callable[[NDArray[np.floating]], tuple[NDArray[np.floating], NDArray[np.floating]]]
 
@@ -247,7 +257,7 @@ def solve_eased(skeleton: Skeleton, rotations: NDArray[np.floating], place: Plac
                 cyclic: bool, contacts: NDArray[np.bool_] | None = None
                 ) -> tuple[NDArray[np.float32], ik.IKResult, NDArray[np.floating]]:
     """:func:`ik.solve` with flips mended (:func:`ik.mend_flips`), then each paw's joints below
-    its hinge (:func:`paw_joints`: the wrist, hock or toe; a horse's fetlock too) eased through
+    its hinge (:func:`_paw_joints`: the wrist, hock or toe; a horse's fetlock too) eased through
     straight (:func:`ease_crossings`) and the legs solved again around the paws' new orientation,
     so the feet stay on their targets. ``place``: the root (lowered where a leg would lock straight)
     and the toe targets for a pose -- asked again for the eased one, whose ankles sit elsewhere
@@ -256,8 +266,7 @@ def solve_eased(skeleton: Skeleton, rotations: NDArray[np.floating], place: Plac
     root, targets = place(rotations)
     result = ik.solve(skeleton, root, rotations, targets, rigs, ground=ground, axes=axes)
     solved = ik.mend_flips(result.rotations, result.wrong_side, rigs, cyclic=cyclic)
-    joints, legs = paw_joints(rigs)
-    eased = ease_crossings(skeleton, solved, joints, cyclic, None if contacts is None else contacts[:, legs])
+    eased = ease_paws(skeleton, solved, rigs, cyclic, contacts)
     if np.array_equal(eased, solved):  # nothing eased: the first solve stands
         return solved, result, root
     root, targets = place(eased)

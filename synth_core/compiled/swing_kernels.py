@@ -75,13 +75,15 @@ def _swing(feet: Any, out: Any, f: int, s: int, t: int, e: int, plants: Any, cle
     touch_z = out[t, f, 2] - feet[t, f, 2] if has_after else 0.0
     y0 = out[last_end, f, 1] if has_before else out[t, f, 1]
     y1 = out[t, f, 1] if has_after else y0
+    # Frames the lift rises over: CLEAR_UP of the swing, no fewer than CLEAR_RISE_S's (a step's
+    # frames are STEP_S's: the frame rate is not passed down here).
+    rise_frames = max(CLEAR_UP * (t - s + 1), step * (CLEAR_RISE_S / STEP_S))
     for u in range(s, t):
         eased, landed = _eased(u, last_start, last_end, t, has_before, has_after, unplanned, step)
         out[u, f, 0] = feet[u, f, 0] + (1 - eased) * lift_x + landed * touch_x
         out[u, f, 2] = feet[u, f, 2] + (1 - eased) * lift_z + landed * touch_z
         p = (u - s + 1) / (t - s + 1)
-        rise = (u - s + 1) / max(CLEAR_UP * (t - s + 1), step * (CLEAR_RISE_S / STEP_S))
-        lift = smoothstep(min(1.0, rise)) * smoothstep(min(1.0, (1.0 - p) / CLEAR_DOWN))
+        lift = smoothstep(min(1.0, (u - s + 1) / rise_frames)) * smoothstep(min(1.0, (1.0 - p) / CLEAR_DOWN))
         out[u, f, 1] = max(feet[u, f, 1], y0 + (y1 - y0) * p + clear * lift)
     for u in range(t, e):
         out[u, f, 0] += left * lift_x

@@ -363,8 +363,8 @@ class LiveSynth(LivePath):
         self._smooth()
         t0 = self.planned
         v_ready = self._speed_ready()
-        ahead = self.heading_state.chord_frames if limit is None else 1  # the points a heading reads
-        ready = min(v_ready, self.n_path - ahead)
+        reads = self.heading_state.chord_frames if limit is None else 1  # the points a heading reads ahead
+        ready = min(v_ready, self.n_path - reads)
         if limit is not None:
             ready = min(ready, limit)
         first, aheads = self.decisions, list[int]()
