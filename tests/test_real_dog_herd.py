@@ -18,14 +18,23 @@ from synth_core.build.generated_transitions import walk_frames
 from synth_core.build.manifest import build_from_manifest, gait_cycles
 from synth_core.build.motion_graph import HUBS
 from synth_core.motion import contacts as C
+from synth_core.quality import edge
 from synth_core.quality import herd_sim as crowd
 from synth_core.quality import metrics as M
 from synth_core.quality.evaluate import edge_suite, feet_after_fk, world_positions
 from synth_core.quality.reference import library_reference
-from synth_core.runtime.bank import Bank, build_bank, library_ground, standing_heights, table_positions
+from synth_core.runtime.bank import (
+    STATIC,
+    Bank,
+    build_bank,
+    library_ground,
+    standing_heights,
+    table_positions,
+)
+from synth_core.runtime.plan import MARGIN, STILL_S
 from synth_core.runtime.synthesis import Options, Result, synthesize
 from tests.helpers.mocap import MANN_DIR
-from tests.helpers.motion import clip_flips, looped
+from tests.helpers.motion import clip_flips, looped, stops
 
 FIXTURE = Path(__file__).parent / "fixtures" / "mann_dog.toml"
 pytestmark = pytest.mark.skipif(not MANN_DIR.is_dir(), reason="real dog mocap not found beside the repo "
@@ -243,6 +252,28 @@ def test_the_walk_keeps_two_paws_down(mann: Library) -> None:
     suite = edge_suite(build_bank(mann), names=["cruise_straight", "stop_and_stand", "stop_go"])
     for name, scenario in suite["scenarios"].items():
         assert scenario["figures"]["walk_support_share"] >= 1.0, name
+
+
+def test_a_stop_inside_the_start_stands(mann: Library) -> None:
+    """Issue 27: a stop settles into the idle, four feet down. The real dog's start (static ->
+    walk, 2.3 s of its mocap, 1.1 m of walking) is longer than the walk before a stop in the
+    edge suite's turn_on_spot; a start was let play on through a stop (it waits for the path to
+    move, so it was never taken for a stand) and, played by distance, crept on over the second's
+    stand with a hind paw 4.4 cm up, then two paws up. Now from a standing body's STILL_S and
+    the idle's fade in, to the path moving again, the dog stands on four paws after FK."""
+    bank = build_bank(mann)
+    gaits = {HUBS[h]: (float(s[0]), float(s[-1])) for h, s in bank.speeds.items()}
+    sc = edge.scenarios(gaits, bank.fps, 0, ["turn_on_spot"])[0]
+    paths = sc.positions[:2]  # (arrive, stop, leave; the third pivots without stopping)
+    result = synthesize(bank, paths, bank.fps, scales=sc.scales[:2], options=Options(seed=0))
+    fk = feet_after_fk(bank, result, library_reference(bank))
+    checked = 0
+    for c, stop, again in stops(paths):
+        stood = slice(stop + round(STILL_S * bank.fps) + MARGIN, again)
+        assert (result.gait[c, stood] == STATIC).all(), (c, stop)
+        assert fk.down[c, stood].all(), (c, stop)
+        checked += 1
+    assert checked == 2
 
 
 APPROACH_FRAMES = 2  # the frames before a touchdown where the real dog's paw swept in low

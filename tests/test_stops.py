@@ -20,6 +20,7 @@ from synth_core.runtime.bank import STATIC, Bank, build_bank
 from synth_core.runtime.live import LiveSynth
 from synth_core.runtime.plan import decision_step, lookahead
 from synth_core.runtime.synthesis import Options, Result, synthesize
+from tests.helpers.motion import stops
 
 WALK = HUBS.index("walk")
 ANIMALS = ["horse", "dog"]
@@ -33,19 +34,6 @@ def animal_bank(animal: str) -> Bank:
 def stop_scenario(bank: Bank, name: str) -> edge.Scenario:
     gaits = {HUBS[h]: (float(s[0]), float(s[-1])) for h, s in bank.speeds.items()}
     return edge.scenarios(gaits, bank.fps, 0, [name])[0]
-
-
-def stops(positions: np.ndarray) -> list[tuple[int, int, int]]:
-    """Per character of the input, each stop: (the first frame the path stands still, the frame
-    it moves again or its end)."""
-    step = np.linalg.norm(np.diff(positions[..., [0, 2]], axis=1), axis=-1) > 1e-6
-    out: list[tuple[int, int, int]] = []
-    for c in range(len(step)):
-        moving = np.flatnonzero(step[c])
-        for s in moving[np.diff(np.append(moving, step.shape[1])) > 1] + 1:
-            again = moving[moving >= s]
-            out.append((c, int(s), int(again[0]) if len(again) else positions.shape[1]))
-    return out
 
 
 def idle_foot_sway(bank: Bank) -> float:

@@ -6,7 +6,8 @@ Every frame ``t`` of a character, in this order (Sung 2011 section 6, steps 1-2;
 1. a transition under way ends at the first frame after its start where the character has covered
    its distance; its gait starts there, at the clip frame the transition ends in;
 2. a character that has stopped (:func:`_settle`) stands at once: the idle takes over, whatever
-   played fading out from where it is (a start, the static -> walk transition, is let be);
+   played fading out from where it is (a start, the static -> walk transition, once its path has
+   moved since it began and stands still again);
 3. at a decision frame (every ``step`` frames) the gait is chosen on the speed ``lookahead`` ahead
    (:func:`_choose`); a change is *asked*: a character free now changes at once, one whose
    transition ends before the next decision changes as it ends, others not;
@@ -259,6 +260,18 @@ def _settle(s: Any, f: Any, t: int, travelled: float, cyclic: Any, curve_at: Any
 
 
 @jit(inline="always")
+def _stopped(s: Any, f: Any, t: int, slow: bool, still: bool, source: Any, cyclic: Any) -> bool:
+    """Rule 2: whether the character settles at frame t, its path slower than the slowest gait
+    (``slow``) or standing still STILL_S (``still``). A start (static -> walk), which waits for
+    the path to move, settles only where the path has moved since it began and stands still
+    again: played by distance, it crept on over the stop with a paw up (the real dog's start,
+    2.3 s of its mocap, outlasts a short walk to a stop)."""
+    if source[s[KIND]] != STATIC:
+        return slow or still
+    return still and f[STILL] < t - s[START] and s[KIND] != STATIC and not cyclic[s[KIND]]
+
+
+@jit(inline="always")
 def _walk_on(f: Any, pts: Any, i: int, still: float) -> None:
     """The distance walked and the frames stood still (steps under ``still``) by point i + 1."""
     dx = pts[i + 1, 0] - pts[i, 0]
@@ -405,7 +418,7 @@ def _character(t0: int, v: Any, pts: Any, h: float, tempo: float, lead: int, ask
         walked = f[WALKED]
         travelled = walked / h  # in the library's unit
         started = _arrive(s, f, t, travelled, total, n_hubs, creep, margin, frames_of, tr_kind, entry, exit_)
-        if (v[i] < low[slowest] or f[STILL] >= still_frames) and source[s[KIND]] != STATIC:
+        if _stopped(s, f, t, v[i] < low[slowest], f[STILL] >= still_frames, source, cyclic):
             _settle(s, f, t, travelled, cyclic, curve_at, curves, creep, margin)
             started = True
         if t == ask:

@@ -145,3 +145,16 @@ def clip_flips(library: Library, skip: int) -> dict[str, int]:
         shown = (positions[:, k::skip] for k in range(skip))
         flips[name] = sum(int(M.limb_flips(p, library.skeleton).sum()) for p in shown)
     return flips
+
+
+def stops(positions: np.ndarray) -> list[tuple[int, int, int]]:
+    """Per character of the input, each stop: (the first frame the path stands still, the frame
+    it moves again or its end)."""
+    step = np.linalg.norm(np.diff(positions[..., [0, 2]], axis=1), axis=-1) > 1e-6
+    out: list[tuple[int, int, int]] = []
+    for c in range(len(step)):
+        moving = np.flatnonzero(step[c])
+        for s in moving[np.diff(np.append(moving, step.shape[1])) > 1] + 1:
+            again = moving[moving >= s]
+            out.append((c, int(s), int(again[0]) if len(again) else positions.shape[1]))
+    return out
