@@ -276,6 +276,15 @@ def test_a_stop_inside_the_start_stands(mann: Library) -> None:
     assert checked == 2
 
 
+def test_a_transition_braked_to_a_crawl_does_not_creep(mann: Library) -> None:
+    """Issue 27: no foot alone past its gait's longest stance. Braked from a canter to a crawl
+    (the edge suite's brake_to_crawl), the real dog's canter -> trot played by distance at a
+    crawl's pace and stood it on one paw 2.5 times its longest stance; it now gives way to the
+    walk (plan.MIN_TRANSITION_RATE)."""
+    suite = edge_suite(build_bank(mann), names=["brake_to_crawl"])
+    assert suite["scenarios"]["brake_to_crawl"]["figures"]["single_support_ratio_max"] <= 1.0
+
+
 APPROACH_FRAMES = 2  # the frames before a touchdown where the real dog's paw swept in low
 
 

@@ -178,3 +178,32 @@ def test_an_agent_standing_with_a_simulators_jitter_stands(animal: str) -> None:
     fk = evaluate.feet_after_fk(bank, result, library_reference(bank))
     moved = np.linalg.norm((fk.feet - fk.feet[:, :1])[..., [0, 2]], axis=-1)
     assert moved.max() < idle_foot_sway(bank) + 0.005
+
+
+@pytest.mark.parametrize("animal", ANIMALS)
+def test_a_transition_braked_to_a_crawl_gives_way_to_the_walk(animal: str) -> None:
+    """Braking from a canter or a gallop to a crawl (0.15-0.5 m/s, the edge suite's
+    brake_to_crawl): no stop, so nothing settled, and the transition under way, played by
+    distance, crept (a dog's trot -> walk 3.4-4.1 s into the crawl; in other herds a dog on one
+    hind paw 2.6 times its canter's longest stance, a horse on one foreleg for 1.5 s). A
+    transition shown slower than MIN_TRANSITION_RATE of its pace gives way to the walk: once
+    the path crawls, no transition plays past the plan's view of the speed (a decision step
+    and its look-ahead), and after FK the walk keeps two feet down and nothing floats."""
+    from synth_core.runtime.synthesis import plan, prepare_batch
+
+    bank = animal_bank(animal)
+    sc = stop_scenario(bank, "brake_to_crawl")
+    options = Options(seed=0)
+    prep, h, keys = prepare_batch(bank, sc.positions, bank.fps, sc.scales, options, None, None)
+    row = plan(bank, prep, h, keys, options.margin).rows[..., 0] % (bank.mirror or np.iinfo(np.int32).max)
+    first = min(p.offset for p in bank.transitions.values())
+    playing = (row >= first) & (row < max(p.offset + p.frames for p in bank.transitions.values()))
+    speed = np.linalg.norm(np.diff(sc.reference[..., [0, 2]], axis=1), axis=-1) * bank.fps
+    view = lookahead(bank.mean_cycle) + decision_step(bank.mean_cycle)
+    for c in range(len(row)):
+        crawl = int(np.flatnonzero(np.abs(speed[c] - speed[c, -1]) > 1e-3)[-1]) + 1  # steady from here
+        assert not playing[c, crawl + view:].any(), (c, crawl, np.flatnonzero(playing[c, crawl:])[-1])
+    figures = evaluate.edge_suite(bank, names=["brake_to_crawl"])["scenarios"]["brake_to_crawl"]["figures"]
+    assert figures["walk_support_share"] >= 1.0
+    assert figures["floating_cm_max"] <= 1.0
+    assert figures["gait_frames"]["walk"] > 0

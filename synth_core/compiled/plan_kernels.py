@@ -7,7 +7,8 @@ Every frame ``t`` of a character, in this order (Sung 2011 section 6, steps 1-2;
    its distance; its gait starts there, at the clip frame the transition ends in;
 2. a character that has stopped (:func:`_settle`) stands at once: the idle takes over, whatever
    played fading out from where it is (a start, the static -> walk transition, once its path has
-   moved since it began and stands still again);
+   moved since it began and stands still again); a transition shown under MIN_TRANSITION_RATE of
+   its pace on a crawl gives way to the gait the crawl is in, the same way (:func:`_give_way`);
 3. at a decision frame (every ``step`` frames) the gait is chosen on the speed ``lookahead`` ahead
    (:func:`_choose`); a change is *asked*: a character free now changes at once, one whose
    transition ends before the next decision changes as it ends, others not;
@@ -44,6 +45,7 @@ from synth_core.runtime.bank import STATIC
 
 NEVER = np.iinfo(np.int64).max // 4
 HELD = np.iinfo(np.int32).max  # a finished transition's clip frame: it stays at its end
+LIFTED_FRAMES = 3  # clip frames after a foot lifts in which a stalled transition does not give way
 
 # A character's state, int64 fields ...
 CURRENT = 0  # the hub decided last (being reached, if a change is under way)
@@ -240,23 +242,58 @@ def _change(s: Any, f: Any, new: int, frames_of: Any, tr_kind: Any, entry: Any, 
 
 
 @jit(inline="always")
-def _settle(s: Any, f: Any, t: int, travelled: float, cyclic: Any, curve_at: Any, curves: Any,
-            creep: float, margin: int) -> None:
-    """A stopped character settles: the idle takes over at frame t, the piece playing (a gait, or
-    a transition that does not leave standing) fading out from where it is -- a transition from
-    the frame it shows, held. Stopped: slower than the slowest gait goes, or its path still for
-    ``still_frames`` (the segment speeds see a stop a segment late). Transitions play by distance,
-    so on a stopped path the chain down to standing (trot -> walk -> static) took hundreds of
-    frames, the animal frozen mid-stride on two legs."""
+def _shown(s: Any, f: Any, t: int, travelled: float, curve_at: Any, curves: Any, creep: float) -> float:
+    """The clip frame (fractional) the transition playing shows at frame t: the one whose progress
+    is the distance covered since it began (plus the creep)."""
+    at, n = curve_at[s[KIND], 0], curve_at[s[KIND], 1]
+    return _interp((travelled - f[TRAV0]) + creep * float(t - s[START]), curves, at, n)
+
+
+@jit(inline="always")
+def _settle(s: Any, f: Any, t: int, travelled: float, hub: int, first: int, cyclic: Any, curve_at: Any,
+            curves: Any, creep: float, margin: int) -> None:
+    """Hub ``hub`` (the idle, or a gait at clip frame ``first``) takes over at frame t, now, the
+    piece playing (a gait, or a transition) fading out from where it is -- a transition from the
+    frame it shows, held. A stopped character settles so into the idle: slower than the slowest
+    gait goes, or its path still for ``still_frames`` (the segment speeds see a stop a segment
+    late). Transitions play by distance, so on a stopped path the chain down to standing (trot ->
+    walk -> static) took hundreds of frames, the animal frozen mid-stride on two legs; one
+    stalled on a crawl (:func:`_stalled`) gives way so to the gait the crawl is in."""
     held = -1
     if not cyclic[s[KIND]]:
-        at, n = curve_at[s[KIND], 0], curve_at[s[KIND], 1]
-        walked = (travelled - f[TRAV0]) + creep * float(t - s[START])
-        held = min(int(math.floor(_interp(walked, curves, at, n))), n - 1)
-    _start(s, f, STATIC, 0, t, f[CLOCKS + STATIC], travelled, margin)
+        shown = _shown(s, f, t, travelled, curve_at, curves, creep)
+        held = min(int(math.floor(shown)), curve_at[s[KIND], 1] - 1)
+    _start(s, f, hub, first, t, f[CLOCKS + hub], travelled, margin)
     if held >= 0:
         s[PREV_FIRST] = held
-    s[STAGE], s[CURRENT], s[ASKED] = FREE, STATIC, -1
+    s[STAGE], s[CURRENT], s[ASKED] = FREE, hub, -1
+
+
+@jit(inline="always")
+def _stalled(s: Any, f: Any, t: int, step: float, travelled: float, stall: float, cyclic: Any, source: Any,
+             target: Any, curve_at: Any, curves: Any, creep: float) -> bool:
+    """Whether the transition playing (not a start, nor a stop: those slow with their path, and a
+    path stopping is settled by :func:`_stopped`) shows fewer than ``stall`` clip frames a frame
+    at frame t, the path covering ``step`` a frame: played by distance, a canter -> trot on a path
+    braking to a crawl (0.2-0.5 m/s) crept over a second or more, a horse on one foreleg, the
+    others folded (issue 27: a transition's lone foot 2.7-6.6 times the longest stance)."""
+    kind = s[KIND]
+    if cyclic[kind] or source[kind] == STATIC or target[kind] == STATIC or t == s[START]:
+        return False
+    at, n = curve_at[kind, 0], curve_at[kind, 1]
+    u = min(int(math.floor(_shown(s, f, t, travelled, curve_at, curves, creep))), n - 2)
+    return bool(step + creep < stall * (curves[at + u + 1] - curves[at + u]))
+
+
+@jit(inline="always")
+def _slower(v: float, low: Any, slowest: int) -> int:
+    """The fastest gait whose range reaches down to speed ``v`` (its slowest clip at or under it;
+    the slowest gait below all of them), where a stalled transition gives way."""
+    hub = slowest
+    for h in range(len(low)):
+        if h != STATIC and low[h] <= v and low[h] < np.inf:
+            hub = max(hub, h)
+    return hub
 
 
 @jit(inline="always")
@@ -269,6 +306,52 @@ def _stopped(s: Any, f: Any, t: int, slow: bool, still: bool, source: Any, cycli
     if source[s[KIND]] != STATIC:
         return slow or still
     return still and f[STILL] < t - s[START] and s[KIND] != STATIC and not cyclic[s[KIND]]
+
+
+@jit(inline="always")
+def _just_lifted(contacts_of: Any, first: int, shown: int, row: int) -> bool:
+    """Whether table row ``row`` sets down a foot the transition (from table row ``first``) lifted
+    within LIFTED_FRAMES of its frame ``shown``: given way to there, the foot was planted again a
+    frame after it left (a real dog twice the size: a 20 cm one-frame swing out and back)."""
+    for foot in range(4):
+        if contacts_of[first + shown, foot] or not contacts_of[row, foot]:
+            continue
+        for d in range(1, LIFTED_FRAMES + 1):
+            if shown - d >= 0 and contacts_of[first + shown - d, foot]:
+                return True
+    return False
+
+
+@jit(inline="always")
+def _give_way(s: Any, f: Any, t: int, speeds: Any, travelled: float, pace: Any, tables: Any, cyclic: Any,
+              source: Any, target: Any, low: Any, slowest: int, curve_at: Any, curves: Any, creep: float,
+              margin: int) -> bool:
+    """Rule 2 at frame t (``speeds``: the speed now, the decisions' look-ahead speeds and the next
+    one's index; ``pace``: the frames still that make a stop, fps and MIN_TRANSITION_RATE;
+    ``tables``: offset, frames_of, contacts_of and resume; all as _character has them): a stopped
+    character settles into the idle (:func:`_stopped`), a transition stalled on a crawl
+    (:func:`_stalled`) gives way to the gait of the slower of the speed now and ahead (the
+    slowest gait if a stop is coming: it slows with the path, then settles; the idle at once
+    stood a body still moving, and a gait too fast for the crawl -- a trot at its own pace, which
+    never slows -- floated it over a flight), at the clip frame nearest the one shown (``resume``:
+    plan.give_way_phases). Whether one did."""
+    v, asked, k = speeds
+    offset, frames_of, contacts_of, resume = tables
+    still_frames, fps, stall = pace
+    ahead = asked[k] if 0 <= k < asked.shape[0] else v
+    if _stopped(s, f, t, v < low[slowest], f[STILL] >= still_frames, source, cyclic):
+        _settle(s, f, t, travelled, STATIC, 0, cyclic, curve_at, curves, creep, margin)
+        return True
+    if _stalled(s, f, t, v / fps, travelled, stall, cyclic, source, target, curve_at, curves, creep):
+        hub = _slower(min(v, ahead), low, slowest)
+        shown = min(int(math.floor(_shown(s, f, t, travelled, curve_at, curves, creep))),
+                    frames_of[s[KIND]] - 1)
+        first = resume[offset[s[KIND]] + shown, hub]
+        if _just_lifted(contacts_of, offset[s[KIND]], shown, offset[hub] + first):
+            return False
+        _settle(s, f, t, travelled, hub, first, cyclic, curve_at, curves, creep, margin)
+        return True
+    return False
 
 
 @jit(inline="always")
@@ -399,10 +482,10 @@ def _decide(s: Any, f: Any, t: int, speed: float, draws: Any, low: Any, high: An
 def _character(t0: int, v: Any, pts: Any, h: float, tempo: float, lead: int, asked_speed: Any, draws: Any,
                k0: int, step: int, s: Any, f: Any, offset: Any, frames_of: Any, clips: Any, cyclic: Any,
                source: Any, target: Any, tr_kind: Any, entry: Any, exit_: Any, total: Any, low: Any,
-               high: Any, curve_at: Any, curves: Any, contacts_of: Any, slowest: int, fastest: int,
-               max_rate: float, slow: float, share: float, still_step: float, still_frames: float,
-               margin: int, creep: float, out_step: int, rows: Any, weights: Any, gait: Any, contacts: Any,
-               stitches: Any) -> None:
+               high: Any, curve_at: Any, curves: Any, contacts_of: Any, resume: Any, slowest: int,
+               fastest: int, max_rate: float, slow: float, share: float, still_step: float,
+               still_frames: float, fps: float, stall: float, margin: int, creep: float, out_step: int,
+               rows: Any, weights: Any, gait: Any, contacts: Any, stitches: Any) -> None:
     """Frames ``[t0, t0 + len(v))`` of one character (speeds ``v``, path ``pts`` from frame t0 on,
     its rows ``lead`` on: see _on_lead): its state ``s``, ``f`` carried on; the outputs' row i is
     frame ``t`` = the i-th multiple of ``out_step`` from t0 on. Decision ``k0 + k`` (at frame
@@ -418,9 +501,9 @@ def _character(t0: int, v: Any, pts: Any, h: float, tempo: float, lead: int, ask
         walked = f[WALKED]
         travelled = walked / h  # in the library's unit
         started = _arrive(s, f, t, travelled, total, n_hubs, creep, margin, frames_of, tr_kind, entry, exit_)
-        if _stopped(s, f, t, v[i] < low[slowest], f[STILL] >= still_frames, source, cyclic):
-            _settle(s, f, t, travelled, cyclic, curve_at, curves, creep, margin)
-            started = True
+        started |= _give_way(s, f, t, (v[i], asked_speed, k), travelled, (still_frames, fps, stall),
+                             (offset, frames_of, contacts_of, resume), cyclic, source, target, low, slowest,
+                             curve_at, curves, creep, margin)
         if t == ask:
             if 0 <= k < asked_speed.shape[0]:
                 _decide(s, f, t, asked_speed[k], draws[k], low, high, slowest, fastest, step, frames_of,
@@ -461,10 +544,10 @@ def _character(t0: int, v: Any, pts: Any, h: float, tempo: float, lead: int, ask
 def advance(t0: int, v: Any, pts: Any, h: Any, tempo: Any, lead: Any, asked_speed: Any, draws: Any, k0: int,
             step: int, ints: Any, floats: Any, offset: Any, frames_of: Any, clips: Any, cyclic: Any,
             source: Any, target: Any, tr_kind: Any, entry: Any, exit_: Any, total: Any, low: Any, high: Any,
-            curve_at: Any, curves: Any, contacts_of: Any, slowest: int, fastest: int, max_rate: float,
-            slow: float, share: float, still_step: float, still_frames: float, margin: int, creep: float,
-            out_step: int, rows: Any, weights: Any, gait: Any, contacts: Any,
-            stitches: Any) -> None:
+            curve_at: Any, curves: Any, contacts_of: Any, resume: Any, slowest: int, fastest: int,
+            max_rate: float, slow: float, share: float, still_step: float, still_frames: float, fps: float,
+            stall: float, margin: int, creep: float, out_step: int, rows: Any, weights: Any, gait: Any,
+            contacts: Any, stitches: Any) -> None:
     """:func:`_character` for every character ``c`` (row c of every array but the tables),
     characters in parallel on numba's threads, each taking the next ones as it is free: split in
     fixed shares, the thread done first (its characters' plans shorter, or the other's core busy
@@ -472,9 +555,9 @@ def advance(t0: int, v: Any, pts: Any, h: Any, tempo: Any, lead: Any, asked_spee
     for c in prange(v.shape[0]):
         _character(t0, v[c], pts[c], h[c], tempo[c], lead[c], asked_speed[c], draws[c], k0, step, ints[c],
                    floats[c], offset, frames_of, clips, cyclic, source, target, tr_kind, entry, exit_,
-                   total, low, high, curve_at, curves, contacts_of, slowest, fastest, max_rate, slow,
-                   share, still_step, still_frames, margin, creep, out_step, rows[c], weights[c], gait[c],
-                   contacts[c], stitches[c])
+                   total, low, high, curve_at, curves, contacts_of, resume, slowest, fastest, max_rate, slow,
+                   share, still_step, still_frames, fps, stall, margin, creep, out_step, rows[c], weights[c],
+                   gait[c], contacts[c], stitches[c])
 
 
 @jit()

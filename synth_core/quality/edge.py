@@ -251,6 +251,20 @@ def accel_brake(gaits: GaitSpeeds, fps: float, rng: np.random.Generator) -> Scen
                 about=f"stand, to {top:.2f} m/s and back to 0 at 4, 6 and 8 m/s^2")
 
 
+def brake_to_crawl(gaits: GaitSpeeds, fps: float, rng: np.random.Generator) -> Scenario:
+    """Run at the canter's and the gallop's speed, brake at 3 or 6 m/s^2 to a crawl (0.15-0.5
+    m/s: an agent held up in a jam), crawl on. A crawl is no stop: the animal must walk it, not
+    stand, not play the transition it was in at a crawl's pace."""
+    F = frames_for(8.0, fps)
+    paths = []
+    for g, a, crawl in (("canter", BRAKE, 0.3), ("canter", BRAKE, 0.5), ("gallop", 2 * BRAKE, 0.15),
+                        ("gallop", BRAKE, 0.3)):
+        v = cruise(gaits, g if g in gaits else max(gaits, key=lambda h: gaits[h][1]))
+        paths.append(run(F, fps, [*start_at(v), *ramp(v, crawl, 0.5 + v / SPEED_UP + 1.5, a)]))
+    return herd(paths, name="brake_to_crawl",
+                about="canter, canter, gallop, gallop braking at 3, 3, 6, 3 m/s^2 to 0.3, 0.5, 0.15, 0.3 m/s")
+
+
 def jitter_10hz(gaits: GaitSpeeds, fps: float, rng: np.random.Generator) -> Scenario:
     """A gentle curve (r 15 m) at walk, trot and canter speed, as a 10 Hz simulator sends it at
     the output rate: each tick's position held until the next, plus 2 cm noise a tick."""
@@ -392,6 +406,7 @@ MAKERS: dict[str, Callable[[GaitSpeeds, float, np.random.Generator], Scenario]] 
     "zigzag": zigzag,
     "small_circles": small_circles,
     "accel_brake": accel_brake,
+    "brake_to_crawl": brake_to_crawl,
     "jitter_10hz": jitter_10hz,
     "too_fast": too_fast,
     "mixed_sizes": mixed_sizes,

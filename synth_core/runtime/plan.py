@@ -37,7 +37,10 @@ once: the idle fades in over the margin, from whatever gait or transition played
 transitions play by distance, so the chain trot -> walk -> static on a stopped path took hundreds
 of frames, the animal frozen mid-stride); it leaves standing by the static -> walk transition, as
 from the start, once its path moves (chosen on the speed ahead, the transition crept on the spot
-with a hoof up for as long as the path still stood).
+with a hoof up for as long as the path still stood). A transition on a path braking to a crawl
+-- no stop -- is shown slower and slower: under ``MIN_TRANSITION_RATE`` of its pace it gives way
+to the gait the crawl is in the same way, at its nearest frame (a horse stood on one foreleg
+1.5 s inside canter -> trot).
 
 The heading follows the path's direction (:class:`Headings`) where it moves (a slow path only
 while it drags an anchor ``HOLD_RADIUS`` behind it: a simulator's jitter round a standing agent
@@ -58,7 +61,7 @@ from numpy.typing import NDArray
 from synth_core.compiled import plan_kernels as pk
 from synth_core.compiled.backend import planner
 from synth_core.compiled.heading_kernels import CHORD_FRAMES
-from synth_core.runtime.bank import Bank
+from synth_core.runtime.bank import Bank, nearest_pose
 from synth_core.runtime.draws import LEAD_STREAM, SCHEDULE_STREAM, uniform, uniform_streams
 from synth_core.runtime.trajectory import GROUND_AXES, Prepared
 
@@ -77,6 +80,13 @@ STAND_SHARE = 0.05
 # segment speeds alone see a stop a segment late; longer than a 10 Hz simulator's tick (0.1 s),
 # or its held points would read as stops.
 STILL_S = 0.2
+# A transition (not a start, nor one to standing) shown slower than this share of its pace --
+# played by distance on a path braking to a crawl -- gives way at once to the gait the path is
+# in, from the frame it shows, as a stop settles (plan_kernels._give_way). At a tenth of its pace
+# a dog's trot -> walk crept on 4 s into a crawl. At 0.5 the standard herd's ordinary slowing
+# gave way too, each a fade between two poses (its pops 1.39 -> 1.58 of a frame's own; a
+# real-dog herd's paw jumped 6.2 cm): at 0.35 only crawls do.
+MIN_TRANSITION_RATE = 0.35
 MIN_TURN_SPEED = 0.05  # m/s: slower than this the heading holds (a standing animal does not spin)
 # ... and slower than FREE_TURN_SPEED it holds unless the path drags an anchor HOLD_RADIUS (metres)
 # behind it, the anchor drawn toward the path at HOLD_PULL (m/s), or leaves a stop (STILL_S still):
@@ -166,19 +176,21 @@ class Tables:
     curve_at: NDArray[np.int64]  # (kinds, 2): where a kind's curve sits in ``curves``, its length
     curves: Floats  # hubs: clip speeds; transitions: their frames' progress (distance)
     contacts: NDArray[np.bool_]  # (rows, 4) the bank's
+    resume: NDArray[np.int64]  # (rows, 5): a transition row's nearest frame of each gait (give_way_phases)
     slowest: int  # slowest and fastest hub with clips
     fastest: int
     slow: float  # the slowest gait's slowest clip speed (it plays slower below)
     creep: float  # the bank's
     still_step: float  # m per frame (the library's): a path's step slower than this stands still
     still_frames: float  # frames of such steps that make a stop
+    fps: float  # the library's
 
     def args(self) -> tuple[Any, ...]:
         """The kernel's arguments from ``offset`` to ``creep`` (see plan_kernels.advance)."""
         return (self.offset, self.frames, self.clips, self.cyclic, self.source, self.target, self.tr_kind,
                 self.entry, self.exit, self.total, self.low, self.high, self.curve_at, self.curves,
-                self.contacts, self.slowest, self.fastest, MAX_RATE, self.slow, STAND_SHARE, self.still_step,
-                self.still_frames)
+                self.contacts, self.resume, self.slowest, self.fastest, MAX_RATE, self.slow, STAND_SHARE,
+                self.still_step, self.still_frames, self.fps, MIN_TRANSITION_RATE)
 
 
 @functools.lru_cache(maxsize=8)  # per bank (identity): made once, not per plan
@@ -207,8 +219,28 @@ def tables(bank: Bank) -> Tables:
                   np.array(list(range(N_HUBS)) + [a for (a, _), _ in trs]),
                   np.array(list(range(N_HUBS)) + [b for (_, b), _ in trs]), tr_kind, entry, exit_, total,
                   low, high, curve_at, np.concatenate(curves) if curves else np.zeros(0), bank.contacts,
+                  give_way_phases(bank),
                   min(bank.speeds), max(bank.speeds), slow, bank.creep, STAND_SHARE * slow / bank.fps,
-                  float(round(STILL_S * bank.fps)))
+                  float(round(STILL_S * bank.fps)), float(bank.fps))
+
+
+def give_way_phases(bank: Bank) -> NDArray[np.int64]:
+    """``(rows, N_HUBS)``: for each transition row of the table (before the mirror rows; others
+    0), the clip frame of each gait's middle clip a stalled transition gives way to there
+    (plan_kernels._give_way): its feet down agreeing first, then its pose nearest (as a
+    transition's entry and exit are found, ``bank.nearest_pose``). By contacts alone the walk
+    picked was a stride away in pose: the standard herd's pops 1.39 -> 1.82 of a frame's own."""
+    rows = bank.mirror or len(bank.poses)
+    out = np.zeros((len(bank.poses), N_HUBS), np.int64)
+    tr = np.concatenate([np.arange(p.offset, p.offset + p.frames) for p in bank.transitions.values()]
+                        ) if bank.transitions else np.zeros(0, np.int64)
+    tr = tr[tr < rows]
+    for hub, g in bank.gaits.items():
+        first = g.offset + (g.clips // 2) * g.frames
+        poses, contacts = bank.poses[first:first + g.frames], bank.contacts[first:first + g.frames]
+        for r in tr:
+            out[r, hub] = nearest_pose(poses, contacts, bank.poses[r], bank.contacts[r])
+    return out
 
 
 def coverage(bank: Bank) -> tuple[Floats, Floats]:
