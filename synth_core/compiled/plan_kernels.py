@@ -14,9 +14,10 @@ Every frame ``t`` of a character, in this order (Sung 2011 section 6, steps 1-2;
    transition ends before the next decision changes as it ends, others not;
 4. a change waits for the gait's stride clock to reach the transition's entry phase: the
    transition starts at the first frame where it has;
-5. the frame's table rows: the piece playing at its clip frame (the stride clock since it started)
-   and, over ``margin`` frames after a start, the piece before it fading out (itself still over
-   the one before it, where it had started within the margin: :func:`_start`);
+5. the frame's table rows (:mod:`~synth_core.compiled.row_kernels`): the piece playing at its
+   clip frame (the stride clock since it started) and, over ``margin`` frames after a start, the
+   piece before it fading out (itself still over the one before it, where it had started within
+   the margin: :func:`_start`);
 6. every kind's stride clock, the distance walked and how long the path has stood still move on
    to the next frame.
 
@@ -38,14 +39,15 @@ from typing import Any
 
 import numpy as np
 
-from synth_core.compiled import heading_kernels
+from synth_core.compiled import heading_kernels, row_kernels
 from synth_core.compiled.heading_kernels import headings, turn
 from synth_core.compiled.jit import AVAILABLE, interpreted, jit, prange
+from synth_core.compiled.row_kernels import fade, frame_rows, interp, local_frame, on_lead, tween
 from synth_core.runtime.bank import STATIC
 
 NEVER = np.iinfo(np.int64).max // 4
 HELD = np.iinfo(np.int32).max  # a finished transition's clip frame: it stays at its end
-LIFTED_FRAMES = 3  # clip frames after a foot lifts in which a stalled transition does not give way
+LIFTED_FRAMES = 3  # frames after a foot lifts in which a stalled transition does not give way
 
 # A character's state, int64 fields ...
 CURRENT = 0  # the hub decided last (being reached, if a change is under way)
@@ -84,28 +86,6 @@ def initial_state(characters: int, hubs: int) -> tuple[Any, Any]:
     ints = np.zeros((characters, N_INTS), np.int64)
     ints[:, ASKED] = -1
     return ints, np.zeros((characters, CLOCKS + hubs + 1))
-
-
-@jit(inline="always")
-def _interp(x: float, xp: Any, at: int, n: int) -> float:
-    """np.interp(x, xp[at:at + n], arange(n)) for one x, as numpy computes it (same branches, same
-    operations): the last j with xp[j] <= x, then the slope form."""
-    if x < xp[at]:
-        return 0.0
-    if x > xp[at + n - 1]:
-        return float(n - 1)
-    lo, hi = 0, n
-    while lo < hi:
-        mid = lo + ((hi - lo) >> 1)
-        if x >= xp[at + mid]:
-            lo = mid + 1
-        else:
-            hi = mid
-    j = lo - 1
-    if j == n - 1 or xp[at + j] == x:
-        return float(j)
-    slope = (float(j + 1) - float(j)) / (xp[at + j + 1] - xp[at + j])
-    return float(slope * (x - xp[at + j]) + float(j))
 
 
 @jit(inline="always")
@@ -167,45 +147,6 @@ def _moving_start(s: Any, f: Any, speed: float, pts: Any, still: float, draws: A
 
 
 @jit(inline="always")
-def _row(kind: int, local: int, speed: float, walked: float, has_walked: bool, offset: Any, frames_of: Any,
-         clips: Any, cyclic: Any, curve_at: Any, curves: Any) -> Any:
-    """Table rows of a piece at clip frame ``local``: (row 0, row 1, the second's weight). Gaits:
-    the two speed-map clips around ``speed``; transitions: the two clip frames around the one whose
-    progress is ``walked`` (the distance since it began; ``has_walked`` False: past its end)."""
-    frames = frames_of[kind]
-    if cyclic[kind]:
-        frame = local % frames
-    else:
-        frame = min(max(local, 0), frames - 1)
-    clip0 = 0
-    weight = 0.0
-    at, n = curve_at[kind, 0], curve_at[kind, 1]
-    if n > 0:
-        if cyclic[kind]:  # a gait: the clips around the speed
-            u = _interp(speed, curves, at, n)
-            clip0 = min(int(math.floor(u)), n - 2) if n > 1 else 0
-            weight = u - clip0
-        elif has_walked:  # a transition: the frames around the distance walked
-            f = _interp(walked, curves, at, n)
-            frame = min(int(math.floor(f)), n - 1)
-            weight = f - frame
-    clip1 = min(clip0 + 1, clips[kind] - 1)
-    base = offset[kind] + frame
-    step = clip1 * frames if cyclic[kind] else min(frame + 1, frames - 1) - frame
-    return base + clip0 * frames, base + step, weight
-
-
-@jit(inline="always")
-def _fade(since: int, margin: int) -> float:
-    """The share left of a piece fading out ``since`` frames after the next one started (1 -
-    smoothstep over ``margin`` frames; 0 once they are over)."""
-    if since >= margin:
-        return 0.0
-    u = (since + 1) / (margin + 1)
-    return 1 - u * u * (3 - 2 * u)
-
-
-@jit(inline="always")
 def _start(s: Any, f: Any, kind: int, first: int, t: int, clock0: float, travelled: float,
            margin: int) -> None:
     """Piece ``kind`` starts at frame t at clip frame ``first``: the one playing fades out.
@@ -214,9 +155,9 @@ def _start(s: Any, f: Any, kind: int, first: int, t: int, clock0: float, travell
     (fading out under it): it is not dropped, or it would vanish in one frame (a piece that
     lasts a few frames between two transitions: hooves jumped 25-38 cm). Of those two, the one
     showing more keeps fading out (OLD) under the one playing, which fades out in turn: the pose
-    fading out is their blend, as it was shown (see _frame_rows)."""
+    fading out is their blend, as it was shown (see row_kernels.frame_rows)."""
     fading = s[HAS_PREV] == 1 and t - s[START] < margin
-    if fading and not (s[HAS_OLD] == 1 and _fade(t - s[PREV_START], margin) > 0.5):
+    if fading and not (s[HAS_OLD] == 1 and fade(t - s[PREV_START], margin) > 0.5):
         s[OLD_KIND], s[OLD_FIRST], f[OLD_CLOCK0] = s[PREV_KIND], s[PREV_FIRST], f[PREV_CLOCK0]
     s[HAS_OLD] = 1 if fading else 0
     s[PREV_KIND], s[PREV_FIRST], f[PREV_CLOCK0] = s[KIND], s[FIRST], f[CLOCK0]
@@ -246,7 +187,7 @@ def _shown(s: Any, f: Any, t: int, travelled: float, curve_at: Any, curves: Any,
     """The clip frame (fractional) the transition playing shows at frame t: the one whose progress
     is the distance covered since it began (plus the creep)."""
     at, n = curve_at[s[KIND], 0], curve_at[s[KIND], 1]
-    return _interp((travelled - f[TRAV0]) + creep * float(t - s[START]), curves, at, n)
+    return interp((travelled - f[TRAV0]) + creep * float(t - s[START]), curves, at, n)
 
 
 @jit(inline="always")
@@ -258,7 +199,7 @@ def _settle(s: Any, f: Any, t: int, travelled: float, hub: int, first: int, cycl
     gait goes, or its path still for ``still_frames`` (the segment speeds see a stop a segment
     late). Transitions play by distance, so on a stopped path the chain down to standing (trot ->
     walk -> static) took hundreds of frames, the animal frozen mid-stride on two legs; one
-    stalled on a crawl (:func:`_stalled`) gives way so to the gait the crawl is in."""
+    stalled on a crawl (:func:`_give_way`) gives way so to the gait the crawl is in."""
     held = -1
     if not cyclic[s[KIND]]:
         shown = _shown(s, f, t, travelled, curve_at, curves, creep)
@@ -270,19 +211,20 @@ def _settle(s: Any, f: Any, t: int, travelled: float, hub: int, first: int, cycl
 
 
 @jit(inline="always")
-def _stalled(s: Any, f: Any, t: int, step: float, travelled: float, stall: float, cyclic: Any, source: Any,
-             target: Any, curve_at: Any, curves: Any, creep: float) -> bool:
-    """Whether the transition playing (not a start, nor a stop: those slow with their path, and a
-    path stopping is settled by :func:`_stopped`) shows fewer than ``stall`` clip frames a frame
-    at frame t, the path covering ``step`` a frame: played by distance, a canter -> trot on a path
-    braking to a crawl (0.2-0.5 m/s) crept over a second or more, a horse on one foreleg, the
-    others folded (issue 27: a transition's lone foot 2.7-6.6 times the longest stance)."""
+def _pace(s: Any, f: Any, t: int, step: float, travelled: float, cyclic: Any, source: Any, target: Any,
+          curve_at: Any, curves: Any, creep: float) -> float:
+    """The clip frames a frame the transition playing shows at frame t, the path covering ``step``
+    a frame (inf: a gait, a start or a stop -- they slow with their path, and a path stopping is
+    settled by :func:`_stopped` -- or its first frame). Played by distance, a canter -> trot on a
+    path braking to a crawl (0.2-0.5 m/s) crept over a second or more at a tenth of its pace, a
+    horse on one foreleg, the others folded (issue 27: a lone foot 2.7-6.6 times the longest
+    stance)."""
     kind = s[KIND]
     if cyclic[kind] or source[kind] == STATIC or target[kind] == STATIC or t == s[START]:
-        return False
+        return np.inf
     at, n = curve_at[kind, 0], curve_at[kind, 1]
     u = min(int(math.floor(_shown(s, f, t, travelled, curve_at, curves, creep))), n - 2)
-    return bool(step + creep < stall * (curves[at + u + 1] - curves[at + u]))
+    return float((step + creep) / max(curves[at + u + 1] - curves[at + u], 1e-12))
 
 
 @jit(inline="always")
@@ -291,7 +233,7 @@ def _slower(v: float, low: Any, slowest: int) -> int:
     the slowest gait below all of them), where a stalled transition gives way."""
     hub = slowest
     for h in range(len(low)):
-        if h != STATIC and low[h] <= v and low[h] < np.inf:
+        if h != STATIC and low[h] <= v:  # (a hub with no clips: low inf)
             hub = max(hub, h)
     return hub
 
@@ -309,45 +251,49 @@ def _stopped(s: Any, f: Any, t: int, slow: bool, still: bool, source: Any, cycli
 
 
 @jit(inline="always")
-def _just_lifted(contacts_of: Any, first: int, shown: int, row: int) -> bool:
-    """Whether table row ``row`` sets down a foot the transition (from table row ``first``) lifted
-    within LIFTED_FRAMES of its frame ``shown``: given way to there, the foot was planted again a
-    frame after it left (a real dog twice the size: a 20 cm one-frame swing out and back)."""
+def _just_lifted(contacts_of: Any, first: int, shown: float, row: int, pace: float) -> bool:
+    """Whether table row ``row`` sets down a foot the transition (from table row ``first``, shown at
+    clip frame ``shown``, ``pace`` clip frames a frame) lifted under LIFTED_FRAMES frames ago:
+    given way to there, the foot was planted again a frame after it left (a real dog twice the
+    size: a 20 cm one-frame swing out and back)."""
+    u = int(math.floor(shown))
+    back = int(math.ceil(LIFTED_FRAMES * pace))  # clip frames shown over LIFTED_FRAMES frames
     for foot in range(4):
-        if contacts_of[first + shown, foot] or not contacts_of[row, foot]:
+        if contacts_of[first + u, foot] or not contacts_of[row, foot]:
             continue
-        for d in range(1, LIFTED_FRAMES + 1):
-            if shown - d >= 0 and contacts_of[first + shown - d, foot]:
+        for d in range(1, back + 1):
+            if u - d >= 0 and contacts_of[first + u - d, foot]:
                 return True
     return False
 
 
 @jit(inline="always")
-def _give_way(s: Any, f: Any, t: int, speeds: Any, travelled: float, pace: Any, tables: Any, cyclic: Any,
+def _give_way(s: Any, f: Any, t: int, speeds: Any, travelled: float, rates: Any, tables: Any, cyclic: Any,
               source: Any, target: Any, low: Any, slowest: int, curve_at: Any, curves: Any, creep: float,
               margin: int) -> bool:
     """Rule 2 at frame t (``speeds``: the speed now, the decisions' look-ahead speeds and the next
-    one's index; ``pace``: the frames still that make a stop, fps and MIN_TRANSITION_RATE;
+    one's index; ``rates``: the frames still that make a stop, fps and MIN_TRANSITION_RATE;
     ``tables``: offset, frames_of, contacts_of and resume; all as _character has them): a stopped
-    character settles into the idle (:func:`_stopped`), a transition stalled on a crawl
-    (:func:`_stalled`) gives way to the gait of the slower of the speed now and ahead (the
-    slowest gait if a stop is coming: it slows with the path, then settles; the idle at once
-    stood a body still moving, and a gait too fast for the crawl -- a trot at its own pace, which
-    never slows -- floated it over a flight), at the clip frame nearest the one shown (``resume``:
-    plan.give_way_phases). Whether one did."""
+    character settles into the idle (:func:`_stopped`), a transition stalled on a crawl (its
+    :func:`_pace` under MIN_TRANSITION_RATE) gives way to the gait of the slower of the speed now
+    and ahead (the slowest gait if a stop is coming: it slows with the path, then settles; the
+    idle at once stood a body still moving, and a gait too fast for the crawl -- a trot at its
+    own pace, which never slows -- floated it over a flight), at the clip frame nearest the one
+    shown (``resume``: plan.give_way_phases), not while a foot it sets down has just lifted
+    (:func:`_just_lifted`). Whether one did."""
     v, asked, k = speeds
     offset, frames_of, contacts_of, resume = tables
-    still_frames, fps, stall = pace
+    still_frames, fps, stall = rates
     ahead = asked[k] if 0 <= k < asked.shape[0] else v
     if _stopped(s, f, t, v < low[slowest], f[STILL] >= still_frames, source, cyclic):
         _settle(s, f, t, travelled, STATIC, 0, cyclic, curve_at, curves, creep, margin)
         return True
-    if _stalled(s, f, t, v / fps, travelled, stall, cyclic, source, target, curve_at, curves, creep):
+    pace = _pace(s, f, t, v / fps, travelled, cyclic, source, target, curve_at, curves, creep)
+    if pace < stall:
         hub = _slower(min(v, ahead), low, slowest)
-        shown = min(int(math.floor(_shown(s, f, t, travelled, curve_at, curves, creep))),
-                    frames_of[s[KIND]] - 1)
-        first = resume[offset[s[KIND]] + shown, hub]
-        if _just_lifted(contacts_of, offset[s[KIND]], shown, offset[hub] + first):
+        shown = min(_shown(s, f, t, travelled, curve_at, curves, creep), frames_of[s[KIND]] - 1.0)
+        first = resume[offset[s[KIND]] + int(math.floor(shown)), hub]
+        if _just_lifted(contacts_of, offset[s[KIND]], shown, offset[hub] + first, pace):
             return False
         _settle(s, f, t, travelled, hub, first, cyclic, curve_at, curves, creep, margin)
         return True
@@ -374,78 +320,6 @@ def _tick(f: Any, t: int, v: float, tempo: float, high: Any, max_rate: float, sl
             f[CLOCKS + hub] += _rate(v, hub, high, max_rate, slowest, fastest, slow, share) * tempo
         else:
             f[CLOCKS + hub] = float(t + 1)
-
-
-@jit(inline="always")
-def _tween(kind: int, d: float, local: int, frames_of: Any, contacts_of: Any, o: int, rows: Any,
-           weights: Any) -> None:
-    """A gait's stride clock between clip frames: ``d`` (in [-0.5, 0.5)) from the frame shown,
-    ``local``. Its neighbour that way goes into the free fading rows of output row ``o``, weighted
-    ``|d|``, so the pose is interpolated in time. Played at any rate but 1 (a character's tempo,
-    its size's, a stride faster than the fastest clip), whole clip frames were shown, repeated or
-    skipped now and then: a skipped frame moved a paw two frames' way in one (issue 28: the real
-    dog's galloping paws jumped up to 14 cm). Not where a foot lands or lifts between the two: the
-    foot lock pins the shown frame's planted feet, and a foot drawn part way to or from its plant
-    skimmed the ground unpinned (the edge suite's strict skate and touchdown speeds)."""
-    if d == 0.0:
-        return
-    # _row of the neighbour: output row o's speed clips and weight, one clip frame on (shifted).
-    frames = frames_of[kind]
-    shift = (local + (1 if d > 0 else -1)) % frames - local % frames
-    q0, q1, qw = rows[o, 0] + shift, rows[o, 1] + shift, weights[o, 0]
-    for foot in range(4):
-        if contacts_of[q0, foot] != contacts_of[rows[o, 0], foot]:
-            return
-    rows[o, 2], rows[o, 3], weights[o, 1] = q0, q1, qw
-    weights[o, 2] = abs(d)
-
-
-@jit(inline="always")
-def _frame_rows(kind: int, local: int, walked: float, since: int, p_kind: int, p_local: int, o_kind: int,
-                o_local: int, o_keep: float, v: float, offset: Any, frames_of: Any, clips: Any, cyclic: Any,
-                source: Any, target: Any, curve_at: Any, curves: Any, margin: int, o: int, rows: Any,
-                weights: Any) -> int:
-    """A frame's rows and weights (into row ``o`` of the outputs): the piece ``kind`` at
-    clip frame ``local`` (``walked`` since it started ``since`` frames ago), and unless ``p_local``
-    is -1, the piece before it (``p_kind`` at ``p_local``) fading out -- itself over the one before
-    it (``o_kind`` at ``o_local``, share ``o_keep``) unless ``o_local`` is -1; returns the
-    frame's gait."""
-    r0, r1, w = _row(kind, local, v, walked, True, offset, frames_of, clips, cyclic, curve_at, curves)
-    rows[o, 0], rows[o, 1], weights[o, 0] = r0, r1, w
-    rows[o, 2], rows[o, 3], weights[o, 1] = r0, r1, w
-    weights[o, 2] = 0.0
-    if p_local >= 0:
-        p0, p1, pw = _row(p_kind, p_local, v, 0.0, False, offset, frames_of, clips, cyclic, curve_at, curves)
-        if o_local >= 0:  # two pieces fading out, in the one pair of rows the render blends: each
-            # by its nearer row (neighbouring speed clips or frames: millimetres apart)
-            q0, q1, qw = _row(o_kind, o_local, v, 0.0, False, offset, frames_of, clips, cyclic, curve_at,
-                              curves)
-            p0 = p1 if pw >= 0.5 else p0
-            p1 = q1 if qw >= 0.5 else q0
-            pw = o_keep
-        rows[o, 2], rows[o, 3], weights[o, 1] = p0, p1, pw
-        weights[o, 2] = _fade(since, margin)  # smoothstep out
-    first_half = (r0 - offset[kind]) < frames_of[kind] // 2  # a transition: the hub it leaves, then
-    return int(source[kind] if first_half else target[kind])  # the one it reaches
-
-
-@jit(inline="always")
-def _on_lead(lead: int, contacts_of: Any, o: int, rows: Any, contacts: Any) -> None:
-    """Output row ``o`` on the character's lead: its table rows ``lead`` on (0, or the bank's
-    mirror: their mirror images, left and right swapped), and the contacts of the row shown."""
-    for j in range(4):
-        rows[o, j] += lead
-    for foot in range(4):
-        contacts[o, foot] = contacts_of[rows[o, 0], foot]
-
-
-@jit(inline="always")
-def _local(first: int, kind: int, clock: float, clock0: float, cyclic: Any) -> int:
-    """The clip frame a piece that started at clip frame ``first`` shows: a gait's runs on with
-    its stride clock (``clock0`` at its start), a transition fading out holds its frame."""
-    if not cyclic[kind]:
-        return first
-    return int(math.floor(first + clock - clock0 + 0.5))
 
 
 @jit(inline="always")
@@ -487,7 +361,7 @@ def _character(t0: int, v: Any, pts: Any, h: float, tempo: float, lead: int, ask
                still_frames: float, fps: float, stall: float, margin: int, creep: float, out_step: int,
                rows: Any, weights: Any, gait: Any, contacts: Any, stitches: Any) -> None:
     """Frames ``[t0, t0 + len(v))`` of one character (speeds ``v``, path ``pts`` from frame t0 on,
-    its rows ``lead`` on: see _on_lead): its state ``s``, ``f`` carried on; the outputs' row i is
+    its rows ``lead`` on: see row_kernels.on_lead): its state ``s``, ``f`` carried on; the outputs' row i is
     frame ``t`` = the i-th multiple of ``out_step`` from t0 on. Decision ``k0 + k`` (at frame
     ``(k0 + k) step``) reads ``asked_speed[k]`` and ``draws[k]``."""
     n_hubs = len(low)
@@ -520,19 +394,19 @@ def _character(t0: int, v: Any, pts: Any, h: float, tempo: float, lead: int, ask
             local = int(math.floor(s[FIRST] + f[CLOCKS + min(kind, n_hubs)] - f[CLOCK0] + 0.5))
             p_local, o_local, o_keep = -1, -1, 0.0  # the pieces before, fading out (-1: none)
             if s[HAS_PREV] and since < margin:
-                p_local = _local(s[PREV_FIRST], pk, f[CLOCKS + min(pk, n_hubs)], f[PREV_CLOCK0], cyclic)
-                o_keep = _fade(t - s[PREV_START], margin) if s[HAS_OLD] else 0.0
+                p_local = local_frame(s[PREV_FIRST], pk, f[CLOCKS + min(pk, n_hubs)], f[PREV_CLOCK0], cyclic)
+                o_keep = fade(t - s[PREV_START], margin) if s[HAS_OLD] else 0.0
                 if o_keep > 0:
-                    ok = s[OLD_KIND]
-                    o_local = _local(s[OLD_FIRST], ok, f[CLOCKS + min(ok, n_hubs)], f[OLD_CLOCK0], cyclic)
+                    o_local = local_frame(s[OLD_FIRST], s[OLD_KIND], f[CLOCKS + min(s[OLD_KIND], n_hubs)],
+                                          f[OLD_CLOCK0], cyclic)
             walked_since = (travelled - f[TRAV0]) + creep * local
-            gait[o] = _frame_rows(kind, local, walked_since, since, pk, p_local, s[OLD_KIND], o_local, o_keep,
+            gait[o] = frame_rows(kind, local, walked_since, since, pk, p_local, s[OLD_KIND], o_local, o_keep,
                                   v[i], offset, frames_of, clips, cyclic, source, target, curve_at, curves,
                                   margin, o, rows, weights)
             if p_local < 0 and cyclic[kind]:  # the stride clock between two clip frames
-                _tween(kind, s[FIRST] + f[CLOCKS + min(kind, n_hubs)] - f[CLOCK0] - local, local, frames_of,
+                tween(kind, s[FIRST] + f[CLOCKS + min(kind, n_hubs)] - f[CLOCK0] - local, local, frames_of,
                        contacts_of, o, rows, weights)
-            _on_lead(lead, contacts_of, o, rows, contacts)
+            on_lead(lead, contacts_of, o, rows, contacts)
             stitches[o] = started and t >= 1
             sent, o = sent + out_step, o + 1
         _tick(f, t, v[i], tempo, high, max_rate, slowest, fastest, slow, share)
@@ -589,7 +463,7 @@ class Kernels:
     points_fine: Any  # see points_fine()
 
 
-_PLAIN = {**interpreted(vars(heading_kernels)), **interpreted(globals())}
+_PLAIN = {**interpreted(vars(heading_kernels)), **interpreted(globals(), vars(row_kernels))}
 # (Without numba each is its own source already.)
 REFERENCE = Kernels("numpy", *(_PLAIN.get(name, globals()[name])
                               for name in ("advance", "headings", "turn", "points_fine")))
