@@ -61,7 +61,7 @@ from numpy.typing import NDArray
 from synth_core.compiled import plan_kernels as pk
 from synth_core.compiled.backend import planner
 from synth_core.compiled.heading_kernels import CHORD_FRAMES
-from synth_core.runtime.bank import Bank, nearest_pose
+from synth_core.runtime.bank import Bank
 from synth_core.runtime.draws import LEAD_STREAM, SCHEDULE_STREAM, uniform, uniform_streams
 from synth_core.runtime.trajectory import GROUND_AXES, Prepared
 
@@ -186,7 +186,7 @@ class Tables:
     fps: float  # the library's
 
     def args(self) -> tuple[Any, ...]:
-        """The kernel's arguments from ``offset`` to ``creep`` (see plan_kernels.advance)."""
+        """The kernel's arguments from ``offset`` to ``stall`` (see plan_kernels.advance)."""
         return (self.offset, self.frames, self.clips, self.cyclic, self.source, self.target, self.tr_kind,
                 self.entry, self.exit, self.total, self.low, self.high, self.curve_at, self.curves,
                 self.contacts, self.resume, self.slowest, self.fastest, MAX_RATE, self.slow, STAND_SHARE,
@@ -227,19 +227,21 @@ def tables(bank: Bank) -> Tables:
 def give_way_phases(bank: Bank) -> NDArray[np.int64]:
     """``(rows, N_HUBS)``: for each transition row of the table (before the mirror rows; others
     0), the clip frame of each gait's middle clip a stalled transition gives way to there
-    (plan_kernels._give_way): its feet down agreeing first, then its pose nearest (as a
-    transition's entry and exit are found, ``bank.nearest_pose``). By contacts alone the walk
-    picked was a stride away in pose: the standard herd's pops 1.39 -> 1.82 of a frame's own."""
-    rows = bank.mirror or len(bank.poses)
+    (plan_kernels._give_way): its feet down agreeing first, then its pose nearest -- as a
+    transition's entry and exit are found (``bank.nearest_pose``), for every row at once. By
+    contacts alone the walk picked was a stride away in pose: the standard herd's pops 1.39 ->
+    1.82 of a frame's own."""
     out = np.zeros((len(bank.poses), N_HUBS), np.int64)
-    tr = np.concatenate([np.arange(p.offset, p.offset + p.frames) for p in bank.transitions.values()]
-                        ) if bank.transitions else np.zeros(0, np.int64)
-    tr = tr[tr < rows]
+    if not bank.transitions:
+        return out
+    tr = np.concatenate([np.arange(p.offset, p.offset + p.frames) for p in bank.transitions.values()])
+    tr = tr[tr < (bank.mirror or len(bank.poses))]
     for hub, g in bank.gaits.items():
-        first = g.offset + (g.clips // 2) * g.frames
-        poses, contacts = bank.poses[first:first + g.frames], bank.contacts[first:first + g.frames]
-        for r in tr:
-            out[r, hub] = nearest_pose(poses, contacts, bank.poses[r], bank.contacts[r])
+        rows = slice(g.offset + (g.clips // 2) * g.frames, g.offset + (g.clips // 2 + 1) * g.frames)
+        dots = np.einsum("rjc,fjc->rfj", bank.poses[tr, 1:], bank.poses[rows, 1:])
+        distance = (1.0 - np.abs(dots)).sum(axis=-1)  # (transition rows, gait frames)
+        disagree = (bank.contacts[tr][:, None] != bank.contacts[rows][None]).sum(axis=-1)
+        out[tr, hub] = np.argmin(disagree * (distance.max() + 1.0) + distance, axis=1)
     return out
 
 
