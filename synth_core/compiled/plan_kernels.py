@@ -372,12 +372,12 @@ def _character(t0: int, v: Any, pts: Any, h: float, tempo: float, lead: int, ask
         _moving_start(s, f, v[0], pts, still_step * h, draws[0], low, high, slowest, fastest, slow, frames_of)
     for i in range(v.shape[0]):
         t = t0 + i
-        walked = f[WALKED]
-        travelled = walked / h  # in the library's unit
+        travelled = f[WALKED] / h  # in the library's unit
         started = _arrive(s, f, t, travelled, total, n_hubs, creep, margin, frames_of, tr_kind, entry, exit_)
-        started |= _give_way(s, f, t, (v[i], asked_speed, k), travelled, (still_frames, fps, stall),
-                             (offset, frames_of, contacts_of, resume), cyclic, source, target, low, slowest,
-                             curve_at, curves, creep, margin)
+        if not cyclic[s[KIND]] or v[i] < low[slowest] or f[STILL] >= still_frames:  # (else rule 2 cannot act)
+            started |= _give_way(s, f, t, (v[i], asked_speed, k), travelled, (still_frames, fps, stall),
+                                 (offset, frames_of, contacts_of, resume), cyclic, source, target, low,
+                                 slowest, curve_at, curves, creep, margin)
         if t == ask:
             if 0 <= k < asked_speed.shape[0]:
                 _decide(s, f, t, asked_speed[k], draws[k], low, high, slowest, fastest, step, frames_of,
