@@ -5,7 +5,9 @@ pinning a raised hoof (docs/stitch_jumps.md). The foot lock eases a target's one
 a ramp over the swing frames around it (jump_kernels.ease_jumps).
 
 Before it (main at 8b8a386) these read 8.31 (cruise_straight), 9.99 (uturn_canter), 12.16
-(uturn_gallop) and 12.98 cm (mixed_sizes, scales 0.5-2.0)."""
+(uturn_gallop) and 12.98 cm (mixed_sizes, scales 0.5-2.0); too_fast (a gallop past its clips'
+rate: a touchdown slowing faster than a ramp eases) 7.08 cm before the retime after a ramp
+(main at f553fef)."""
 
 from __future__ import annotations
 
@@ -24,7 +26,8 @@ def horse() -> Bank:
     return build_bank(builtin_library("horse"))
 
 
-@pytest.mark.parametrize("name", ["cruise_straight", "uturn_canter", "uturn_gallop", "mixed_sizes"])
+@pytest.mark.parametrize("name", ["cruise_straight", "uturn_canter", "uturn_gallop", "mixed_sizes",
+                                  "too_fast"])
 def test_no_hoof_jumps_past_the_target_in_one_frame(horse: Bank, name: str) -> None:
     out = evaluate.edge_suite(horse, names=[name])["scenarios"][name]["figures"]
     assert out["jump_cm_max"] <= JUMP_TARGET_CM
@@ -82,6 +85,35 @@ def test_a_swing_too_short_for_its_distance_is_retimed_not_left_jumping() -> Non
             assert np.array_equal(eased[7], before[7])
         assert np.array_equal(eased[down], before[down])
         assert np.array_equal(eased[:first], before[:first])
+        assert np.all(np.diff(eased[:, 1, 2]) >= 0.0)
+        assert np.all(eased[:, 1, 1] >= 0.0)
+
+
+def test_a_touchdown_slowing_too_fast_for_a_ramp_is_retimed() -> None:
+    """A gallop played past its clips' rate (the horse's too_fast, 13.8 m/s: 7.08 cm after FK)
+    brings a hoof from 41 cm a frame to its plant in three frames, 35 32 26 3 cm: a ramp of the
+    26 cm step's excess only moves it a frame back (35 then read 7.1 cm past its neighbours'
+    mean). Where a ramp leaves a step past the bound and the next plant is known, the swing's
+    progress is reshaped too (jump_kernels._clear_retime, kept only if it helps): every step
+    within the ease bound, the plants and the frames sent not moved, the hoof never stepping back."""
+    import numpy as np
+
+    from synth_core.compiled.jump_kernels import ease_jumps
+    from synth_core.quality.metrics import one_frame_jumps_mm
+    from synth_core.runtime.footlock import JUMP_EASE
+
+    steps = np.array([0, 0, 0, 6, 18, 32, 42, 46, 47, 41, 41.5, 35, 32.4, 26, 2.9, 0, 0, 0]) / 100
+    out = np.zeros((steps.size, 4, 3))
+    out[:, 1, 2] = np.cumsum(steps)
+    out[3:14, 1, 1] = [0.02, 0.06, 0.11, 0.16, 0.2, 0.22, 0.22, 0.19, 0.14, 0.069, 0.029]
+    down = np.ones(steps.size, np.bool_)
+    down[3:14] = False
+    for first in (0, 6, 9):  # a batch; low-latency windows with frames sent
+        eased = out.copy()
+        ease_jumps(eased, down, 1, 1.0, np.empty((steps.size + 4, 3)), first, np.empty(steps.size))
+        assert one_frame_jumps_mm(eased[None, max(first - 2, 0):, 1:2]).max() <= JUMP_EASE * 1000 + 1.0, first
+        assert np.array_equal(eased[down], out[down])
+        assert np.array_equal(eased[:first], out[:first])
         assert np.all(np.diff(eased[:, 1, 2]) >= 0.0)
         assert np.all(eased[:, 1, 1] >= 0.0)
 

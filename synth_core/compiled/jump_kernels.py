@@ -211,8 +211,10 @@ def ease_jumps(out: Any, down: Any, f: int, h: float, saved: Any, first: int, le
     a plant's first frame (a raised hoof pinned down at once) so ramps over the frames before
     it; a step out of a plant, over those after. A ramp that leaves a step around it jumping as
     far as before or further is not made (a swing of a frame or two between plants far apart:
-    no frames to spread it over); the swing's progress along its path is reshaped instead, if
-    its next plant is known (:func:`_retime`). Scanned forward, each step read as the ramps before it left
+    no frames to spread it over); where a step still jumps past ``bound`` either way (that, or
+    a touchdown slowing faster than a ramp can ease: the ramp moves the jump a frame back), the
+    swing's progress along its path is reshaped, if its next plant is known (:func:`_retime`,
+    kept only if it helps). Scanned forward, each step read as the ramps before it left
     it. Reads the swing the step is in and its plants' frames either side only (a live window's
     foot-lock context holds them: kernels.lock_context). ``saved (T, 3)``: scratch; ``lengths
     (T,)``: left holding :func:`step_lengths` of the targets eased (each ramp re-measures the
@@ -243,12 +245,12 @@ def ease_jumps(out: Any, down: Any, f: int, h: float, saved: Any, first: int, le
         _ramp(out, down, f, t, a, b, (lo, hi, h))
         _lengths(out, f, a + 1, b + 1, lengths)  # the steps into the frames it moved, (a, b)
         after = _worst(lengths, a, b + 1)
-        left = left or min(after, before) > bound
         if after >= before:
             out[a:b + 1, f] = saved[a:b + 1]
             _lengths(out, f, a + 1, b + 1, lengths)
-            if down[hi]:  # no room for a ramp: the swing's progress reshaped
-                _clear_retime(out, down, f, (lo, hi, h), saved, bound, lengths)
+        if min(after, before) > bound and down[hi]:  # a ramp cannot ease it: the swing's progress reshaped
+            _clear_retime(out, down, f, (lo, hi, h), saved, bound, lengths)
+        left = left or _worst(lengths, lo, hi + 1) > bound
     return left
 
 
