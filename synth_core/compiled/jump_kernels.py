@@ -248,9 +248,11 @@ def ease_jumps(out: Any, down: Any, f: int, h: float, saved: Any, first: int, le
         if after >= before:
             out[a:b + 1, f] = saved[a:b + 1]
             _lengths(out, f, a + 1, b + 1, lengths)
-        if min(after, before) > bound and down[hi]:  # a ramp cannot ease it: the swing's progress reshaped
+        jumps = min(after, before) > bound
+        if jumps and down[hi]:  # a ramp cannot ease it: the swing's progress reshaped
             _clear_retime(out, down, f, (lo, hi, h), saved, bound, lengths)
-        left = left or _worst(lengths, lo, hi + 1) > bound
+            jumps = _worst(lengths, lo, hi + 1) > bound
+        left = left or jumps
     return left
 
 
