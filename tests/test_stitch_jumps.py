@@ -38,13 +38,15 @@ LL_SKATE_LIMIT_MM = 5.0  # issue 31: the low-latency mode's strict plant skate p
 LL_LATENCY_MS = 100.0  # the low-latency edge suite's budget (quadsynth eval --live low_latency)
 
 
-@pytest.mark.parametrize(("animal", "name"), [("dog", "jitter_10hz"), ("horse", "moving_start")])
+@pytest.mark.parametrize(("animal", "name"), [("dog", "jitter_10hz"), ("horse", "moving_start"),
+                                             ("horse", "uturn_canter")])
 def test_no_foot_jumps_past_the_target_in_the_low_latency_mode(horse: Bank, animal: str, name: str) -> None:
     """The low-latency live mode eases the jumps of its frames not sent yet from the targets sent
     (jump_kernels.ease_unsent), and a ramp lowers no swing frame still moving over the ground
     to near its plants' height (jump_kernels._ramp): the dog's jitter_10hz, whose last swing
     frames before a touchdown it lowered under the strict-plant height, skated 6.6 mm (p95).
-    On main at e2f3035 these read 10.07 cm (dog jitter_10hz) and 7.49 cm (horse moving_start)."""
+    On main at e2f3035 these read 10.07 cm (dog jitter_10hz) and 7.49 cm (horse moving_start);
+    the horse's uturn_canter 6.2 cm on f553fef, before a swing a ramp leaves jumping is retimed."""
     bank = horse if animal == "horse" else build_bank(builtin_library(animal))
     out = evaluate.edge_suite(bank, names=[name], live=True, latency_ms=LL_LATENCY_MS)["scenarios"][name]
     assert out["figures"]["jump_cm_max"] <= JUMP_TARGET_CM
