@@ -18,6 +18,9 @@ from synth_core.compiled.replant_kernels import step_over, stood
 from synth_core.compiled.vec_kernels import smoothstep
 from synth_core.runtime.footlock import JUMP_EASE, SWING_CLEAR, SWING_MOVING
 
+CARRY_FRAMES = 6  # a low-latency window's offset from the frame sent fades over so many frames
+CARRY_CLEAR = 0.025  # metres: a swing frame under this carries none of it, twice this all
+
 _jit = render_jit
 
 
@@ -276,6 +279,7 @@ def ease_unsent(out: Any, down: Any, f: int, h: float, scratch: Any, last: int, 
     if anchored:
         here[:] = out[first - 2:first, f]
         out[first - 2:first, f] = kept[:, f]
+        _carry(out, down, f, first, here[1], h)
     ease_jumps(out, down, f, h, saved, first, lengths)
     if last >= 1:
         now[:] = out[last - 1:last + 1, f]
@@ -283,6 +287,24 @@ def ease_unsent(out: Any, down: Any, f: int, h: float, scratch: Any, last: int, 
         out[first - 2:first, f] = here
     if last >= 1:
         kept[:, f] = now
+
+
+@_jit()
+def _carry(out: Any, down: Any, f: int, first: int, raw: Any, h: float) -> None:
+    """Foot f's swing frames from ``first`` on moved by how far its frame ``first - 1`` was sent
+    from where this window has it (``raw``), the offset fading out (smoothstep) over CARRY_FRAMES:
+    each window starts again from the targets it makes, and the ramps that eased the frames sent
+    left them behind those (a swing's steps uneven frame to frame, the clip sampled between its
+    frames: 20.7 cm sent, then 30.2 into the next window's first frame). Planted frames keep
+    their plants; the offset stops at the first."""
+    T = out.shape[0]
+    for u in range(first, min(first + CARRY_FRAMES, T)):
+        if down[u]:
+            return
+        w = 1.0 - smoothstep((u - first + 1) / CARRY_FRAMES)
+        w *= min(max(out[u, f, 1] * h / CARRY_CLEAR - 1.0, 0.0), 1.0)  # (none moved near the ground)
+        for k in range(3):
+            out[u, f, k] += w * (out[first - 1, f, k] - raw[k])
 
 
 @_jit()
