@@ -267,7 +267,8 @@ def ease_unsent(out: Any, down: Any, f: int, h: float, scratch: Any, last: int, 
     4, 3), at)``: the targets of frames ``at - 1``, ``at`` as sent (if ``at`` is ``first - 1``),
     put back on those frames first: recomputed, a sent swing's frames may lie elsewhere (its
     next plant came since) and a ramp an earlier window began was sent in part, so the frames
-    here are eased on from where the foot was sent (sent, a frame stays); put back after (the
+    here are eased on from where the foot was sent (sent, a frame stays), its first swing frames
+    carrying the offset of the frame sent (:func:`_carry`); put back after (the
     sink and the pins read the sent frames' targets as before). The targets of frames ``last -
     1``, ``last`` (the window's last, sent now) are then kept there for the next one.
     ``scratch``: ``(saved (T + 4, 3), lengths (T,))``."""
@@ -295,8 +296,11 @@ def _carry(out: Any, down: Any, f: int, first: int, raw: Any, h: float) -> None:
     from where this window has it (``raw``), the offset fading out (smoothstep) over CARRY_FRAMES:
     each window starts again from the targets it makes, and the ramps that eased the frames sent
     left them behind those (a swing's steps uneven frame to frame, the clip sampled between its
-    frames: 20.7 cm sent, then 30.2 into the next window's first frame). Planted frames keep
-    their plants; the offset stops at the first."""
+    frames: 20.7 cm sent, then 30.2 into the next window's first frame). None of it is carried
+    by a frame under CARRY_CLEAR over the ground, all of it at twice that (carried down there, a
+    lift-off's or touchdown's frames moved near the ground: the low-latency dog's jitter glide
+    0.116 -> 0.141). Planted frames keep their plants; the offset stops at the first.
+    CARRY_FRAMES counts the library's frames (a window's)."""
     T = out.shape[0]
     for u in range(first, min(first + CARRY_FRAMES, T)):
         if down[u]:
