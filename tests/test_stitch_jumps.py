@@ -11,6 +11,7 @@ rate: a touchdown slowing faster than a ramp eases) 7.08 cm before the retime af
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 
 from synth_core.build.library_store import builtin_library
@@ -64,7 +65,6 @@ def test_a_swing_too_short_for_its_distance_is_retimed_not_left_jumping() -> Non
     targets), the plants are not moved, the foot stays on its path and never steps back; a
     frame at either end still skimming the ground is not sped up (it would read as a plant
     skating: issue 27's strict skate)."""
-    import numpy as np
 
     from synth_core.compiled.jump_kernels import ease_jumps
     from synth_core.quality.metrics import one_frame_jumps_mm
@@ -87,10 +87,7 @@ def test_a_swing_too_short_for_its_distance_is_retimed_not_left_jumping() -> Non
         assert one_frame_jumps_mm(eased[None, :, 1:2]).max() <= limit
         if before is skimming:
             assert np.array_equal(eased[7], before[7])
-        assert np.array_equal(eased[down], before[down])
-        assert np.array_equal(eased[:first], before[:first])
-        assert np.all(np.diff(eased[:, 1, 2]) >= 0.0)
-        assert np.all(eased[:, 1, 1] >= 0.0)
+        assert_swing_kept(eased, before, down, first)
 
 
 def test_a_touchdown_slowing_too_fast_for_a_ramp_is_retimed() -> None:
@@ -100,7 +97,6 @@ def test_a_touchdown_slowing_too_fast_for_a_ramp_is_retimed() -> None:
     mean). Where a ramp leaves a step past the bound and the next plant is known, the swing's
     progress is reshaped too (jump_kernels._clear_retime, kept only if it helps): every step
     within the ease bound, the plants and the frames sent not moved, the hoof never stepping back."""
-    import numpy as np
 
     from synth_core.compiled.jump_kernels import ease_jumps
     from synth_core.quality.metrics import one_frame_jumps_mm
@@ -116,10 +112,16 @@ def test_a_touchdown_slowing_too_fast_for_a_ramp_is_retimed() -> None:
         eased = out.copy()
         ease_jumps(eased, down, 1, 1.0, np.empty((steps.size + 4, 3)), first, np.empty(steps.size))
         assert one_frame_jumps_mm(eased[None, max(first - 2, 0):, 1:2]).max() <= JUMP_EASE * 1000 + 1.0, first
-        assert np.array_equal(eased[down], out[down])
-        assert np.array_equal(eased[:first], out[:first])
-        assert np.all(np.diff(eased[:, 1, 2]) >= 0.0)
-        assert np.all(eased[:, 1, 1] >= 0.0)
+        assert_swing_kept(eased, out, down, first)
+
+
+def assert_swing_kept(eased: np.ndarray, before: np.ndarray, down: np.ndarray, first: int) -> None:
+    """What easing foot 1's swing (moving along +z) may not change: its plants, the frames before
+    ``first`` (sent), its progress (never stepping back) and the ground under it."""
+    assert np.array_equal(eased[down], before[down])
+    assert np.array_equal(eased[:first], before[:first])
+    assert np.all(np.diff(eased[:, 1, 2]) >= 0.0)
+    assert np.all(eased[:, 1, 1] >= 0.0)
 
 
 def test_a_swing_of_a_frame_between_far_plants_is_widened_into_a_step() -> None:
@@ -130,7 +132,6 @@ def test_a_swing_of_a_frame_between_far_plants_is_widened_into_a_step() -> None:
     would: issue 27's walk support) and is stepped over them (jump_kernels.widen_swings): no
     step then jumps past the ease bound, the plants stay where they were on the frames still
     planted, and the frames taken are marked in the air."""
-    import numpy as np
 
     from synth_core.compiled.jump_kernels import step_lengths, widen_swings
     from synth_core.quality.metrics import one_frame_jumps_mm

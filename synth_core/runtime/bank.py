@@ -139,12 +139,21 @@ def library_ground(library: Library) -> float:
     return min(float(m.clip(0).foot_positions()[..., UP_AXIS].min()) for m in library.maps.values())
 
 
+def nearest_poses(poses: NDArray[np.floating], contacts: NDArray[np.bool_], queries: NDArray[np.floating],
+                  query_contacts: NDArray[np.bool_]) -> NDArray[np.int64]:
+    """``(Q,)``: for each of ``queries (Q, J, 4)`` (feet down ``query_contacts (Q, 4)``) the row of
+    ``poses (F, J, 4)`` nearest it, feet agreeing first, then the joints below the root (each
+    ``1 - |q . p|``): ties the first."""
+    dots = np.einsum("qjc,fjc->qfj", queries[:, 1:], poses[:, 1:])
+    distance = (1.0 - np.abs(dots)).sum(axis=-1)  # (Q, F), >= 0
+    disagree = (query_contacts[:, None] != contacts[None]).sum(axis=-1)
+    return np.asarray(np.argmin(disagree * (distance.max(initial=0.0) + 1.0) + distance, axis=1), np.int64)
+
+
 def nearest_pose(poses: NDArray[np.floating], contacts: NDArray[np.bool_], pose: NDArray[np.floating],
-           contact: NDArray[np.bool_]) -> int:
-    """The row of ``poses (F, J, 4)`` nearest ``pose (J, 4)``, feet agreeing first."""
-    distance = (1.0 - np.abs(np.sum(poses[:, 1:] * pose[None, 1:], axis=-1))).sum(axis=-1)
-    disagree = (contacts != contact[None]).sum(axis=-1)
-    return int(np.lexsort((distance, disagree))[0])
+                 contact: NDArray[np.bool_]) -> int:
+    """The row of ``poses (F, J, 4)`` nearest ``pose (J, 4)``, feet agreeing first (:func:`nearest_poses`)."""
+    return int(nearest_poses(poses, contacts, pose[None], contact[None])[0])
 
 
 Table = tuple[NDArray[np.float32], Floats, Floats, NDArray[np.bool_]]  # poses, height, surge, contacts

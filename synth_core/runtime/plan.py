@@ -61,7 +61,7 @@ from numpy.typing import NDArray
 from synth_core.compiled import plan_kernels as pk
 from synth_core.compiled.backend import planner
 from synth_core.compiled.heading_kernels import CHORD_FRAMES
-from synth_core.runtime.bank import Bank
+from synth_core.runtime.bank import Bank, nearest_poses
 from synth_core.runtime.draws import LEAD_STREAM, SCHEDULE_STREAM, uniform, uniform_streams
 from synth_core.runtime.trajectory import GROUND_AXES, Prepared
 
@@ -228,9 +228,8 @@ def give_way_phases(bank: Bank) -> NDArray[np.int64]:
     """``(rows, N_HUBS)``: for each transition row of the table (before the mirror rows; others
     0), the clip frame of each gait's middle clip a stalled transition gives way to there
     (plan_kernels._give_way): its feet down agreeing first, then its pose nearest -- as a
-    transition's entry and exit are found (``bank.nearest_pose``), for every row at once. By
-    contacts alone the walk picked was a stride away in pose: the standard herd's pops 1.39 ->
-    1.82 of a frame's own."""
+    transition's entry and exit are found (``bank.nearest_poses``). By contacts alone the walk
+    picked was a stride away in pose: the standard herd's pops 1.39 -> 1.82 of a frame's own."""
     out = np.zeros((len(bank.poses), N_HUBS), np.int64)
     if not bank.transitions:
         return out
@@ -238,10 +237,7 @@ def give_way_phases(bank: Bank) -> NDArray[np.int64]:
     tr = tr[tr < (bank.mirror or len(bank.poses))]
     for hub, g in bank.gaits.items():
         rows = slice(g.offset + (g.clips // 2) * g.frames, g.offset + (g.clips // 2 + 1) * g.frames)
-        dots = np.einsum("rjc,fjc->rfj", bank.poses[tr, 1:], bank.poses[rows, 1:])
-        distance = (1.0 - np.abs(dots)).sum(axis=-1)  # (transition rows, gait frames)
-        disagree = (bank.contacts[tr][:, None] != bank.contacts[rows][None]).sum(axis=-1)
-        out[tr, hub] = np.argmin(disagree * (distance.max() + 1.0) + distance, axis=1)
+        out[tr, hub] = nearest_poses(bank.poses[rows], bank.contacts[rows], bank.poses[tr], bank.contacts[tr])
     return out
 
 
