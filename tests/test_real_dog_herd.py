@@ -145,9 +145,9 @@ def test_the_librarys_clips_flip_no_joint_skipping_a_frame(mann: Library) -> Non
 
 @pytest.fixture(scope="module")
 def hard_turns(mann: Library) -> dict[str, Any]:
-    """The edge scenarios where the real dog's transitions play fastest: a gallop's corners,
-    hard acceleration and braking, sizes 0.5-2.0."""
-    return edge_suite(build_bank(mann), names=["corner_gallop", "accel_brake", "mixed_sizes"])
+    """The edge scenarios where the real dog's transitions play fastest: a gallop's corners and
+    U-turns, hard acceleration and braking, sizes 0.5-2.0."""
+    return edge_suite(build_bank(mann), names=["corner_gallop", "uturn_gallop", "accel_brake", "mixed_sizes"])
 
 
 def test_the_foot_lock_flips_no_wrist(hard_turns: dict[str, Any]) -> None:
@@ -165,6 +165,15 @@ def test_no_paw_jumps_over_6_cm_where_transitions_play_fastest(hard_turns: dict[
     paw braked to its plant faster than a ramp can ease)."""
     for name, scenario in hard_turns["scenarios"].items():
         assert scenario["figures"]["jump_cm_max"] <= JUMP_M * 100, (name, scenario["figures"]["jump_cm_max"])
+
+
+def test_the_root_stays_on_the_path_through_a_tight_turn(hard_turns: dict[str, Any]) -> None:
+    """Issue 27's 1 cm, after FK and time mapping: the real dog's clips surge (the root leads and
+    lags steady progress by up to 4 cm a stride), and in a 0.5 m U-turn at a gallop the body's
+    heading trails the path's by up to ~80 deg (its turn rate is capped): a surge along the heading
+    put the root 2.5 cm off the path; along the path's own way (heading_kernels.turn) it stays on it."""
+    for name, scenario in hard_turns["scenarios"].items():
+        assert scenario["figures"]["path_cm_max"] <= 1.0, (name, scenario["figures"]["path_cm_max"])
 
 
 def bends(positions: np.ndarray, rigs: tuple[ik.LimbRig, ...]) -> np.ndarray:

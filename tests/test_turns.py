@@ -105,7 +105,7 @@ def test_the_body_turns_no_faster_than_a_body_can(animal: str, name: str) -> Non
     assert over.max() <= 0, (c, t, rate[c, t], cap[c, t])
     if name != "jitter_10hz":  # it does turn, at the cap (the jitter's curve is gentle: below)
         assert rate.max() > 0.9 * np.degrees(min(MAX_YAW_RATE, MAX_LATERAL / v.max()))
-    # The root stays on the path it was given (the body's surge along its heading aside).
+    # The root stays on the path it was given (a clip's surge goes along it).
     path = M.path_distance_cm(result.root_pos.astype(np.float64), np.asarray(sc.reference)[result.kept])
     clean = evaluate.edge_figures(bank, result, sc.reference, sc.positions.shape[1],
                                   evaluate.library_reference(bank))["path_cm_max"]

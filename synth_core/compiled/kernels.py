@@ -11,15 +11,14 @@ interpreter, as the planner's is (slow: for tests and for a machine without numb
 One character, in four passes over its frames:
 
 1. blend the plan's table rows (and the piece fading out), turn the root to the heading, lean it
-   into the turn, put it on the path (:func:`~synth_core.compiled.pose_kernels.assemble`);
+   into the turn, put it on the path, its surge along the path's way (:func:`.pose_kernels.assemble`);
    forward kinematics of the joints above the feet only, in the character's unit (its world
    divided by its scale h: the library skeleton's geometry);
 2. plant targets per foot (:func:`~synth_core.compiled.foot_kernels.plant_targets`);
 3. the root's sink where a target needs a leg straighter than ``REACH`` or than the animal's
    poses reach (eased, bounded);
 4. limb IK (:func:`synth_core.build.ik.solve`, without the ground tipping) on the upper joint, hinge
-   and ankle of each leg -- 16 frames at a time in SIMD lanes
-   (:mod:`~synth_core.compiled.limb_kernels`).
+   and ankle of each leg -- 16 frames at a time in SIMD lanes (:mod:`~synth_core.compiled.limb_kernels`).
 """
 
 from __future__ import annotations
@@ -86,12 +85,12 @@ WHOLE_PLANT = 1 << 62  # plant_frames: a plant's target averages all its frames
 
 @_jit()
 def _character(poses: Any, height: Any, surge: Any, paws: Any, rows: Any, weights: Any, yaw: Any, lean: Any,
-               path: Any, h: float, contacts: Any, parents: Any, offsets: Any, fk_joints: Any, rigs: Any,
-               bends: Any, sink_limit: float, foot_lock: bool, out_rot: Any, out_root: Any, world: Any,
-               feet: Any, legs: Any, targets: Any, sink: Any, eased: Any, keep_from: int, keep_to: int,
-               known_feet: Any, known: int, recent: Any, recent_known: bool, tilt: Any, tilt_at: int,
-               heights: Any, ground_x0: float, ground_z0: float, spacing: float, plant_frames: int, pins: Any,
-               pinned: Any, steps: bool, sent: Any, kept: Any) -> bool:
+               path: Any, way: Any, h: float, contacts: Any, parents: Any, offsets: Any, fk_joints: Any,
+               rigs: Any, bends: Any, sink_limit: float, foot_lock: bool, out_rot: Any, out_root: Any,
+               world: Any, feet: Any, legs: Any, targets: Any, sink: Any, eased: Any, keep_from: int,
+               keep_to: int, known_feet: Any, known: int, recent: Any, recent_known: bool, tilt: Any,
+               tilt_at: int, heights: Any, ground_x0: float, ground_z0: float, spacing: float,
+               plant_frames: int, pins: Any, pinned: Any, steps: bool, sent: Any, kept: Any) -> bool:
     """All four passes for one character (scratch arrays given). Only frames ``[keep_from, keep_to)``
     are wanted (a window over its foot lock's context): the legs' IK is solved for those alone.
     ``known_feet (T, 4, 3)``: the feet of frames ``[0, known)`` made already (a live session's
@@ -112,8 +111,8 @@ def _character(poses: Any, height: Any, surge: Any, paws: Any, rows: Any, weight
         legs[s:a] = recent
     else:
         s = a = max(min(known, keep_from - PAD), 0)
-    assemble(poses, height, surge, rows[a:], weights[a:], yaw[a:], lean[a:], path[a:], h, out_rot[a:],
-              out_root[a:])
+    assemble(poses, height, surge, rows[a:], weights[a:], yaw[a:], lean[a:], path[a:], way[a:], h,
+             out_rot[a:], out_root[a:])
     if terrain:
         for t in range(a, T):
             put(out_rot[t, 0], qmul(q4(tilt[tilt_at + t]), q4(out_rot[t, 0])))
@@ -148,10 +147,11 @@ def _character(poses: Any, height: Any, surge: Any, paws: Any, rows: Any, weight
 
 @_jit(parallel=True)
 def _render_all(poses: Any, height: Any, surge: Any, paws: Any, rows: Any, weights: Any, yaw: Any, lean: Any,
-                path: Any, scales: Any, contacts: Any, parents: Any, offsets: Any, fk_joints: Any, rigs: Any,
-                bends: Any, sink_limit: float, foot_lock: bool, out_rot: Any, out_root: Any, w_world: Any,
-                w_feet: Any, w_legs: Any, w_targets: Any, w_sink: Any, w_eased: Any, tilt: Any, heights: Any,
-                ground_x0: float, ground_z0: float, spacing: float, pose: Any, kept: Any) -> None:
+                path: Any, way: Any, scales: Any, contacts: Any, parents: Any, offsets: Any, fk_joints: Any,
+                rigs: Any, bends: Any, sink_limit: float, foot_lock: bool, out_rot: Any, out_root: Any,
+                w_world: Any, w_feet: Any, w_legs: Any, w_targets: Any, w_sink: Any, w_eased: Any, tilt: Any,
+                heights: Any, ground_x0: float, ground_z0: float, spacing: float, pose: Any,
+                kept: Any) -> None:
     """``w_*``: one working set per worker (first axis), reused for its characters: a fresh
     megabyte per character would cost more in page faults than the lock's arithmetic.
     ``pose (C,)``: the characters posed; the others get their root alone (:func:`root_only`)
@@ -166,20 +166,20 @@ def _render_all(poses: Any, height: Any, surge: Any, paws: Any, rows: Any, weigh
         recent = np.empty((PAD, 4, LEG_WIDTH))
         for c in range(worker, C, workers):
             if not pose[c]:
-                root_only(height, surge, rows[c], weights[c], yaw[c], path[c], scales[c], out_root[c])
+                root_only(height, surge, rows[c], weights[c], path[c], way[c], scales[c], out_root[c])
                 kept[c] = contacts[c]
                 continue
             own_tilt = tilt[c] if heights.shape[0] > 0 else tilt[0]
-            _character(poses, height, surge, paws, rows[c], weights[c], yaw[c], lean[c], path[c], scales[c],
-                       contacts[c], parents, offsets, fk_joints, rigs, bends, sink_limit, foot_lock,
-                       out_rot[c], out_root[c], world, feet, legs, targets, sink, eased, 0,
+            _character(poses, height, surge, paws, rows[c], weights[c], yaw[c], lean[c], path[c], way[c],
+                       scales[c], contacts[c], parents, offsets, fk_joints, rigs, bends, sink_limit,
+                       foot_lock, out_rot[c], out_root[c], world, feet, legs, targets, sink, eased, 0,
                        out_rot.shape[1], none_known, 0, recent, False, own_tilt, 0, heights, ground_x0,
                        ground_z0, spacing, WHOLE_PLANT, no_pins, unpinned, True, (no_sent, NOWHERE), kept[c])
 
 
 @_jit(parallel=True)
 def _render_windows(poses: Any, height: Any, surge: Any, paws: Any, rows: Any, weights: Any, yaw: Any,
-                    lean: Any, path: Any, scales: Any, contacts: Any, parents: Any, offsets: Any,
+                    lean: Any, path: Any, way: Any, scales: Any, contacts: Any, parents: Any, offsets: Any,
                     fk_joints: Any, rigs: Any, bends: Any, sink_limit: float, foot_lock: bool, workers: int,
                     begin: Any, end: Any, start: int, out_rot: Any, out_root: Any, tilt: Any, heights: Any,
                     ground_x0: float, ground_z0: float, spacing: float, pose: Any, known_feet: Any,
@@ -207,7 +207,7 @@ def _render_windows(poses: Any, height: Any, surge: Any, paws: Any, rows: Any, w
         for c in range(c0 + worker, c1, workers):
             if not pose[c]:
                 root_only(height, surge, rows[c, start:start + n], weights[c, start:start + n],
-                           yaw[c, start:start + n], path[c, start:start + n], scales[c], out_root[c])
+                          path[c, start:start + n], way[c, start:start + n], scales[c], out_root[c])
                 kept[c] = contacts[c, start:start + n]
                 if keep:
                     legs_at[c] = sent_at[c] = NOWHERE
@@ -219,13 +219,13 @@ def _render_windows(poses: Any, height: Any, surge: Any, paws: Any, rows: Any, w
             own_tilt = tilt[c] if heights.shape[0] > 0 else tilt[0]
             own_legs = known_legs[c] if keep else no_recent
             pinned[c] -= b  # in the context's frames
-            made = _character(poses, height, surge, paws, rows[c, b:e], weights[c, b:e], yaw[c, b:e],
-                              lean[c, b:e], path[c, b:e], scales[c], contacts[c, b:e], parents, offsets,
+            made = _character(poses, height, surge, paws, rows[c, b:e], weights[c, b:e], yaw[c, b:e], lean[c,
+                              b:e], path[c, b:e], way[c, b:e], scales[c], contacts[c, b:e], parents, offsets,
                               fk_joints, rigs, bends, sink_limit, foot_lock, rot[:k], root[:k], world,
                               feet[:k], legs[:k], targets[:k], sink[:k], eased[:k], start - b, start - b + n,
                               known_feet[b:e, c], kn, own_legs, recent_known, own_tilt, b, heights, ground_x0,
-                              ground_z0, spacing, plant_frames, pins[c], pinned[c], steps,
-                              (sent[c], sent_at[c] - b), kept[c])
+                              ground_z0, spacing, plant_frames, pins[c], pinned[c], steps, (sent[c],
+                              sent_at[c] - b), kept[c])
             pinned[c] += b
             sent_at[c] = start + n - 1  # sent[c]: the targets of its last two frames (none kept: not read)
             out_rot[c] = rot[start - b:start - b + n]
@@ -260,15 +260,15 @@ def _terrain_arrays(ground: Grounding | None) -> tuple[Any, Any, float, float, f
             f.origin[0], f.origin[1], f.spacing)
 
 
-def _plan_arrays(plan: Plan) -> tuple[Any, Any, Any, Any, Any, Any, Any]:
-    """rows, weights, yaw, lean, path, scales, contacts: C-contiguous, whatever view the plan holds.
+def _plan_arrays(plan: Plan) -> tuple[Any, ...]:
+    """rows, weights, yaw, lean, path, way, scales, contacts: C-contiguous, whatever view it holds.
 
     One memory layout, so each kernel is compiled once: numba compiles a view ('A' layout) and a
     contiguous array ('C') separately, and fastmath code for the two may round differently --
     a window of a batch would then differ from the whole in the last bits."""
     c = np.ascontiguousarray
     return (c(plan.rows), c(plan.weights), c(plan.yaw), c(plan.lean, np.float64), c(plan.path),
-            c(plan.scales, np.float64), c(plan.contacts))
+            c(plan.way), c(plan.scales, np.float64), c(plan.contacts))
 
 
 @functools.lru_cache(maxsize=8)

@@ -17,8 +17,9 @@ _jit = render_jit
 
 @_jit()
 def assemble(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, yaw: Any, lean: Any, path: Any,
-              h: float, out_rot: Any, out_root: Any) -> None:
-    """Pass 1 without FK: blended, turned, warped pose of each frame of one character.
+             way: Any, h: float, out_rot: Any, out_root: Any) -> None:
+    """Pass 1 without FK: blended, turned, warped pose of each frame of one character (its surge
+    along the path's ``way (T, 2)``, heading_kernels.turn).
     ``poses (K, 4, J)``: the pose table components first (see :func:`nlerp_into`); the frame is
     blended that way and written out as xyzw rows (``out_rot (T, J, 4)``)."""
     T, J = out_rot.shape[0], out_rot.shape[1]
@@ -39,7 +40,8 @@ def assemble(poses: Any, height: Any, surge: Any, rows: Any, weights: Any, yaw: 
         for j in range(J):
             for k in range(4):
                 frame[j, k] = pose[k, j]
-        sh, ch = _put_root(ht, sg, yaw[t], path[t], h, out_root[t])
+        _put_root(ht, sg, path[t], way[t], h, out_root[t])
+        sh, ch = math.sin(0.5 * yaw[t]), math.cos(0.5 * yaw[t])
         if lean[t] != 0.0:  # turned, then rolled about its forward axis: (yaw about Y) (lean about Z)
             sr, cr = math.sin(0.5 * lean[t]), math.cos(0.5 * lean[t])
             put(frame[0], qmul((sh * sr, sh * cr, ch * sr, ch * cr), q4(frame[0])))
@@ -68,14 +70,12 @@ def _height_surge(height: Any, surge: Any, row: Any, weight: Any) -> tuple[float
 
 
 @_jit()
-def _put_root(ht: float, sg: float, yaw: float, path: Any, h: float, out: Any) -> tuple[float, float]:
-    """A frame's root on the path (its height and surge blended already); the heading's
-    half-angle sine and cosine, which give the whole angle's too (two calls, not four)."""
-    sh, ch = math.sin(0.5 * yaw), math.cos(0.5 * yaw)
-    out[0] = path[0] + 2.0 * sh * ch * sg * h
+def _put_root(ht: float, sg: float, path: Any, way: Any, h: float, out: Any) -> None:
+    """A frame's root on the path, its height and its surge along the path's way (both blended
+    already)."""
+    out[0] = path[0] + way[0] * sg * h
     out[1] = path[1] + ht * h
-    out[2] = path[2] + (ch * ch - sh * sh) * sg * h
-    return sh, ch
+    out[2] = path[2] + way[1] * sg * h
 
 
 @_jit()
@@ -99,13 +99,13 @@ def clip_soles(paws: Any, rows: Any, weights: Any, path: Any, terrain: bool, h: 
 
 
 @_jit()
-def root_only(height: Any, surge: Any, rows: Any, weights: Any, yaw: Any, path: Any, h: float,
-               out_root: Any) -> None:
+def root_only(height: Any, surge: Any, rows: Any, weights: Any, path: Any, way: Any, h: float,
+              out_root: Any) -> None:
     """Pass 1's root alone (:func:`assemble` without the pose): a character at root_gait detail,
     whose rotations nobody is sent -- the plan's root, before the foot lock's sink."""
     for t in range(out_root.shape[0]):
         ht, sg = _height_surge(height, surge, rows[t], weights[t])
-        _put_root(ht, sg, yaw[t], path[t], h, out_root[t])
+        _put_root(ht, sg, path[t], way[t], h, out_root[t])
 
 
 @_jit()

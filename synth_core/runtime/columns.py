@@ -70,13 +70,13 @@ class PlannedColumns(Columns):
     def __init__(self, scales: Floats, room: int) -> None:
         super().__init__(len(scales), [((4,), np.int32), ((3,), np.float32), ((), np.float64),
                                        ((3,), np.float64), ((4,), np.bool_), ((), np.bool_), ((), np.int8),
-                                       ((), np.float64)],
+                                       ((), np.float64), ((2,), np.float64)],
                          room)
         self.scales = scales
 
     def _plan(self, arrays: list[NDArray[Any]]) -> Plan:
-        rows, weights, yaw, path, contacts, stitches, gait, lean = arrays
-        return Plan(rows, weights, yaw, path, self.scales, contacts, stitches, gait, lean)
+        rows, weights, yaw, path, contacts, stitches, gait, lean, way = arrays
+        return Plan(rows, weights, yaw, path, self.scales, contacts, stitches, gait, lean, way)
 
     def plan(self) -> Plan:
         """The frames kept, ``[start, stop)``."""

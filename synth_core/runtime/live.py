@@ -194,15 +194,12 @@ class LiveSynth(LivePath):
                             2 * self.latency_frames + self._end_frames)
         self.n_path = 0
         self.seg = np.zeros((C, 0))  # segment speeds / (scale x tempo): the library's speeds
-        self.seg_start = 0
-        self.n_seg = 0
+        self.seg_start = self.n_seg = 0
         # The plan and the heading, carried from block to block.
         self.planner = Planner(self.bank, self.scales, self.tempo, self.leads, margin, backend)
         # The exact mode's heading reads the path as the batch's; the low-latency one a step either side.
         self.heading_state = Headings(C, backend) if self.latency_ms is None else Headings(C, backend, 1)
-        self.decisions = 0
-        self.planned = 0
-        self.emitted = 0
+        self.decisions = self.planned = self.emitted = 0
 
     def _start_foot_lock(self, C: int) -> None:
         """Planned frames kept as the foot lock's context (see _emit), and the feet it has posed."""
@@ -394,13 +391,13 @@ class LiveSynth(LivePath):
         sent = slice(-t0 % k, t1 - t0, k)  # the block's frames sent (multiples of k)
         block = self.buffer.reserve_plan(-(-t1 // k) - -(-t0 // k))  # written in place
         self.planner.advance(t0, v, pts, decisions, block, k)
-        yaw, lean = self._headings(t0, t1)
-        block.yaw[...], block.lean[...] = yaw[:, sent], lean[:, sent]
+        yaw, lean, way = self._headings(t0, t1)
+        block.yaw[...], block.lean[...], block.way[...] = yaw[:, sent], lean[:, sent], way[:, sent]
         block.path[...] = pts[:, sent]
         self.planned = t1
 
-    def _headings(self, t0: int, t1: int) -> tuple[Floats, Floats]:
-        """(C, n) yaw and lean of frames [t0, t1) (plan.Headings); a character standing until then
+    def _headings(self, t0: int, t1: int) -> tuple[Floats, Floats, Floats]:
+        """(C, n) yaw, lean and way of frames [t0, t1) (plan.Headings); a character standing until then
         faces where it will first go if that is known yet, else ``heading``."""
         lo = max(t0 - self.heading_state.chord_frames, 0)
         facing = np.full(len(self.scales), self.heading)

@@ -111,6 +111,7 @@ MAX_LATERAL = 2.5 * 9.81  # m/s^2
 # Gentle curves lean none: the lean is atan(v omega / g) less GENTLE_LEAN (so it grows from 0 as a
 # turn tightens; a herd's meandering paths leant a degree, which changed nothing a viewer sees
 # but the plants' IK).
+WAY_BIAS = 1e-3  # m a frame: a path's step shorter than this takes its way partly from the heading
 MAX_LEAN = float(np.radians(20.0))  # rad
 LEAN_RATE = float(np.radians(90.0))  # rad/s
 GENTLE_LEAN = float(np.radians(3.0))  # rad
@@ -140,12 +141,14 @@ class Plan:
     stitches: NDArray[np.bool_]  # (C, T)
     gait: NDArray[np.int8]  # (C, T)
     lean: Floats  # (C, T) roll into the turn, radians about the body's forward axis (+: top to its right)
+    way: Floats  # (C, T, 2) the path's ground direction (x, z), the surge's (heading_kernels.turn)
 
     def window(self, start: int, stop: int, step: int = 1) -> Plan:
         """Frames ``[start, stop)`` (every ``step``-th) of every character."""
         t = slice(start, stop, step)
         return Plan(self.rows[:, t], self.weights[:, t], self.yaw[:, t], self.path[:, t], self.scales,
-                    self.contacts[:, t], self.stitches[:, t], self.gait[:, t], self.lean[:, t])
+                    self.contacts[:, t], self.stitches[:, t], self.gait[:, t], self.lean[:, t],
+                    self.way[:, t])
 
 
 def empty_plan(characters: int, frames: int, scales: Floats) -> Plan:
@@ -153,7 +156,9 @@ def empty_plan(characters: int, frames: int, scales: Floats) -> Plan:
     C, T = characters, frames
     return Plan(np.empty((C, T, 4), np.int32), np.empty((C, T, 3), np.float32), np.empty((C, T)),
                 np.empty((C, T, 3)), scales, np.empty((C, T, 4), bool), np.empty((C, T), bool),
-                np.empty((C, T), np.int8), np.empty((C, T)))
+                np.empty((C, T), np.int8), np.empty((C, T)), np.empty((C, T, 2)))
+
+
 
 
 @dataclass(frozen=True)
@@ -305,13 +310,13 @@ class Headings:
 
     def advance(self, ground: Floats, off: int, n: int, fps: float, facing: Floats, ends: bool = False,
                 ahead: Callable[[NDArray[np.int64]], Floats] | None = None,
-                moving: Floats | None = None) -> tuple[Floats, Floats]:
+                moving: Floats | None = None) -> tuple[Floats, Floats, Floats]:
         """(C, n) yaw (about +Y, 0 = +Z) of frames ``[t0, t0 + n)``: the tangent of the path's
         ground points ``ground (C, m, 2)`` (frame t0 at ``off``; read across up to ``chord_frames``
         either side, heading_kernels._way), held where the character moves
         slower than MIN_TURN_SPEED (a standing animal does not spin with its trajectory's jitter),
-        reached no faster than MAX_YAW_RATE and MAX_LATERAL allow, and (C, n) the lean into the
-        turn (:func:`heading_kernels.turn`);
+        reached no faster than MAX_YAW_RATE and MAX_LATERAL allow, (C, n) the lean into the
+        turn and (C, n, 2) the way of the path the root follows (:func:`heading_kernels.turn`);
         before it first moves, the way it first moves -- searched on in ``ground`` (to its end if
         ``ends``: the path's end), or in ``ahead(characters)``, their ground from the same point
         on as far as known -- else ``facing (C,)``. ``moving``: the ground points of the path the
@@ -333,11 +338,11 @@ class Headings:
         if len(unknown):
             yaw = np.asarray(np.where(np.isnan(yaw[:, :1]), facing[:, None], yaw))
         yaw = np.ascontiguousarray(yaw)
-        lean = np.empty_like(yaw)
+        lean, way = np.empty_like(yaw), np.empty((*yaw.shape, 2))
         speed_from = ground if moving is None else moving
         self.kernels.turn(yaw, speed_from, off, fps, MAX_YAW_RATE, MAX_LATERAL, MAX_LEAN, LEAN_RATE,
-                          GENTLE_LEAN, self.last_yaw, self.last_lean, lean)
-        return yaw, lean
+                          GENTLE_LEAN, WAY_BIAS, self.last_yaw, self.last_lean, lean, way)
+        return yaw, lean, way
 
 
 def headings(path: Floats, fps: float, frames: int | None = None, backend: str = "auto") -> Floats:
@@ -346,8 +351,8 @@ def headings(path: Floats, fps: float, frames: int | None = None, backend: str =
 
 
 def turning(path: Floats, fps: float, frames: int | None = None, backend: str = "auto",
-            facing_path: Floats | None = None) -> tuple[Floats, Floats]:
-    """(C, T) yaw and lean of a whole path ``(C, T, 3)`` (:meth:`Headings.advance`); a character
+            facing_path: Floats | None = None) -> tuple[Floats, Floats, Floats]:
+    """(C, T) yaw, lean and way of a whole path ``(C, T, 3)`` (:meth:`Headings.advance`); a character
     that never moves faces its path's first step. ``frames``: the first ``frames`` only (the same
     numbers). ``facing_path``: the path whose way the body faces, if not ``path``."""
     moving = np.ascontiguousarray(path[..., GROUND_AXES])
@@ -419,6 +424,6 @@ def plan(bank: Bank, prep: Prepared, h: Floats, keys: NDArray[np.uint64], margin
     planner = Planner(bank, h, tempo, character_leads(bank, keys), margin, backend)
     planner.advance(0, np.ascontiguousarray(v[:, :keep]), path, decisions, out)
     # The body faces the way of the smoothed positions (a simulator's jitter does not swing it).
-    out.yaw[...], out.lean[...] = turning(path, bank.fps, keep, backend, prep.facing)
+    out.yaw[...], out.lean[...], out.way[...] = turning(path, bank.fps, keep, backend, prep.facing)
     out.path[...] = path[:, :keep]
     return out

@@ -9,9 +9,9 @@ For a batch of characters at once, all array operations over (characters, frames
 2. **Stitch.** Where a piece starts (transition in or out), the piece before it carries on and
    fades out over ``margin`` frames (smoothstep).
 3. **Warp.** The root's ground position is the (smoothed) trajectory point of that frame plus
-   the clip's own in-stride surge along the heading -- so it keeps time with the trajectory and
-   never drifts from it -- and its heading follows the trajectory's tangent; its height is the
-   clip's times h. Sideways sway of the clips is dropped: the path is the caller's.
+   the clip's own in-stride surge along the path (heading_kernels.turn) -- so it keeps time with the
+   trajectory and never drifts from it -- and its heading follows the trajectory's tangent; its
+   height is the clip's times h. Sideways sway of the clips is dropped: the path is the caller's.
 4. **Foot lock** (:mod:`synth_core.runtime.footlock`) pins each planted foot where it lands.
 
 Steps 2-4 are the render, written once in :mod:`synth_core.compiled.kernels`;
