@@ -32,8 +32,10 @@ from synth_core.runtime.bank import (
     standing_heights,
     table_positions,
 )
+from synth_core.runtime.live import LiveSynth
 from synth_core.runtime.plan import MARGIN, STILL_S
 from synth_core.runtime.synthesis import Options, Result, synthesize
+from tests.helpers.live import feed, joined
 from tests.helpers.mocap import MANN_DIR
 from tests.helpers.motion import clip_flips, looped, stops
 
@@ -374,3 +376,25 @@ def test_a_generated_transition_stands_on_the_soles_of_the_gaits_it_joins(mann: 
         first, last = standing[piece.offset], standing[piece.offset + piece.frames - 1]
         assert np.abs(first - soles[a]).max() <= 1e-3, (HUBS[a], HUBS[b], first, soles[a])
         assert np.abs(last - soles[b]).max() <= 1e-3, (HUBS[a], HUBS[b], last, soles[b])
+
+
+@pytest.mark.parametrize("fps", [60.0, 30.0])
+def test_live_roots_are_the_batch_roots_where_the_clips_surge(mann: Library, fps: float) -> None:
+    """The real dog's clips surge (the built-in animals' do not, so tests/test_live.py cannot see
+    it), along the path's way (heading_kernels.turn: each frame from its neighbours on the path).
+    Live, points arriving in random pieces and frame blocks cut anywhere, the exact mode's roots
+    and rotations are the batch's (no foot lock: the plan and the render alone); at 30 fps, every
+    other library frame's, as tests/test_live.py has them."""
+    bank = build_bank(mann)
+    assert np.abs(bank.surge).max() > 0.02  # (in the library's unit: the real dog's 4.4 cm)
+    herd = crowd.simulate(12, int(700 * fps / 60), seed=3, top=5.0, fps=fps)
+    batch = synthesize(bank, herd, fps, options=Options(seed=5, scale_range=(0.8, 1.2), foot_lock=False))
+    assert batch.resample_rate == 1.0
+    live = LiveSynth(bank, len(herd), fps, seed=5, scale_range=(0.8, 1.2), foot_lock=False)
+    root, rot, _, _ = joined(feed(live, herd)[0])
+    step = int(bank.fps // fps)
+    want_root, want_rot = batch.root_pos[:, ::step], batch.rotations[:, ::step]
+    t = slice(0, root.shape[1] - 3 * bank.mean_cycle // step)  # (the batch's last segments: test_live)
+    tol = 1e-6 if step == 1 else 1e-4  # (tests/test_live.py's, each rate)
+    np.testing.assert_allclose(root[:, t], want_root[:, t], atol=tol)
+    np.testing.assert_allclose(rot[:, t], want_rot[:, t], atol=tol)

@@ -17,7 +17,15 @@ from synth_core.motion.skeleton import forward_kinematics
 from synth_core.quality import edge, evaluate
 from synth_core.quality import metrics as M
 from synth_core.runtime.bank import STATIC, Bank, build_bank
-from synth_core.runtime.plan import GENTLE_LEAN, LEAN_RATE, MARGIN, MAX_LATERAL, MAX_LEAN, MAX_YAW_RATE
+from synth_core.runtime.plan import (
+    GENTLE_LEAN,
+    LEAN_RATE,
+    MARGIN,
+    MAX_LATERAL,
+    MAX_LEAN,
+    MAX_YAW_RATE,
+    turning,
+)
 from synth_core.runtime.synthesis import Options, Result, synthesize
 
 ANIMALS = ["horse", "dog"]
@@ -267,3 +275,31 @@ def test_a_simulators_jitter_does_not_turn_a_standing_animal(animal: str) -> Non
     walk = result.gait == HUBS.index("walk")
     assert walk.any()
     assert (fk.down.sum(axis=-1)[walk] >= 2).all(), np.argwhere(walk & (fk.down.sum(axis=-1) < 2))[:8]
+
+
+@pytest.mark.parametrize("backend", ["numba", "numpy"])
+def test_the_surge_goes_along_the_path_and_never_flips(backend: str) -> None:
+    """A clip's surge goes along the way of the path the root follows (plan.Plan.way): on a
+    curve at speed, the path's own direction, whatever the body's heading; on a still path, the
+    heading; and on a path that slows, stops and backs up under a held heading (a simulator
+    pushing an agent back), it turns round through nothing rather than in a frame (a real dog's
+    4 cm surge would jump 8 cm), never NaN."""
+    fps, T = 60.0, 240
+    t = np.arange(T) / fps
+    # A 0.5 m circle at 7 m/s: the heading's turn rate is capped far below the path's.
+    theta = 7.0 / 0.5 * t
+    circle = np.stack([0.5 * np.sin(theta), np.zeros(T), 0.5 - 0.5 * np.cos(theta)], axis=-1)
+    # Stand, then along +Z at 0.3 m/s braking at 0.3 m/s^2: it stops at 1 s and backs up.
+    z = np.where(t < 1.0, 0.0, 0.3 * (t - 1.0) - 0.15 * (t - 1.0) ** 2)
+    back = np.stack([np.zeros(T), np.zeros(T), z], axis=-1)
+    yaw, _, way = turning(np.stack([circle, back]), fps, backend=backend)
+    assert np.isfinite(way).all() and (np.linalg.norm(way, axis=-1) <= 1 + 1e-9).all()
+    tangent = np.gradient(circle[:, [0, 2]], axis=0)
+    tangent /= np.linalg.norm(tangent, axis=-1, keepdims=True)
+    np.testing.assert_allclose(way[0], tangent, atol=1e-6)
+    lag = np.degrees(np.abs(np.angle(np.exp(1j * (yaw[0] - np.arctan2(tangent[:, 0], tangent[:, 1]))))))
+    assert lag.max() > 30  # the body trails the path: the way is not the heading
+    still = t < 1.0 - 1.0 / fps
+    np.testing.assert_allclose(way[1, still], np.stack([np.sin(yaw[1, still]), np.cos(yaw[1, still])], -1))
+    assert way[1, -1, 1] < -0.99  # backing up at the end: along the path, against the heading
+    assert np.abs(np.diff(way[1], axis=0)).max() < 0.5  # turned round over frames, not in one

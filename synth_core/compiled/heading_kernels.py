@@ -150,7 +150,7 @@ def _wrapped(w: float) -> float:
 
 @jit(parallel=True)  # characters side by side: each writes its own rows
 def turn(yaw: Any, g: Any, off: int, fps: float, max_rate: float, max_lateral: float, max_lean: float,
-         lean_rate: float, gentle: float, way_bias: float, last: Any, last_lean: Any, lean: Any,
+         lean_rate: float, gentle: float, way_step: float, last: Any, last_lean: Any, lean: Any,
          way: Any) -> None:
     """In place, each character's yaw ``(C, n)`` of frames ``[t0, t0 + n)`` turned toward the one
     given by at most ``min(max_rate, max_lateral / v)`` radians a second, v its path's ground speed
@@ -161,10 +161,15 @@ def turn(yaw: Any, g: Any, off: int, fps: float, max_rate: float, max_lateral: f
     turn's centre (the centripetal acceleration over gravity) less ``gentle`` (a gentle curve
     leans none), within ``max_lean``, reached at most ``lean_rate`` radians a second. ``last``,
     ``last_lean`` ``(C,)``: each one's yaw (NaN: none) and lean the frame before, carried on.
-    ``way (C, n, 2)``: the path's ground direction (x, z), along which a clip's surge (its root's lead
-    on steady progress) goes: in a tight turn at speed the heading trails the path's by up to ~80
-    deg, and a surge along it put the root off the path (the real dog's 0.5 m U-turn at a gallop:
-    2.5 cm); the heading's where the path's step is shorter than ``way_bias`` (m a frame), blended."""
+    ``way (C, n, 2)``: the ground direction (x, z) along which a clip's surge (its root's lead on
+    steady progress) goes: the path's own one-step central difference (``g``: the path the root
+    follows), a unit vector wherever the path steps ``way_step`` (m a frame) or more -- in a tight
+    turn at speed the heading trails the path's by up to ~80 deg, and a surge along it put the
+    root off the path (the real dog's 0.5 m U-turn at a gallop: 2.5 cm). A shorter step (a still
+    or creeping path: nothing or noise) is topped up along the heading by what it lacks, and the
+    sum divided by ``way_step`` at least: the heading's unit vector on a still path, the path's
+    once it moves, and, where the path backs up under a held heading, shrinking through 0 as the
+    step turns round rather than flipping in a frame (the surge's 2 x 4 cm)."""
     for c in prange(yaw.shape[0]):
         prev, tilt = last[c], last_lean[c]
         for i in range(yaw.shape[1]):
@@ -189,9 +194,9 @@ def turn(yaw: Any, g: Any, off: int, fps: float, max_rate: float, max_lateral: f
             yaw[c, i] = want
             lean[c, i] = tilt
             prev = want
-            held = max(way_bias - run, 0.0)  # the heading's share: none once the path moves
-            if held > 0.0:
-                dx, dz = dx + held * math.sin(want), dz + held * math.cos(want)
-                run = math.sqrt(dx * dx + dz * dz)
+            lack = way_step - run
+            if lack > 0.0:
+                dx, dz = dx + lack * math.sin(want), dz + lack * math.cos(want)
+                run = max(math.sqrt(dx * dx + dz * dz), way_step)
             way[c, i, 0], way[c, i, 1] = dx / run, dz / run
         last[c], last_lean[c] = prev, tilt

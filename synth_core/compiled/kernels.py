@@ -219,13 +219,13 @@ def _render_windows(poses: Any, height: Any, surge: Any, paws: Any, rows: Any, w
             own_tilt = tilt[c] if heights.shape[0] > 0 else tilt[0]
             own_legs = known_legs[c] if keep else no_recent
             pinned[c] -= b  # in the context's frames
-            made = _character(poses, height, surge, paws, rows[c, b:e], weights[c, b:e], yaw[c, b:e], lean[c,
-                              b:e], path[c, b:e], way[c, b:e], scales[c], contacts[c, b:e], parents, offsets,
-                              fk_joints, rigs, bends, sink_limit, foot_lock, rot[:k], root[:k], world,
-                              feet[:k], legs[:k], targets[:k], sink[:k], eased[:k], start - b, start - b + n,
-                              known_feet[b:e, c], kn, own_legs, recent_known, own_tilt, b, heights, ground_x0,
-                              ground_z0, spacing, plant_frames, pins[c], pinned[c], steps, (sent[c],
-                              sent_at[c] - b), kept[c])
+            made = _character(poses, height, surge, paws, rows[c, b:e], weights[c, b:e], yaw[c, b:e],
+                              lean[c, b:e], path[c, b:e], way[c, b:e], scales[c], contacts[c, b:e], parents,
+                              offsets, fk_joints, rigs, bends, sink_limit, foot_lock, rot[:k], root[:k],
+                              world, feet[:k], legs[:k], targets[:k], sink[:k], eased[:k], start - b,
+                              start - b + n, known_feet[b:e, c], kn, own_legs, recent_known, own_tilt, b,
+                              heights, ground_x0, ground_z0, spacing, plant_frames, pins[c], pinned[c], steps,
+                              (sent[c], sent_at[c] - b), kept[c])
             pinned[c] += b
             sent_at[c] = start + n - 1  # sent[c]: the targets of its last two frames (none kept: not read)
             out_rot[c] = rot[start - b:start - b + n]

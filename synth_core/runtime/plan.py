@@ -111,10 +111,13 @@ MAX_LATERAL = 2.5 * 9.81  # m/s^2
 # Gentle curves lean none: the lean is atan(v omega / g) less GENTLE_LEAN (so it grows from 0 as a
 # turn tightens; a herd's meandering paths leant a degree, which changed nothing a viewer sees
 # but the plants' IK).
-WAY_BIAS = 1e-3  # m a frame: a path's step shorter than this takes its way partly from the heading
 MAX_LEAN = float(np.radians(20.0))  # rad
 LEAN_RATE = float(np.radians(90.0))  # rad/s
 GENTLE_LEAN = float(np.radians(3.0))  # rad
+# A clip's surge goes along the path the root follows (heading_kernels.turn's ``way``), but a path
+# slower than this has no way of its own worth reading (standing: none; creeping: its noise): its
+# way is topped up along the heading.
+WAY_SPEED = 0.06  # m/s
 LOOKAHEAD = 2  # segments: gaits are chosen on the speed this far ahead, as transitions take time
 DECISION_SHARE = 4  # gait decisions this many times a segment
 MAX_RATE = 1.6  # the fastest gait asked to go faster than its fastest clip plays its stride up to this fast
@@ -128,8 +131,8 @@ class Plan:
     fading out (the same rows where none is); ``weights (C, T, 3)``: the second row's weight of
     each pair, then the fading piece's share (0: no fade). The pose is
     ``blend(blend(r0, r1, w), blend(p0, p1, pw), keep)`` -- nlerps -- turned to ``yaw`` and put on
-    ``path``; :func:`synth_core.runtime.synthesis.render` builds it (numpy) and
-    :mod:`synth_core.compiled.kernels` (numba) too.
+    ``path`` (the clip's surge along ``way``); :func:`synth_core.runtime.synthesis.render` builds
+    it (numpy) and :mod:`synth_core.compiled.kernels` (numba) too.
     """
 
     rows: NDArray[np.int32]
@@ -141,7 +144,8 @@ class Plan:
     stitches: NDArray[np.bool_]  # (C, T)
     gait: NDArray[np.int8]  # (C, T)
     lean: Floats  # (C, T) roll into the turn, radians about the body's forward axis (+: top to its right)
-    way: Floats  # (C, T, 2) the path's ground direction (x, z), the surge's (heading_kernels.turn)
+    way: Floats  # (C, T, 2) the ground direction (x, z) of the root's path, its surge's: unit, but
+    # shorter where a path creeping under WAY_SPEED steps against the heading (heading_kernels.turn)
 
     def window(self, start: int, stop: int, step: int = 1) -> Plan:
         """Frames ``[start, stop)`` (every ``step``-th) of every character."""
@@ -157,8 +161,6 @@ def empty_plan(characters: int, frames: int, scales: Floats) -> Plan:
     return Plan(np.empty((C, T, 4), np.int32), np.empty((C, T, 3), np.float32), np.empty((C, T)),
                 np.empty((C, T, 3)), scales, np.empty((C, T, 4), bool), np.empty((C, T), bool),
                 np.empty((C, T), np.int8), np.empty((C, T)), np.empty((C, T, 2)))
-
-
 
 
 @dataclass(frozen=True)
@@ -341,7 +343,7 @@ class Headings:
         lean, way = np.empty_like(yaw), np.empty((*yaw.shape, 2))
         speed_from = ground if moving is None else moving
         self.kernels.turn(yaw, speed_from, off, fps, MAX_YAW_RATE, MAX_LATERAL, MAX_LEAN, LEAN_RATE,
-                          GENTLE_LEAN, WAY_BIAS, self.last_yaw, self.last_lean, lean, way)
+                          GENTLE_LEAN, WAY_SPEED / fps, self.last_yaw, self.last_lean, lean, way)
         return yaw, lean, way
 
 
