@@ -58,6 +58,8 @@ from synth_core.compiled.jit import AVAILABLE as AVAILABLE  # callers ask kernel
 from synth_core.compiled.jit import interpreted, prange, render_jit, threads
 from synth_core.compiled.limb_kernels import LANES, fk, solve_legs
 from synth_core.compiled.pose_kernels import assemble, clip_soles, root_only
+from synth_core.compiled.posed import Posed as Posed  # callers ask kernels.Posed
+from synth_core.compiled.posed import checked
 from synth_core.compiled.scratch import Scratch
 from synth_core.compiled.vec_kernels import (
     put,
@@ -90,7 +92,8 @@ def _character(poses: Any, height: Any, surge: Any, paws: Any, rows: Any, weight
                world: Any, feet: Any, legs: Any, targets: Any, sink: Any, eased: Any, keep_from: int,
                keep_to: int, known_feet: Any, known: int, recent: Any, recent_known: bool, tilt: Any,
                tilt_at: int, heights: Any, ground_x0: float, ground_z0: float, spacing: float,
-               plant_frames: int, pins: Any, pinned: Any, steps: bool, sent: Any, kept: Any) -> bool:
+               plant_frames: int, pins: Any, pinned: Any, steps: bool, sent: Any, sides: Any,
+               kept: Any) -> bool:
     """All four passes for one character (scratch arrays given). Only frames ``[keep_from, keep_to)``
     are wanted (a window over its foot lock's context): the legs' IK is solved for those alone.
     ``known_feet (T, 4, 3)``: the feet of frames ``[0, known)`` made already (a live session's
@@ -100,7 +103,8 @@ def _character(poses: Any, height: Any, surge: Any, paws: Any, rows: Any, weight
     the same of the PAD frames before ``keep_to``: True if it does; ``kept``: its contacts, foot_kernels.held
     ``heights (Nz, Nx)``: the terrain (``(0, 0)``: none), grid origin, spacing; the body tilted by
     ``tilt[tilt_at + t]`` (``(T', 4)``) on frame t, its feet planted on the terrain (measure_feet).
-    ``plant_frames``: plant_targets' ``most`` (feet kept: its pins, sent too); ``steps``: render_window's."""
+    ``plant_frames``: plant_targets' ``most`` (feet kept: its pins, sent too); ``steps``: render_window's;
+    ``sides``: solve_legs' ``before``."""
     terrain, T = heights.shape[0] > 0, out_rot.shape[0]
     if not foot_lock:
         kept[...] = contacts[keep_from:keep_to]  # (no feet held: the plan's)
@@ -118,8 +122,7 @@ def _character(poses: Any, height: Any, surge: Any, paws: Any, rows: Any, weight
             put(out_rot[t, 0], qmul(q4(tilt[tilt_at + t]), q4(out_rot[t, 0])))
     if not foot_lock:
         return False
-    # The world's origin: a block starts at the first wanted frame (the frames posed before it
-    # in blocks of their own), so a window of up to LANES frames is one block of IK.
+    # The world's origin: a block from the first wanted frame (a window up to LANES frames: one IK block).
     o = keep_from - LANES * ((keep_from - a + LANES - 1) // LANES)
     fk(out_rot, out_root, h, parents, offsets, fk_joints, world, a, T, o)
     feet[:a] = known_feet[:a]
@@ -138,11 +141,10 @@ def _character(poses: Any, height: Any, surge: Any, paws: Any, rows: Any, weight
     fold_room(targets, legs, bends, sink_limit, s, T, eased, sink)  # the sink read: its frames free
     out_root[a:, 1] = (out_root[a:, 1] / h - eased[a:]) * h
     held(air, targets, legs, bends, eased, h, keep_from, keep_to, kept)
-    solve_legs(world, targets, eased, rigs, parents, offsets, bends, out_rot, keep_from, keep_to, o)
-    made = keep_to - PAD >= s
-    if made:
+    solve_legs(world, targets, eased, rigs, parents, offsets, bends, out_rot, keep_from, keep_to, o, sides)
+    if keep_to - PAD >= s:
         recent[...] = legs[keep_to - PAD:keep_to]
-    return made
+    return keep_to - PAD >= s
 
 
 @_jit(parallel=True)
@@ -174,7 +176,8 @@ def _render_all(poses: Any, height: Any, surge: Any, paws: Any, rows: Any, weigh
                        scales[c], contacts[c], parents, offsets, fk_joints, rigs, bends, sink_limit,
                        foot_lock, out_rot[c], out_root[c], world, feet, legs, targets, sink, eased, 0,
                        out_rot.shape[1], none_known, 0, recent, False, own_tilt, 0, heights, ground_x0,
-                       ground_z0, spacing, WHOLE_PLANT, no_pins, unpinned, True, (no_sent, NOWHERE), kept[c])
+                       ground_z0, spacing, WHOLE_PLANT, no_pins, unpinned, True, (no_sent, NOWHERE),
+                       np.zeros((4, 4)), kept[c])
 
 
 @_jit(parallel=True)
@@ -184,7 +187,8 @@ def _render_windows(poses: Any, height: Any, surge: Any, paws: Any, rows: Any, w
                     begin: Any, end: Any, start: int, out_rot: Any, out_root: Any, tilt: Any, heights: Any,
                     ground_x0: float, ground_z0: float, spacing: float, pose: Any, known_feet: Any,
                     known: Any, known_legs: Any, legs_at: Any, pins: Any, pinned: Any, sent: Any,
-                    sent_at: Any, plant_frames: int, steps: bool, kept: Any, c0: int, c1: int) -> None:
+                    sent_at: Any, sides: Any, plant_frames: int, steps: bool, kept: Any, c0: int,
+                    c1: int) -> None:
     """Frames ``[start, start + out.shape[1])`` of characters ``[c0, c1)``, each rendered over its own context
     ``[begin[c], end[c])`` of the plan (see :func:`render_window`); ``known_feet`` (``(0, C, 4, 3)``: none) to
     ``sent_at``: a :class:`Posed`'s, moved on (``known`` to ``end``, ``legs_at`` to the window's end, the pins
@@ -219,13 +223,14 @@ def _render_windows(poses: Any, height: Any, surge: Any, paws: Any, rows: Any, w
             own_tilt = tilt[c] if heights.shape[0] > 0 else tilt[0]
             own_legs = known_legs[c] if keep else no_recent
             pinned[c] -= b  # in the context's frames
+            sides[c, :, 3] *= sent_at[c] == start - 1  # (the frame before not sent: no side to keep)
             made = _character(poses, height, surge, paws, rows[c, b:e], weights[c, b:e], yaw[c, b:e],
                               lean[c, b:e], path[c, b:e], way[c, b:e], scales[c], contacts[c, b:e], parents,
                               offsets, fk_joints, rigs, bends, sink_limit, foot_lock, rot[:k], root[:k],
                               world, feet[:k], legs[:k], targets[:k], sink[:k], eased[:k], start - b,
                               start - b + n, known_feet[b:e, c], kn, own_legs, recent_known, own_tilt, b,
                               heights, ground_x0, ground_z0, spacing, plant_frames, pins[c], pinned[c], steps,
-                              (sent[c], sent_at[c] - b), kept[c])
+                              (sent[c], sent_at[c] - b), sides[c], kept[c])
             pinned[c] += b
             sent_at[c] = start + n - 1  # sent[c]: the targets of its last two frames (none kept: not read)
             out_rot[c] = rot[start - b:start - b + n]
@@ -314,51 +319,6 @@ def _sink_limit(bank: Bank, ground: Grounding | None
 SHARED_PARTS = 8
 
 
-class Posed(NamedTuple):
-    """What a live session's windows keep of the frames they posed, for the later windows over
-    the same plan (see :func:`render_window`): the feet ``(T, C, 4, 3)`` float64, C-contiguous
-    (frames first: every view of them is, so the kernel is compiled for one layout), of each
-    character's plan frames ``[0, frames[c])``; what the sink reads of the legs on the PAD frames
-    before ``legs_at[c]`` (``(C, PAD, 4, LEG_WIDTH)``; ``NOWHERE``: none kept); where plants are
-    pinned at their first frames (``render_window``'s ``plant_frames``), each foot's plant through
-    plan frame ``pinned[c, f]`` and its target ``pins[c, f]`` as sent (``(C, 4)``, ``(C, 4, 3)``;
-    ``NOWHERE``: none), so that a plant longer than the context kept stays there when its first
-    frames are dropped; there too, the foot targets ``(C, 2, 4, 3)`` of plan frames ``sent_at[c]
-    - 1``, ``sent_at[c]`` as sent (``(C,)``; ``NOWHERE``: none), from which the next window's
-    unsent frames' jumps are eased (jump_kernels.ease_unsent)."""
-
-    feet: NDArray[np.float64]
-    frames: NDArray[np.int64]
-    legs: NDArray[np.float64]
-    legs_at: NDArray[np.int64]
-    pins: NDArray[np.float64]
-    pinned: NDArray[np.int64]
-    sent: NDArray[np.float64]
-    sent_at: NDArray[np.int64]
-
-    @classmethod
-    def none(cls, C: int, feet: NDArray[np.float64]) -> Posed:
-        """Nothing posed yet, the feet to be kept in ``feet``."""
-        return cls(feet, np.zeros(C, np.int64), np.empty((C, PAD, 4, LEG_WIDTH)), np.full(C, NOWHERE),
-                   np.zeros((C, 4, 3)), np.full((C, 4), NOWHERE), np.zeros((C, 2, 4, 3)), np.full(C, NOWHERE))
-
-
-def _checked(known: Posed | None, plan: Plan) -> Posed:
-    """``known`` (see :func:`render_window`), its arrays checked; none known: an empty one."""
-    C = plan.yaw.shape[0]
-    if known is None:
-        return Posed(np.empty((0, C, 4, 3)), np.zeros(C, np.int64), np.empty((0, PAD, 4, LEG_WIDTH)),
-                     np.zeros(C, np.int64), *Posed.none(C, np.empty((0, C, 4, 3)))[4:])
-    assert known.feet.shape == (*plan.yaw.shape[::-1], 4, 3) and known.feet.dtype == np.float64
-    assert known.feet.flags.c_contiguous
-    assert known.legs.shape == (C, PAD, 4, LEG_WIDTH) and known.legs.flags.c_contiguous
-    assert known.pins.shape == (C, 4, 3) and known.pins.flags.c_contiguous and known.pinned.shape == (C, 4)
-    assert known.sent.shape == (C, 2, 4, 3) and known.sent.flags.c_contiguous
-    for frames in (known.frames, known.legs_at, known.pinned, known.sent_at):
-        assert frames.dtype == np.int64 and frames.flags.c_contiguous
-    return known
-
-
 def _run_windows(kernels: RenderKernels, args: tuple[Any, ...], C: int,
                  share: Callable[[list[Callable[[], None]]], None] | None) -> None:
     """``kernels.render_windows`` of every character: at once, or in parts ``share`` runs."""
@@ -416,7 +376,7 @@ def render_window(bank: Bank, plan: Plan, start: int, stop: int, begin: NDArray[
     assert pose.shape == (C,)
     # Only the frames some context reads are made contiguous.
     cb, ce = int(np.min(begin)), int(np.max(end))
-    posed = _checked(known, plan)
+    posed = checked(known, plan)
     for frames in (posed.frames, posed.legs_at, posed.pinned, posed.sent_at):  # in the window's frames
         frames[...] -= cb
     out_root = np.empty((C, stop - start, 3), np.float64)

@@ -247,26 +247,36 @@ def _solve_leg(B: Any, world: Any, targets: Any, sink: Any, rigs: Any, parents: 
 
 @_jit()
 def solve_legs(world: Any, targets: Any, sink: Any, rigs: Any, parents: Any, offsets: Any,
-               bends: Any, out_rot: Any, a: int, T: int, o: int) -> None:
+               bends: Any, out_rot: Any, a: int, T: int, o: int, before: Any) -> None:
     """Each leg's IK on frames ``[a, T)`` (``world`` from origin ``o``: see :func:`fk`), the root lowered by
     ``sink``: the upper joint's, hinge's and ankle's local rotations of ``out_rot`` replaced, each
-    ankle then keeping its bend side from frame to frame (see the section below). Solved a block
-    of ``world`` at a time: lanes outside the frames are solved too (on the nearest frame's
-    target), not written."""
+    ankle then keeping its bend side from frame to frame (see the section below) -- frame a's from
+    ``before (4, 4)``'s, each leg's on the frame before a (a live window's last sent: a low-latency
+    window is a frame or two, so its own frames alone kept next to none; bent flag 0: none), then
+    set to frame T - 1's. Solved a block of ``world`` at a time: lanes outside the frames are
+    solved too (on the nearest frame's target), not written."""
     B = np.empty((_ROWS, LANES))  # here, not passed in: see the IK section's comment
     sides = np.empty((max(T - a, 1), 4))
     for f in range(4):
         _solve_leg(B, world, targets, sink, rigs, parents, offsets, bends, out_rot, f, a, T, o, sides, a)
+        if T > a and _flipped(sides[0], before[f]):  # the frame before is sent: this one goes straight
+            _straighten(world, targets, sink, rigs, parents, offsets, bends, out_rot, f, a, o, sides, a)
         for t in range(a + 1, T):
-            i = t - a
-            turned = (sides[i, 0] * sides[i - 1, 0] + sides[i, 1] * sides[i - 1, 1]
-                      + sides[i, 2] * sides[i - 1, 2])
-            if turned < 0.0 and sides[i, 3] > 0.0 and sides[i - 1, 3] > 0.0:
+            if _flipped(sides[t - a], sides[t - a - 1]):
                 an, ef = rigs[f, 2], rigs[f, 3]
                 nearer = _ankle_bend(world, out_rot, offsets, an, ef, t, o)[0] <= \
                     _ankle_bend(world, out_rot, offsets, an, ef, t - 1, o)[0]
                 _straighten(world, targets, sink, rigs, parents, offsets, bends, out_rot, f,
                             t if nearer else t - 1, o, sides, a)
+        if T > a:
+            before[f, :] = sides[T - 1 - a]
+
+
+@_jit(inline="always")
+def _flipped(side: Any, other: Any) -> bool:
+    """Whether two frames' ankle sides (:func:`_ankle_sides`' rows), both bent, point apart."""
+    turned = side[0] * other[0] + side[1] * other[1] + side[2] * other[2]
+    return bool(turned < 0.0 and side[3] > 0.0 and other[3] > 0.0)
 
 
 # --- the ankle's bend side kept over time ------------------------------------------------------

@@ -216,7 +216,7 @@ class LiveSynth(LivePath):
         # a plant longer than the frames kept stays where its first frames put it. And the foot
         # targets of the last two frames sent (kernels.Posed): later windows ease from them.
         self.pins, self.pinned = np.zeros((C, 4, 3)), np.full((C, 4), NOWHERE)
-        self.sent, self.sent_at = np.zeros((C, 2, 4, 3)), np.full(C, NOWHERE)
+        self.sent, self.sent_at, self.sides = np.zeros((C, 2, 4, 3)), np.full(C, NOWHERE), np.zeros((C, 4, 4))
         # The characters whose rotations are wanted (see set_posed); character-frames sent posed so far.
         self.pose, self.posed_frames = np.ones(C, bool), 0
 
@@ -438,7 +438,8 @@ class LiveSynth(LivePath):
         o0, n = self.buffer.start, buf.yaw.shape[1]
         self.feet.reserve(max(o0 + n - self.feet.stop, 0))
         posed = kernels.Posed(self.feet.columns(o0, o0 + n)[0][0], self.known_feet - o0, self.recent_legs,
-                              self.legs_at - o0, self.pins, self.pinned - o0, self.sent, self.sent_at - o0)
+                              self.legs_at - o0, self.pins, self.pinned - o0, self.sent, self.sent_at - o0,
+                              self.sides)
         # Not touched beforehand: the rows of characters not posed (far, at root_gait) are never
         # written, so their pages never are either (a 5,000-horse session at root_gait held 54 MB
         # of them; 100,000 horses in such sessions, a gigabyte).
