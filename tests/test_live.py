@@ -248,12 +248,13 @@ def test_shards_refuse_bad_points_whole_naming_the_character(bank: Bank) -> None
 
 
 def test_frames_kept_from_earlier_windows_are_the_frames_posed_again(bank: Bank, herd: np.ndarray) -> None:
-    """kernels.render_window reading what earlier windows posed (a live session's windows share
-    most of their lock context: the feet, and the legs of the PAD frames before a window, which
-    its sink reads) gives the numbers of posing each whole context again, to rounding: what is
-    read was posed by another window's call, whose compiled path (a frame posed as sent or as
-    context) may round a last bit differently -- seen once, on a fresh compile: 2 of 96,000 root
-    numbers, 7e-17 m apart."""
+    """kernels.render_window reading what earlier windows posed (a live session's windows share most of
+    their lock context: the feet, and the legs of the PAD frames before a window, which its sink
+    reads; not the ankle's side of the last frame sent, kernels.Posed.sides, against which a flip is
+    straightened) gives the numbers of posing each whole context again, to rounding: what is read was
+    posed by another window's call, whose compiled path (a frame posed as sent or as context) may
+    round a last bit differently -- seen once, on a fresh compile: 2 of 96,000 root numbers, 7e-17 m
+    apart."""
     pytest.importorskip("numba")
     from synth_core.compiled import kernels
     from synth_core.runtime.footlock import PAD

@@ -165,8 +165,9 @@ def _render_all(poses: Any, height: Any, surge: Any, paws: Any, rows: Any, weigh
     for worker in prange(workers):
         world, feet, legs, targets = w_world[worker], w_feet[worker], w_legs[worker], w_targets[worker]
         sink, eased = w_sink[worker], w_eased[worker]
-        recent = np.empty((PAD, 4, LEG_WIDTH))
+        recent, no_sides = np.empty((PAD, 4, LEG_WIDTH)), np.zeros((4, 4))  # (a whole plan: no frame before)
         for c in range(worker, C, workers):
+            no_sides[:, 3] = 0.0
             if not pose[c]:
                 root_only(height, surge, rows[c], weights[c], path[c], way[c], scales[c], out_root[c])
                 kept[c] = contacts[c]
@@ -177,7 +178,7 @@ def _render_all(poses: Any, height: Any, surge: Any, paws: Any, rows: Any, weigh
                        foot_lock, out_rot[c], out_root[c], world, feet, legs, targets, sink, eased, 0,
                        out_rot.shape[1], none_known, 0, recent, False, own_tilt, 0, heights, ground_x0,
                        ground_z0, spacing, WHOLE_PLANT, no_pins, unpinned, True, (no_sent, NOWHERE),
-                       np.zeros((4, 4)), kept[c])
+                       no_sides, kept[c])
 
 
 @_jit(parallel=True)
@@ -191,10 +192,10 @@ def _render_windows(poses: Any, height: Any, surge: Any, paws: Any, rows: Any, w
                     c1: int) -> None:
     """Frames ``[start, start + out.shape[1])`` of characters ``[c0, c1)``, each rendered over its own context
     ``[begin[c], end[c])`` of the plan (see :func:`render_window`); ``known_feet`` (``(0, C, 4, 3)``: none) to
-    ``sent_at``: a :class:`Posed`'s, moved on (``known`` to ``end``, ``legs_at`` to the window's end, the pins
-    to its last frame's plants, ``sent`` to its last two frames). Calls for disjoint character ranges may run
-    side by side. ``pose (C,)``: the characters posed; the others get their root alone (:func:`_root_only`),
-    their rotations left in ``out_rot``, nothing kept; ``kept (C, n, 4)``: feet planted (far: the plan's)."""
+    ``sides``: a :class:`Posed`'s, moved on (``known`` to ``end``, ``legs_at`` to the window's end, pins to
+    its last frame's plants, ``sent`` to its last two frames, ``sides`` to its last). Calls for disjoint
+    character ranges may run side by side. ``pose (C,)``: the characters posed; the others get their root
+    alone (:func:`root_only`), rotations untouched; ``kept (C, n, 4)``: feet planted (far: the plan's)."""
     n, J = out_rot.shape[1], out_rot.shape[2]
     longest = 0
     for c in range(c0, c1):
@@ -345,14 +346,14 @@ def render_window(bank: Bank, plan: Plan, start: int, stop: int, begin: NDArray[
                   compiled: bool = True, plant_frames: int | None = None, steps: bool = True,
                   contacts: NDArray[np.bool_] | None = None
                   ) -> tuple[NDArray[np.float32], NDArray[np.float32]]:
-    """Root ``(C, stop - start, 3)`` and rotations of frames ``[start, stop)`` only, each
-    character rendered over its context ``[begin, end)`` of ``plan`` (from
-    :func:`lock_context`): :func:`render`'s numbers (with ``known``: to rounding, tests/test_live.py).
+    """Root ``(C, stop - start, 3)`` and rotations of frames ``[start, stop)`` only, each character rendered
+    over its context ``[begin, end)`` of ``plan`` (from :func:`lock_context`): :func:`render`'s numbers (with
+    ``known``: to rounding, tests/test_live.py, but an ankle bent against the last sent frame's: Posed.sides).
 
     ``known``: what earlier windows over the same plan posed (a live session's windows share
     most of their context). Frames whose feet are known are not posed again but where wanted;
     nor, after a window that ended at ``start``, the PAD frames before it (their sink read from
-    ``known.legs``). What the frames posed give is written there, ``frames`` and ``legs_at`` moved on.
+    ``known.legs``). What the frames posed give is written there, ``frames`` to ``sides`` moved on.
     ``out``: the rotations are written there (C-contiguous ``(C, stop - start, J, 4)`` float32).
     ``share``: SHARED_PARTS one-thread parts, which ``share`` runs (render_pool.shared: idle threads
     take some), so renders side by side finish together though one has more to pose. ``ground``:

@@ -250,10 +250,11 @@ def solve_legs(world: Any, targets: Any, sink: Any, rigs: Any, parents: Any, off
                bends: Any, out_rot: Any, a: int, T: int, o: int, before: Any) -> None:
     """Each leg's IK on frames ``[a, T)`` (``world`` from origin ``o``: see :func:`fk`), the root lowered by
     ``sink``: the upper joint's, hinge's and ankle's local rotations of ``out_rot`` replaced, each
-    ankle then keeping its bend side from frame to frame (see the section below) -- frame a's from
-    ``before (4, 4)``'s, each leg's on the frame before a (a live window's last sent: a low-latency
-    window is a frame or two, so its own frames alone kept next to none; bent flag 0: none), then
-    set to frame T - 1's. Solved a block of ``world`` at a time: lanes outside the frames are
+    ankle then keeping its bend side from frame to frame (see the section below). Frame a is
+    checked against ``before[f] (4, 4)``, leg f's side on frame a - 1 (a live window's last frame
+    sent; bent flag 0: none) and, on a flip, straightened (a - 1 is sent already): a low-latency
+    window is a frame or two, and its own frames alone kept next to nothing. ``before`` is then set
+    to frame T - 1's sides. Solved a block of ``world`` at a time: lanes outside the frames are
     solved too (on the nearest frame's target), not written."""
     B = np.empty((_ROWS, LANES))  # here, not passed in: see the IK section's comment
     sides = np.empty((max(T - a, 1), 4))

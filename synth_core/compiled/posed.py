@@ -61,7 +61,8 @@ def checked(known: Posed | None, plan: Plan) -> Posed:
     assert known.legs.shape == (C, PAD, 4, LEG_WIDTH) and known.legs.flags.c_contiguous
     assert known.pins.shape == (C, 4, 3) and known.pins.flags.c_contiguous and known.pinned.shape == (C, 4)
     assert known.sent.shape == (C, 2, 4, 3) and known.sent.flags.c_contiguous
-    assert known.sides.shape == (C, 4, 4) and known.sides.flags.c_contiguous
+    assert known.sides.shape == (C, 4, 4) and known.sides.dtype == np.float64
+    assert known.sides.flags.c_contiguous
     for frames in (known.frames, known.legs_at, known.pinned, known.sent_at):
         assert frames.dtype == np.int64 and frames.flags.c_contiguous
     return known

@@ -214,7 +214,8 @@ class LiveSynth(LivePath):
         self.recent_legs, self.legs_at = np.empty((C, PAD, 4, LEG_WIDTH)), np.full(C, NOWHERE)
         # The low-latency mode's plants as sent, each through the last frame sent (kernels.Posed):
         # a plant longer than the frames kept stays where its first frames put it. And the foot
-        # targets of the last two frames sent (kernels.Posed): later windows ease from them.
+        # targets of the last two frames sent (kernels.Posed): later windows ease from them; and
+        # each ankle's bend side on the last frame sent: the next window keeps it.
         self.pins, self.pinned = np.zeros((C, 4, 3)), np.full((C, 4), NOWHERE)
         self.sent, self.sent_at, self.sides = np.zeros((C, 2, 4, 3)), np.full(C, NOWHERE), np.zeros((C, 4, 4))
         # The characters whose rotations are wanted (see set_posed); character-frames sent posed so far.
