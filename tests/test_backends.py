@@ -199,10 +199,10 @@ def test_planner_blocks_and_state_are_the_references(bank: Bank) -> None:
         outs = {}
         for name, planner in planners.items():
             out = empty_plan(C, -(-t1 // 2) - -(-t0 // 2), h)
-            planner.advance(t0, v[:, t0:t1], prep.positions[:, t0:t1 + 1], decisions, out, 2)
             lo = max(t0 - 1, 0)
             turned = headings[name].advance(ground[:, lo:t1 + 1], t0 - lo, t1 - t0, bank.fps, np.zeros(C),
                                             ahead=lambda who, lo=lo: ground[who, lo:])  # type: ignore[misc]
+            planner.advance(t0, v[:, t0:t1], prep.positions[:, t0:t1 + 1], turned[3], decisions, out, 2)
             outs[name] = (out, turned)
         for f in fields(Plan):
             if f.name not in ("scales", "yaw", "lean", "path", "way"):  # yaw to way: not the planner's

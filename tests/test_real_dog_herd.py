@@ -189,6 +189,22 @@ def test_the_root_stays_on_the_path_through_a_tight_turn(hard_turns: dict[str, A
         assert scenario["figures"]["path_cm_max"] <= 1.0, (name, scenario["figures"]["path_cm_max"])
 
 
+def test_a_pivot_walks_round_on_two_paws(mann: Library) -> None:
+    """Issue 27's walk support, after FK, where the real dog pivots on a 0.2 m circle at 0.15 m/s
+    (turn_on_spot's third dog, under its slowest walk's 0.45 m/s): its start played by the hips'
+    distance, a stance lasting a second and more while the body turned ~70 deg, a forepaw hung out
+    of reach at its end -- 19 frames on one paw. A walk's stride (and its start) now keeps pace with
+    the paws the turn sweeps round the hips (plan_kernels._turning)."""
+    bank = build_bank(mann)
+    gaits = {HUBS[h]: (float(s[0]), float(s[-1])) for h, s in bank.speeds.items()}
+    sc = edge.scenarios(gaits, bank.fps, 0, ["turn_on_spot"])[0]
+    result = synthesize(bank, sc.positions, bank.fps, scales=sc.scales, options=Options(seed=0))
+    down = feet_after_fk(bank, result, library_reference(bank)).down[2]
+    walking = result.gait[2] == HUBS.index("walk")
+    assert walking.sum() > 0.5 * len(walking)  # it walks round, not stands
+    assert (down[walking].sum(axis=-1) >= 2).all(), np.flatnonzero(walking & (down.sum(axis=-1) < 2))
+
+
 def bends(positions: np.ndarray, rigs: tuple[ik.LimbRig, ...]) -> np.ndarray:
     """Sine of each IK hinge's bend, ``(..., F, 4)``."""
     out = []

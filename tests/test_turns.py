@@ -243,6 +243,23 @@ def test_turning_on_the_spot_steps_the_feet_round(animal: str) -> None:
     assert evaluate.passes("single_support_ratio_max", turn_figures(animal)["single_support_ratio_max"])
 
 
+@pytest.mark.parametrize("animal", ANIMALS)
+@pytest.mark.parametrize("name", ["corner_walk", "uturn_walk"])
+def test_a_walk_quickens_its_stride_through_a_tight_turn(animal: str, name: str) -> None:
+    """Issue 27's support target, after FK, through walking corners and U-turns on radii down to
+    0.5 m: the root is at the hips, so the body's turn sweeps the forehand round them (the horse's
+    forefeet 1.2 m ahead: 3-4 m/s in a 0.5 m U-turn at a walk's 1.2 m/s). A walk kept to the hips'
+    pace stood on each forefoot while the body turned ~80 deg, and the foot hung out of reach at
+    both ends of its stance: the horse on one foot (walk frames with two feet down 0.9983 and 0.9962).
+    The walk's stride now keeps pace with the feet the turn sweeps (plan_kernels._turning), up to
+    the library's quickest stride."""
+    bank = animal_bank(animal)
+    sc, result = run(animal, name)
+    fig = evaluate.edge_figures(bank, result, sc.reference, sc.positions.shape[1],
+                                evaluate.library_reference(bank))
+    assert evaluate.passes("walk_support_share", fig["walk_support_share"]), fig["walk_support_share"]
+
+
 @pytest.mark.xfail(strict=True, reason="not yet: the built-in static -> walk clip lifts two feet at once "
                    "(tracks.blend_track's duty drops ~0.3 in a frame where it switches to the stance blend), "
                    "so a turn's step there finds no window with two others down (horse 0.9956, dog 0.999 of "
@@ -292,7 +309,7 @@ def test_the_surge_goes_along_the_path_and_never_flips(backend: str) -> None:
     # Stand, then along +Z at 0.3 m/s braking at 0.3 m/s^2: it stops at 1 s and backs up.
     z = np.where(t < 1.0, 0.0, 0.3 * (t - 1.0) - 0.15 * (t - 1.0) ** 2)
     back = np.stack([np.zeros(T), np.zeros(T), z], axis=-1)
-    yaw, _, way = turning(np.stack([circle, back]), fps, backend=backend)
+    yaw, _, way, _ = turning(np.stack([circle, back]), fps, backend=backend)
     assert np.isfinite(way).all() and (np.linalg.norm(way, axis=-1) <= 1 + 1e-9).all()
     tangent = np.gradient(circle[:, [0, 2]], axis=0)
     tangent /= np.linalg.norm(tangent, axis=-1, keepdims=True)

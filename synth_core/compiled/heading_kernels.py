@@ -151,7 +151,7 @@ def _wrapped(w: float) -> float:
 @jit(parallel=True)  # characters side by side: each writes its own rows
 def turn(yaw: Any, g: Any, off: int, fps: float, max_rate: float, max_lateral: float, max_lean: float,
          lean_rate: float, gentle: float, way_step: float, last: Any, last_lean: Any, lean: Any,
-         way: Any) -> None:
+         way: Any, turned: Any) -> None:
     """In place, each character's yaw ``(C, n)`` of frames ``[t0, t0 + n)`` turned toward the one
     given by at most ``min(max_rate, max_lateral / v)`` radians a second, v its path's ground speed
     there (``g (C, m, 2)`` holding frame t0 at ``off``, as for :func:`headings`): a body pivots
@@ -169,12 +169,13 @@ def turn(yaw: Any, g: Any, off: int, fps: float, max_rate: float, max_lateral: f
     or creeping path: nothing or noise) is topped up along the heading by what it lacks, and the
     sum divided by ``way_step`` at least: the heading's unit vector on a still path, the path's
     once it moves, and, where the path backs up under a held heading, shrinking through 0 as the
-    step turns round rather than flipping in a frame (the surge's 2 x 4 cm)."""
+    step turns round rather than flipping in a frame (the surge's 2 x 4 cm). ``turned (C, n)``: the
+    turn into each frame from the one before (radians, left positive; 0 at a first frame)."""
     for c in prange(yaw.shape[0]):
         prev, tilt = last[c], last_lean[c]
         for i in range(yaw.shape[1]):
             want = yaw[c, i]
-            omega = 0.0
+            d = 0.0
             v = 0.0
             dx, dz = _direction(g[c], off + i)
             run = math.sqrt(dx * dx + dz * dz)  # the path's step
@@ -184,7 +185,8 @@ def turn(yaw: Any, g: Any, off: int, fps: float, max_rate: float, max_lateral: f
                 d = _wrapped(want - prev + math.pi) - math.pi
                 d = min(max(d, -cap), cap)
                 want = _wrapped(prev + d + math.pi) - math.pi
-                omega = d * fps
+            omega = d * fps
+            turned[c, i] = d
             # Yaw grows turning from +Z toward +X, the left of a body facing +Z (Y up, right-handed),
             # where the turn's centre then is; a roll of +a about +Z tips the top toward -X.
             target = -math.atan(v * omega / 9.81)

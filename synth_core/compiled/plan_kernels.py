@@ -102,6 +102,19 @@ def _rate(v: float, hub: int, high: Any, max_rate: float, slowest: int, fastest:
 
 
 @jit(inline="always")
+def _turning(v: float, spin: float, top: float) -> float:
+    """The speed a gait's stride keeps pace with at path speed ``v`` while the body turns, its
+    feet carried round the root at ``spin`` (the turn's rate times the lever, turn_lever): the
+    feet's, ``hypot(v, spin)``, but no faster than ``top`` unless the path is. The root is at the
+    hips, so a turn sweeps the forehand round them: a walk kept to the hips' pace in a 0.5 m U-turn
+    stood on each forefoot while the body turned 80 deg and the foot hung out of reach at both ends
+    of its stance (a horse on one foot, issue 27's walk support)."""
+    if spin == 0.0 or top <= v:
+        return v
+    return min(math.hypot(v, spin), top)
+
+
+@jit(inline="always")
 def _covering(current: int, speed: float, draws: Any, low: Any, high: Any, slowest: int,
               fastest: int) -> tuple[int, bool]:
     """The hub covering ``speed`` (``low``, ``high``: each hub's range; the one with the highest
@@ -301,23 +314,27 @@ def _give_way(s: Any, f: Any, t: int, speeds: Any, travelled: float, rates: Any,
 
 
 @jit(inline="always")
-def _walk_on(f: Any, pts: Any, i: int, still: float) -> None:
-    """The distance walked and the frames stood still (steps under ``still``) by point i + 1."""
+def _walk_on(f: Any, pts: Any, i: int, still: float, swept: float, top: float) -> None:
+    """The distance walked and the frames stood still (steps under ``still``) by point i + 1: a
+    transition plays by distance, the feet's as the body turns (``swept``, the lever's arc this
+    frame; :func:`_turning`, up to ``top`` a frame: the slowest gait's fastest clip)."""
     dx = pts[i + 1, 0] - pts[i, 0]
     dz = pts[i + 1, 2] - pts[i, 2]
     step = math.sqrt(dx * dx + dz * dz)
-    f[WALKED] += step
+    f[WALKED] += _turning(step, swept, top)
     f[STILL] = f[STILL] + 1.0 if step < still else 0.0
 
 
 @jit(inline="always")
-def _tick(f: Any, t: int, v: float, tempo: float, high: Any, max_rate: float, slowest: int, fastest: int,
-          slow: float, share: float) -> None:
-    """Every stride clock on to frame t + 1: the gaits' at their rate for ``v``; the others' time."""
+def _tick(f: Any, t: int, v: float, spin: float, quick: Any, tempo: float, high: Any, max_rate: float,
+          slowest: int, fastest: int, slow: float, share: float) -> None:
+    """Every stride clock on to frame t + 1: the gaits' at their rate for ``v`` (turning at
+    ``spin``, up to ``quick``: :func:`_turning`); the others' time."""
     n_hubs = len(high)
     for hub in range(n_hubs + 1):
         if hub < n_hubs and hub != STATIC and high[hub] > -np.inf:
-            f[CLOCKS + hub] += _rate(v, hub, high, max_rate, slowest, fastest, slow, share) * tempo
+            pace = _turning(v, spin, quick[hub])
+            f[CLOCKS + hub] += _rate(pace, hub, high, max_rate, slowest, fastest, slow, share) * tempo
         else:
             f[CLOCKS + hub] = float(t + 1)
 
@@ -353,17 +370,18 @@ def _decide(s: Any, f: Any, t: int, speed: float, draws: Any, low: Any, high: An
 
 
 @jit()
-def _character(t0: int, v: Any, pts: Any, h: float, tempo: float, lead: int, asked_speed: Any, draws: Any,
-               k0: int, step: int, s: Any, f: Any, offset: Any, frames_of: Any, clips: Any, cyclic: Any,
-               source: Any, target: Any, tr_kind: Any, entry: Any, exit_: Any, total: Any, low: Any,
-               high: Any, curve_at: Any, curves: Any, contacts_of: Any, resume: Any, slowest: int,
+def _character(t0: int, v: Any, pts: Any, turned: Any, h: float, tempo: float, lead: int, asked_speed: Any,
+               draws: Any, k0: int, step: int, s: Any, f: Any, offset: Any, frames_of: Any, clips: Any,
+               cyclic: Any, source: Any, target: Any, tr_kind: Any, entry: Any, exit_: Any, total: Any,
+               low: Any, high: Any, curve_at: Any, curves: Any, contacts_of: Any, resume: Any, slowest: int,
                fastest: int, max_rate: float, slow: float, share: float, still_step: float,
-               still_frames: float, fps: float, stall: float, margin: int, creep: float, out_step: int,
-               rows: Any, weights: Any, gait: Any, contacts: Any, stitches: Any) -> None:
-    """Frames ``[t0, t0 + len(v))`` of one character (speeds ``v``, path ``pts`` from frame t0 on,
-    its rows ``lead`` on: see row_kernels.on_lead): its state ``s``, ``f`` carried on; the outputs' row i is
-    frame ``t`` = the i-th multiple of ``out_step`` from t0 on. Decision ``k0 + k`` (at frame
-    ``(k0 + k) step``) reads ``asked_speed[k]`` and ``draws[k]``."""
+               still_frames: float, fps: float, stall: float, lever: float, quick: Any, margin: int,
+               creep: float, out_step: int, rows: Any, weights: Any, gait: Any, contacts: Any,
+               stitches: Any) -> None:
+    """Frames ``[t0, t0 + len(v))`` of one character (speeds ``v``, path ``pts`` from t0 on, turning
+    ``turned`` radians a frame: :func:`_turning`; rows ``lead`` on: on_lead), state ``s``, ``f`` carried
+    on; the outputs' row i is frame ``t`` = the i-th multiple of ``out_step`` from t0 on. Decision
+    ``k0 + k`` (at frame ``(k0 + k) step``) reads ``asked_speed[k]`` and ``draws[k]``."""
     n_hubs = len(low)
     ask = -(-t0 // step) * step  # the next decision's frame (counted on: no division a frame)
     k = ask // step - k0
@@ -371,7 +389,7 @@ def _character(t0: int, v: Any, pts: Any, h: float, tempo: float, lead: int, ask
     if t0 == 0 and k0 == 0 and pts.shape[0] > 1 and draws.shape[0] > 0:
         _moving_start(s, f, v[0], pts, still_step * h, draws[0], low, high, slowest, fastest, slow, frames_of)
     for i in range(v.shape[0]):
-        t = t0 + i
+        t, spin = t0 + i, abs(turned[i]) * lever * fps / tempo  # spin: the feet's round the root, as v reads
         travelled = f[WALKED] / h  # in the library's unit
         started = _arrive(s, f, t, travelled, total, n_hubs, creep, margin, frames_of, tr_kind, entry, exit_)
         if not cyclic[s[KIND]] or v[i] < low[slowest] or f[STILL] >= still_frames:  # (else rule 2 cannot act)
@@ -383,9 +401,8 @@ def _character(t0: int, v: Any, pts: Any, h: float, tempo: float, lead: int, ask
                 _decide(s, f, t, asked_speed[k], draws[k], low, high, slowest, fastest, step, frames_of,
                         tr_kind, entry, exit_)
             ask, k = ask + step, k + 1
-        # Leaving a stand waits for the path to move: chosen on the speed ahead, the static ->
-        # walk transition (which plays by distance) stepped in place with a hoof up for up to a
-        # second before (turn_on_spot: 32 cm, highest still foot).
+        # Leaving a stand waits for the path to move: chosen on the speed ahead, static -> walk (played by
+        # distance) stepped in place with a hoof up for up to a second before (turn_on_spot: 32 cm up).
         if s[STAGE] == WAITING and f[CLOCKS + s[FROM]] >= f[DUE] and not (s[FROM] == STATIC and f[STILL] > 0):
             _start(s, f, s[TRANSITION], 0, t, float(t), travelled, margin)  # a transition's clock is time
             s[STAGE], started = MOVING, True
@@ -401,37 +418,37 @@ def _character(t0: int, v: Any, pts: Any, h: float, tempo: float, lead: int, ask
                                           f[OLD_CLOCK0], cyclic)
             walked_since = (travelled - f[TRAV0]) + creep * local
             gait[o] = frame_rows(kind, local, walked_since, since, pk, p_local, s[OLD_KIND], o_local, o_keep,
-                                  v[i], offset, frames_of, clips, cyclic, source, target, curve_at, curves,
-                                  margin, o, rows, weights)
+                                  _turning(v[i], spin, quick[kind]), offset, frames_of, clips, cyclic, source,
+                                  target, curve_at, curves, margin, o, rows, weights)
             if p_local < 0 and cyclic[kind]:  # the stride clock between two clip frames
                 tween(kind, s[FIRST] + f[CLOCKS + min(kind, n_hubs)] - f[CLOCK0] - local, local, frames_of,
                        contacts_of, o, rows, weights)
             on_lead(lead, contacts_of, o, rows, contacts)
             stitches[o] = started and t >= 1
             sent, o = sent + out_step, o + 1
-        _tick(f, t, v[i], tempo, high, max_rate, slowest, fastest, slow, share)
+        _tick(f, t, v[i], spin, quick, tempo, high, max_rate, slowest, fastest, slow, share)
         if i + 1 < pts.shape[0]:
-            _walk_on(f, pts, i, still_step * h)
+            _walk_on(f, pts, i, still_step * h, abs(turned[i]) * lever * h, slow * h * tempo / fps)
 
 
 @jit(parallel=True)
-def advance(t0: int, v: Any, pts: Any, h: Any, tempo: Any, lead: Any, asked_speed: Any, draws: Any, k0: int,
-            step: int, ints: Any, floats: Any, offset: Any, frames_of: Any, clips: Any, cyclic: Any,
-            source: Any, target: Any, tr_kind: Any, entry: Any, exit_: Any, total: Any, low: Any, high: Any,
-            curve_at: Any, curves: Any, contacts_of: Any, resume: Any, slowest: int, fastest: int,
+def advance(t0: int, v: Any, pts: Any, turned: Any, h: Any, tempo: Any, lead: Any, asked_speed: Any,
+            draws: Any, k0: int, step: int, ints: Any, floats: Any, offset: Any, frames_of: Any, clips: Any,
+            cyclic: Any, source: Any, target: Any, tr_kind: Any, entry: Any, exit_: Any, total: Any, low: Any,
+            high: Any, curve_at: Any, curves: Any, contacts_of: Any, resume: Any, slowest: int, fastest: int,
             max_rate: float, slow: float, share: float, still_step: float, still_frames: float, fps: float,
-            stall: float, margin: int, creep: float, out_step: int, rows: Any, weights: Any, gait: Any,
-            contacts: Any, stitches: Any) -> None:
+            stall: float, lever: float, quick: Any, margin: int, creep: float, out_step: int, rows: Any,
+            weights: Any, gait: Any, contacts: Any, stitches: Any) -> None:
     """:func:`_character` for every character ``c`` (row c of every array but the tables),
     characters in parallel on numba's threads, each taking the next ones as it is free: split in
     fixed shares, the thread done first (its characters' plans shorter, or the other's core busy
     with another process) spun in the join until the other finished."""
     for c in prange(v.shape[0]):
-        _character(t0, v[c], pts[c], h[c], tempo[c], lead[c], asked_speed[c], draws[c], k0, step, ints[c],
-                   floats[c], offset, frames_of, clips, cyclic, source, target, tr_kind, entry, exit_,
-                   total, low, high, curve_at, curves, contacts_of, resume, slowest, fastest, max_rate, slow,
-                   share, still_step, still_frames, fps, stall, margin, creep, out_step, rows[c], weights[c],
-                   gait[c], contacts[c], stitches[c])
+        _character(t0, v[c], pts[c], turned[c], h[c], tempo[c], lead[c], asked_speed[c], draws[c], k0, step,
+                   ints[c], floats[c], offset, frames_of, clips, cyclic, source, target, tr_kind, entry,
+                   exit_, total, low, high, curve_at, curves, contacts_of, resume, slowest, fastest, max_rate,
+                   slow, share, still_step, still_frames, fps, stall, lever, quick, margin, creep, out_step,
+                   rows[c], weights[c], gait[c], contacts[c], stitches[c])
 
 
 @jit()

@@ -242,6 +242,15 @@ def table_positions(bank: Bank, rows: slice = slice(None)) -> Floats:
     return np.asarray(forward_kinematics(bank.skeleton, root, bank.poses[rows].astype(np.float64))[0])
 
 
+def turn_lever(bank: Bank) -> float:
+    """How far the body's turn sweeps the feet: the farthest foot from the root over the ground in
+    the idle's first pose (library metres). The root is at the hips, so it is the forehand's (the
+    horse's forefeet 1.2 m ahead of it, its hind feet 0.2 m behind)."""
+    rows = slice(bank.idle.offset, bank.idle.offset + 1)
+    feet = table_positions(bank, rows)[0, bank.skeleton.foot_joints]
+    return float(np.hypot(feet[:, 0], feet[:, 2]).max())
+
+
 def standing_heights(bank: Bank, positions: Floats) -> Floats:
     """``(K, 4)`` each row's feet's standing heights over the ground they plant on: per plant of
     each clip (a speed map's, the idle, a transition; their mirror images apart), the foot's low

@@ -59,6 +59,7 @@ from synth_core.runtime.live_path import VELOCITY, LivePath
 from synth_core.runtime.plan import (
     MARGIN,
     N_HUBS,
+    TURN_S,
     Decisions,
     Floats,
     Headings,
@@ -195,9 +196,10 @@ class LiveSynth(LivePath):
         self.n_path = 0
         self.seg = np.zeros((C, 0))  # segment speeds / (scale x tempo): the library's speeds
         self.seg_start = self.n_seg = 0
-        # The plan and the heading, carried from block to block.
-        self.planner = Planner(self.bank, self.scales, self.tempo, self.leads, margin, backend)
-        # The exact mode's heading reads the path as the batch's; the low-latency one a step either side.
+        # The plan and the heading, carried from block to block. The exact mode's heading reads the
+        # path as the batch's; the low-latency one's a step either side, its turn averaged (TURN_S).
+        self.planner = Planner(self.bank, self.scales, self.tempo, self.leads, margin, backend,
+                               0.0 if self.latency_ms is None else TURN_S)
         self.heading_state = Headings(C, backend) if self.latency_ms is None else Headings(C, backend, 1)
         self.decisions = self.planned = self.emitted = 0
 
@@ -208,7 +210,7 @@ class LiveSynth(LivePath):
         # The feet of the frames sent and those after them the foot lock posed so far (frames [0,
         # known_feet) of each: kernels.render_window), a row of (frames, C, 4, 3): C-contiguous views.
         self.feet = Columns(1, [((C, 4, 3), np.float64)],
-                             self.buffer.arrays[0].shape[1] + self._end_frames // self.out_step + 1)
+                            self.buffer.arrays[0].shape[1] + self._end_frames // self.out_step + 1)
         self.known_feet = np.zeros(C, np.int64)
         # What the sink reads of the legs on the last PAD frames sent (see kernels.Posed).
         self.recent_legs, self.legs_at = np.empty((C, PAD, 4, LEG_WIDTH)), np.full(C, NOWHERE)
@@ -386,20 +388,19 @@ class LiveSynth(LivePath):
 
     def _plan_block(self, t0: int, t1: int, decisions: Decisions) -> None:
         """Frames [t0, t1), with the decision made at t0 if there is one."""
-        v = self._speeds(np.arange(t0, t1))
-        pts = self._path(t0, t1 + 1)
+        v, pts = self._speeds(np.arange(t0, t1)), self._path(t0, t1 + 1)
         k = self.out_step
         sent = slice(-t0 % k, t1 - t0, k)  # the block's frames sent (multiples of k)
         block = self.buffer.reserve_plan(-(-t1 // k) - -(-t0 // k))  # written in place
-        self.planner.advance(t0, v, pts, decisions, block, k)
-        yaw, lean, way = self._headings(t0, t1)
+        yaw, lean, way, turned = self._headings(t0, t1)
+        self.planner.advance(t0, v, pts, turned, decisions, block, k)
         block.yaw[...], block.lean[...], block.way[...] = yaw[:, sent], lean[:, sent], way[:, sent]
         block.path[...] = pts[:, sent]
         self.planned = t1
 
-    def _headings(self, t0: int, t1: int) -> tuple[Floats, Floats, Floats]:
-        """(C, n) yaw, lean and way of frames [t0, t1) (plan.Headings); a character standing until then
-        faces where it will first go if that is known yet, else ``heading``."""
+    def _headings(self, t0: int, t1: int) -> tuple[Floats, Floats, Floats, Floats]:
+        """(C, n) yaw, lean, way and turn of frames [t0, t1) (plan.Headings); a character standing
+        until then faces where it will first go if that is known yet, else ``heading``."""
         lo = max(t0 - self.heading_state.chord_frames, 0)
         facing = np.full(len(self.scales), self.heading)
         ground = self._facing(lo, min(t1 + self.heading_state.chord_frames, self.n_path))[..., GROUND]

@@ -57,11 +57,12 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy.signal import lfilter
 
 from synth_core.compiled import plan_kernels as pk
 from synth_core.compiled.backend import planner
 from synth_core.compiled.heading_kernels import CHORD_FRAMES
-from synth_core.runtime.bank import Bank, nearest_poses
+from synth_core.runtime.bank import Bank, nearest_poses, turn_lever
 from synth_core.runtime.draws import LEAD_STREAM, SCHEDULE_STREAM, uniform, uniform_streams
 from synth_core.runtime.trajectory import GROUND_AXES, Prepared
 
@@ -118,6 +119,13 @@ GENTLE_LEAN = float(np.radians(3.0))  # rad
 # slower than this has no way of its own worth reading (standing: none; creeping: its noise): its
 # way is topped up along the heading.
 WAY_SPEED = 0.06  # m/s
+# A walk's stride quickens with the body's turn (plan_kernels._turning). The low-latency mode reads
+# the turn averaged over TURN_S (a first-order low-pass of the turn a frame): its causal fit of a
+# 10 Hz simulator's held points swings the body +-11 deg at the hold's rate, and a walk read from
+# each frame's turn hurried and slowed with it (jitter_10hz: a hoof's jump 7.8 -> 11.9 cm). The
+# batch reads each frame's: averaged over 0.1 s, the turn came late for the horse's walking
+# U-turns, a hoof hanging alone at their start.
+TURN_S = 0.2  # s
 LOOKAHEAD = 2  # segments: gaits are chosen on the speed this far ahead, as transitions take time
 DECISION_SHARE = 4  # gait decisions this many times a segment
 MAX_RATE = 1.6  # the fastest gait asked to go faster than its fastest clip plays its stride up to this fast
@@ -191,13 +199,15 @@ class Tables:
     still_step: float  # m per frame (the library's): a path's step slower than this stands still
     still_frames: float  # frames of such steps that make a stop
     fps: float  # the library's
+    lever: float  # how far a turn sweeps the feet (bank.turn_lever)
+    quick: Floats  # per kind: the speed a turn may quicken its stride to (turn_speeds)
 
     def args(self) -> tuple[Any, ...]:
-        """The kernel's arguments from ``offset`` to ``stall`` (see plan_kernels.advance)."""
+        """The kernel's arguments from ``offset`` to ``lever`` (see plan_kernels.advance)."""
         return (self.offset, self.frames, self.clips, self.cyclic, self.source, self.target, self.tr_kind,
                 self.entry, self.exit, self.total, self.low, self.high, self.curve_at, self.curves,
                 self.contacts, self.resume, self.slowest, self.fastest, MAX_RATE, self.slow, STAND_SHARE,
-                self.still_step, self.still_frames, self.fps, MIN_TRANSITION_RATE)
+                self.still_step, self.still_frames, self.fps, MIN_TRANSITION_RATE, self.lever, self.quick)
 
 
 @functools.lru_cache(maxsize=8)  # per bank (identity): made once, not per plan
@@ -228,7 +238,20 @@ def tables(bank: Bank) -> Tables:
                   low, high, curve_at, np.concatenate(curves) if curves else np.zeros(0), bank.contacts,
                   give_way_phases(bank),
                   min(bank.speeds), max(bank.speeds), slow, bank.creep, STAND_SHARE * slow / bank.fps,
-                  float(round(STILL_S * bank.fps)), float(bank.fps))
+                  float(round(STILL_S * bank.fps)), float(bank.fps), turn_lever(bank),
+                  turn_speeds(bank, len(pieces)))
+
+
+def turn_speeds(bank: Bank, kinds: int) -> Floats:
+    """Per kind (hubs, then transitions), the speed a turn may quicken its stride to
+    (plan_kernels._turning): the slowest gait's, its fastest clip's times its cycle over the
+    library's shortest -- as quick as the quickest stride (a horse's walk twice as quick) --; no
+    other's (-inf). The body's turn sweeps the forehand round the hips: a trot quickened so in a
+    0.5 m U-turn swung a forefoot 40 cm a frame (low-latency horse, uturn_trot)."""
+    quick, walk = np.full(kinds, -np.inf), min(bank.gaits)
+    shortest = min(p.frames for p in bank.gaits.values())
+    quick[walk] = float(bank.speeds[walk][-1]) * bank.gaits[walk].frames / shortest
+    return quick
 
 
 def give_way_phases(bank: Bank) -> NDArray[np.int64]:
@@ -312,7 +335,7 @@ class Headings:
 
     def advance(self, ground: Floats, off: int, n: int, fps: float, facing: Floats, ends: bool = False,
                 ahead: Callable[[NDArray[np.int64]], Floats] | None = None,
-                moving: Floats | None = None) -> tuple[Floats, Floats, Floats]:
+                moving: Floats | None = None) -> tuple[Floats, Floats, Floats, Floats]:
         """(C, n) yaw (about +Y, 0 = +Z) of frames ``[t0, t0 + n)``: the tangent of the path's
         ground points ``ground (C, m, 2)`` (frame t0 at ``off``; read across up to ``chord_frames``
         either side, heading_kernels._way), held where the character moves
@@ -323,7 +346,8 @@ class Headings:
         ``ends``: the path's end), or in ``ahead(characters)``, their ground from the same point
         on as far as known -- else ``facing (C,)``. ``moving``: the ground points of the path the
         root follows, if not ``ground`` (its speed caps the turn: a smoothed path cutting a corner
-        is slower through it than the body)."""
+        is slower through it than the body); and (C, n) the turn into each frame from the one
+        before (radians)."""
         held = np.empty((ground.shape[0], n, 2))
         hold = (MIN_TURN_SPEED, FREE_TURN_SPEED, HOLD_RADIUS, HOLD_PULL / fps, STILL_S * fps,
                 START_TURN_SPEED, self.chord_frames)
@@ -340,11 +364,11 @@ class Headings:
         if len(unknown):
             yaw = np.asarray(np.where(np.isnan(yaw[:, :1]), facing[:, None], yaw))
         yaw = np.ascontiguousarray(yaw)
-        lean, way = np.empty_like(yaw), np.empty((*yaw.shape, 2))
+        lean, way, turned = np.empty_like(yaw), np.empty((*yaw.shape, 2)), np.empty_like(yaw)
         speed_from = ground if moving is None else moving
         self.kernels.turn(yaw, speed_from, off, fps, MAX_YAW_RATE, MAX_LATERAL, MAX_LEAN, LEAN_RATE,
-                          GENTLE_LEAN, WAY_SPEED / fps, self.last_yaw, self.last_lean, lean, way)
-        return yaw, lean, way
+                          GENTLE_LEAN, WAY_SPEED / fps, self.last_yaw, self.last_lean, lean, way, turned)
+        return yaw, lean, way, turned
 
 
 def headings(path: Floats, fps: float, frames: int | None = None, backend: str = "auto") -> Floats:
@@ -353,8 +377,8 @@ def headings(path: Floats, fps: float, frames: int | None = None, backend: str =
 
 
 def turning(path: Floats, fps: float, frames: int | None = None, backend: str = "auto",
-            facing_path: Floats | None = None) -> tuple[Floats, Floats, Floats]:
-    """(C, T) yaw, lean and way of a whole path ``(C, T, 3)`` (:meth:`Headings.advance`); a character
+            facing_path: Floats | None = None) -> tuple[Floats, Floats, Floats, Floats]:
+    """(C, T) yaw, lean, way and turn of a whole path ``(C, T, 3)`` (:meth:`Headings.advance`); a character
     that never moves faces its path's first step. ``frames``: the first ``frames`` only (the same
     numbers). ``facing_path``: the path whose way the body faces, if not ``path``."""
     moving = np.ascontiguousarray(path[..., GROUND_AXES])
@@ -380,20 +404,28 @@ class Planner:
     frames per output frame (synthesis.character_tempo); ``leads (C,)``: :func:`character_leads`."""
 
     def __init__(self, bank: Bank, scales: Floats, tempo: Floats, leads: NDArray[np.int64],
-                 margin: int = MARGIN, backend: str = "auto") -> None:
+                 margin: int = MARGIN, backend: str = "auto", turn_s: float = 0.0) -> None:
         self.tables, self.kernels = tables(bank), planner(backend)
         self.scales, self.tempo, self.leads, self.margin = scales, tempo, leads, margin
         self.step = decision_step(bank.mean_cycle)
         self.ints, self.floats = pk.initial_state(len(scales), N_HUBS)
+        # The body's turn a frame averaged over ``turn_s`` (0: each frame's), at the last frame planned.
+        self.turning = np.zeros(len(scales))
+        self.keep_turn = 1.0 - float(np.exp(-1.0 / (turn_s * bank.fps))) if turn_s > 0 else 1.0
 
-    def advance(self, t0: int, v: Floats, pts: Floats, decisions: Decisions, out: Plan,
+    def advance(self, t0: int, v: Floats, pts: Floats, turned: Floats, decisions: Decisions, out: Plan,
                 out_step: int = 1) -> None:
         """Frames ``[t0, t0 + n)`` of speeds ``v (C, n)`` (the library's: over scale and tempo)
         and path ``pts (C, >= n, 3)`` from frame t0 on (its frame t0 + n, if given, carries the
-        distance walked on), with ``decisions`` made there; the rows, weights, gait, contacts and
-        stitches of frames a multiple of ``out_step`` into ``out``'s arrays (one per frame)."""
+        distance walked on), the body turning ``turned (C, n)`` (Headings.advance), with ``decisions``
+        made there; the rows, weights, gait, contacts and stitches of frames a multiple of
+        ``out_step`` into ``out``'s arrays (one per frame)."""
         tb = self.tables
-        self.kernels.advance(t0, v, pts, self.scales, self.tempo, self.leads, decisions.speed,
+        a, mean = self.keep_turn, turned
+        if a < 1.0:  # the turn averaged: a first-order low-pass, its state carried block to block
+            mean, last = lfilter([a], [1.0, a - 1.0], turned, axis=1, zi=((1.0 - a) * self.turning)[:, None])
+            self.turning = last[:, 0]
+        self.kernels.advance(t0, v, pts, mean, self.scales, self.tempo, self.leads, decisions.speed,
                              decisions.draws, decisions.first, self.step, self.ints, self.floats, *tb.args(),
                              self.margin, tb.creep, out_step, out.rows, out.weights, out.gait,
                              out.contacts, out.stitches)
@@ -423,9 +455,9 @@ def plan(bank: Bank, prep: Prepared, h: Floats, keys: NDArray[np.uint64], margin
                           uniform_streams(keys, SCHEDULE_STREAM, len(at), N_HUBS))
     backend = "numba" if compiled else "numpy"
     out = empty_plan(C, keep, h)
-    planner = Planner(bank, h, tempo, character_leads(bank, keys), margin, backend)
-    planner.advance(0, np.ascontiguousarray(v[:, :keep]), path, decisions, out)
     # The body faces the way of the smoothed positions (a simulator's jitter does not swing it).
-    out.yaw[...], out.lean[...], out.way[...] = turning(path, bank.fps, keep, backend, prep.facing)
+    out.yaw[...], out.lean[...], out.way[...], turned = turning(path, bank.fps, keep, backend, prep.facing)
+    planner = Planner(bank, h, tempo, character_leads(bank, keys), margin, backend)
+    planner.advance(0, np.ascontiguousarray(v[:, :keep]), path, turned, decisions, out)
     out.path[...] = path[:, :keep]
     return out
