@@ -13,7 +13,7 @@ from synth_core.quality import evaluate
 from synth_core.quality import herd_sim as crowd
 from synth_core.runtime.bank import Bank
 from synth_core.runtime.live import LiveSynth
-from synth_core.runtime.plan import Plan, plan
+from synth_core.runtime.plan import TURN_S, Plan, Planner, plan
 from synth_core.runtime.synthesis import Options, prepare_batch
 
 
@@ -97,3 +97,26 @@ def test_a_plan_of_the_first_frames_is_the_whole_plans(bank: Bank) -> None:
                 assert np.array_equal(getattr(first, f.name), want), (frames, f.name)
     # Asked for nearly all of it, it is all of it.
     assert plan(bank, prep, h, keys, frames=590, compiled=True).yaw.shape[1] == 600
+
+
+def test_the_low_latency_modes_averaged_turn_is_the_same_in_blocks(bank: Bank) -> None:
+    """The low-latency mode reads the body's turn averaged over plan.TURN_S (Planner.averaged: a
+    low-pass whose state is carried from block to block): fed in blocks of any size, the same
+    average as in one, and a steady turn read as itself. (Carrying lfilter's own state, (1 - a)
+    times the average, dropped a factor each block: a steady turn read 0.52 of itself fed a frame at
+    a time, 0.86 in 10 Hz ticks -- the plan depended on how a client cut its points.)"""
+    rng = np.random.default_rng(3)
+    C, T = 4, 300
+    turned = np.cumsum(rng.normal(0.0, 0.002, (C, T)), axis=1) + 0.02 * np.sin(np.arange(T) / 7.0)
+    one = Planner(bank, np.ones(C), np.ones(C), np.zeros(C, np.int64), turn_s=TURN_S)
+    whole = one.averaged(turned)
+    cut = Planner(bank, np.ones(C), np.ones(C), np.zeros(C, np.int64), turn_s=TURN_S)
+    edges = np.unique(np.r_[0, rng.integers(1, T, 40), T])
+    pieces = [cut.averaged(turned[:, a:b]) for a, b in zip(edges[:-1], edges[1:], strict=True)]
+    assert np.allclose(np.concatenate(pieces, axis=1), whole, rtol=0.0, atol=1e-12)
+    steady = Planner(bank, np.ones(C), np.ones(C), np.zeros(C, np.int64), turn_s=TURN_S)
+    for _ in range(T):  # a frame a tick, well past the average's time
+        last = steady.averaged(np.full((C, 1), 0.03))
+    assert np.allclose(last, 0.03, rtol=1e-6)
+    exact = Planner(bank, np.ones(C), np.ones(C), np.zeros(C, np.int64))
+    assert exact.averaged(turned) is turned  # the batch and the exact mode: each frame's

@@ -262,7 +262,7 @@ def test_a_walk_quickens_its_stride_through_a_tight_turn(animal: str, name: str)
 
 @pytest.mark.xfail(strict=True, reason="not yet: the built-in static -> walk clip lifts two feet at once "
                    "(tracks.blend_track's duty drops ~0.3 in a frame where it switches to the stance blend), "
-                   "so a turn's step there finds no window with two others down (horse 0.9956, dog 0.999 of "
+                   "so a turn's step there finds no window with two others down (horse 0.9957, dog 0.996 of "
                    "walk frames with two feet down; docs/turns.md)")
 @pytest.mark.parametrize("animal", ANIMALS)
 def test_turning_on_the_spot_keeps_two_feet_down_at_a_walk(animal: str) -> None:

@@ -105,13 +105,13 @@ def _rate(v: float, hub: int, high: Any, max_rate: float, slowest: int, fastest:
 def _turning(v: float, spin: float, top: float) -> float:
     """The speed a gait's stride keeps pace with at path speed ``v`` while the body turns, its
     feet carried round the root at ``spin`` (the turn's rate times the lever, turn_lever): the
-    feet's, ``hypot(v, spin)``, but no faster than ``top`` unless the path is. The root is at the
+    feet's, ``sqrt(v^2 + spin^2)``, but no faster than ``top`` unless the path is. The root is at the
     hips, so a turn sweeps the forehand round them: a walk kept to the hips' pace in a 0.5 m U-turn
     stood on each forefoot while the body turned 80 deg and the foot hung out of reach at both ends
     of its stance (a horse on one foot, issue 27's walk support)."""
     if spin == 0.0 or top <= v:
         return v
-    return min(math.hypot(v, spin), top)
+    return min(math.sqrt(v * v + spin * spin), top)  # (not hypot: numba's libm call and CPython's differ)
 
 
 @jit(inline="always")
@@ -316,8 +316,8 @@ def _give_way(s: Any, f: Any, t: int, speeds: Any, travelled: float, rates: Any,
 @jit(inline="always")
 def _walk_on(f: Any, pts: Any, i: int, still: float, swept: float, top: float) -> None:
     """The distance walked and the frames stood still (steps under ``still``) by point i + 1: a
-    transition plays by distance, the feet's as the body turns (``swept``, the lever's arc this
-    frame; :func:`_turning`, up to ``top`` a frame: the slowest gait's fastest clip)."""
+    transition plays by distance, the feet's as the body turns (``swept``, the lever's arc over the
+    turn into frame i; :func:`_turning`, up to ``top`` a frame: the slowest clip's pace)."""
     dx = pts[i + 1, 0] - pts[i, 0]
     dz = pts[i + 1, 2] - pts[i, 2]
     step = math.sqrt(dx * dx + dz * dz)

@@ -203,7 +203,7 @@ class Tables:
     quick: Floats  # per kind: the speed a turn may quicken its stride to (turn_speeds)
 
     def args(self) -> tuple[Any, ...]:
-        """The kernel's arguments from ``offset`` to ``lever`` (see plan_kernels.advance)."""
+        """The kernel's arguments from ``offset`` to ``quick`` (see plan_kernels.advance)."""
         return (self.offset, self.frames, self.clips, self.cyclic, self.source, self.target, self.tr_kind,
                 self.entry, self.exit, self.total, self.low, self.high, self.curve_at, self.curves,
                 self.contacts, self.resume, self.slowest, self.fastest, MAX_RATE, self.slow, STAND_SHARE,
@@ -413,6 +413,17 @@ class Planner:
         self.turning = np.zeros(len(scales))
         self.keep_turn = 1.0 - float(np.exp(-1.0 / (turn_s * bank.fps))) if turn_s > 0 else 1.0
 
+    def averaged(self, turned: Floats) -> Floats:
+        """``turned (C, n)`` averaged over the planner's ``turn_s`` (a first-order low-pass, its state
+        carried on from the block before: the same in blocks as in one); as it is where that is 0."""
+        a = self.keep_turn
+        if a == 1.0 or turned.shape[1] == 0:
+            return turned
+        zi = ((1.0 - a) * self.turning)[:, None]
+        mean = np.asarray(lfilter([a], [1.0, a - 1.0], turned, axis=1, zi=zi)[0])
+        self.turning = mean[:, -1]  # (lfilter's own state is (1 - a) times it)
+        return mean
+
     def advance(self, t0: int, v: Floats, pts: Floats, turned: Floats, decisions: Decisions, out: Plan,
                 out_step: int = 1) -> None:
         """Frames ``[t0, t0 + n)`` of speeds ``v (C, n)`` (the library's: over scale and tempo)
@@ -420,12 +431,8 @@ class Planner:
         distance walked on), the body turning ``turned (C, n)`` (Headings.advance), with ``decisions``
         made there; the rows, weights, gait, contacts and stitches of frames a multiple of
         ``out_step`` into ``out``'s arrays (one per frame)."""
-        tb = self.tables
-        a, mean = self.keep_turn, turned
-        if a < 1.0:  # the turn averaged: a first-order low-pass, its state carried block to block
-            mean, last = lfilter([a], [1.0, a - 1.0], turned, axis=1, zi=((1.0 - a) * self.turning)[:, None])
-            self.turning = last[:, 0]
-        self.kernels.advance(t0, v, pts, mean, self.scales, self.tempo, self.leads, decisions.speed,
+        tb, turned = self.tables, self.averaged(turned)
+        self.kernels.advance(t0, v, pts, turned, self.scales, self.tempo, self.leads, decisions.speed,
                              decisions.draws, decisions.first, self.step, self.ints, self.floats, *tb.args(),
                              self.margin, tb.creep, out_step, out.rows, out.weights, out.gait,
                              out.contacts, out.stitches)
