@@ -82,7 +82,11 @@ test('live: the session opens on its ground, and a new one sent mid-session is f
       for (let f = 0; f < chunk.frames; f++) ys.push(Math.min(...feetAt(skeleton, chunk, c, f, scales[c]).map((p) => p[1])));
     }
     assert.ok(Math.abs(ys[30] - 0.1) < 0.01, `character ${c}: its lowest foot at ${ys[30]} m on a ground at 0.1 m`);
-    assert.ok(Math.abs(ys.at(-1) - 0.3) < 0.01, `character ${c}: its lowest foot at ${ys.at(-1)} m on a ground at 0.3 m`);
+    // On the new ground by the end: over its last 30 frames (half a trot's stride: a trotting horse
+    // has flights, no foot down in a frame), the lowest foot comes down to it and never under it.
+    const end = ys.slice(-30);
+    assert.ok(Math.abs(Math.min(...end) - 0.3) < 0.01 && Math.max(...end) < 0.45,
+      `character ${c}: its lowest foot over the last 30 frames at ${Math.min(...end)}-${Math.max(...end)} m on a ground at 0.3 m`);
     let jump = 0;
     for (let f = 1; f < ys.length; f++) jump = Math.max(jump, Math.abs(ys[f] - ys[f - 1]));
     assert.ok(jump < 0.06, `character ${c}: its lowest foot moved ${jump} m up or down in one frame`);
