@@ -103,12 +103,14 @@ def _rate(v: float, hub: int, high: Any, max_rate: float, slowest: int, fastest:
 
 @jit(inline="always")
 def _turning(v: float, spin: float, top: float) -> float:
-    """The speed a gait's stride keeps pace with at path speed ``v`` while the body turns, its
+    """The speed a gait's stride clock keeps pace with at path speed ``v`` while the body turns, its
     feet carried round the root at ``spin`` (the turn's rate times the lever, turn_lever): the
     feet's, ``sqrt(v^2 + spin^2)``, but no faster than ``top`` unless the path is. The root is at the
     hips, so a turn sweeps the forehand round them: a walk kept to the hips' pace in a 0.5 m U-turn
     stood on each forefoot while the body turned 80 deg and the foot hung out of reach at both ends
-    of its stance (a horse on one foot, issue 27's walk support)."""
+    of its stance (a horse on one foot, issue 27's walk support). The clock only: the speed-map
+    clip stays the path's speed's (a clip pair chosen on this changed in one frame where the body's
+    turn jumps: a stutter start's hoof 6.25 cm)."""
     if spin == 0.0 or top <= v:
         return v
     return min(math.sqrt(v * v + spin * spin), top)  # (not hypot: numba's libm call and CPython's differ)
@@ -418,7 +420,7 @@ def _character(t0: int, v: Any, pts: Any, turned: Any, h: float, tempo: float, l
                                           f[OLD_CLOCK0], cyclic)
             walked_since = (travelled - f[TRAV0]) + creep * local
             gait[o] = frame_rows(kind, local, walked_since, since, pk, p_local, s[OLD_KIND], o_local, o_keep,
-                                  _turning(v[i], spin, quick[kind]), offset, frames_of, clips, cyclic, source,
+                                  v[i], offset, frames_of, clips, cyclic, source,
                                   target, curve_at, curves, margin, o, rows, weights)
             if p_local < 0 and cyclic[kind]:  # the stride clock between two clip frames
                 tween(kind, s[FIRST] + f[CLOCKS + min(kind, n_hubs)] - f[CLOCK0] - local, local, frames_of,
