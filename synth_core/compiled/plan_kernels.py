@@ -328,14 +328,14 @@ def _walk_on(f: Any, pts: Any, i: int, still: float, swept: float, top: float) -
 
 
 @jit(inline="always")
-def _tick(f: Any, t: int, v: float, spin: float, quick: Any, tempo: float, high: Any, max_rate: float,
+def _tick(f: Any, t: int, v: float, spin: float, quick: float, tempo: float, high: Any, max_rate: float,
           slowest: int, fastest: int, slow: float, share: float) -> None:
-    """Every stride clock on to frame t + 1: the gaits' at their rate for ``v`` (turning at
-    ``spin``, up to ``quick``: :func:`_turning`); the others' time."""
+    """Every stride clock on to frame t + 1: the gaits' at their rate for ``v``, the slowest's
+    turning at ``spin`` up to ``quick`` (:func:`_turning`); the others' time."""
     n_hubs = len(high)
     for hub in range(n_hubs + 1):
         if hub < n_hubs and hub != STATIC and high[hub] > -np.inf:
-            pace = _turning(v, spin, quick[hub])
+            pace = _turning(v, spin, quick) if hub == slowest else v
             f[CLOCKS + hub] += _rate(pace, hub, high, max_rate, slowest, fastest, slow, share) * tempo
         else:
             f[CLOCKS + hub] = float(t + 1)
@@ -377,7 +377,7 @@ def _character(t0: int, v: Any, pts: Any, turned: Any, h: float, tempo: float, l
                cyclic: Any, source: Any, target: Any, tr_kind: Any, entry: Any, exit_: Any, total: Any,
                low: Any, high: Any, curve_at: Any, curves: Any, contacts_of: Any, resume: Any, slowest: int,
                fastest: int, max_rate: float, slow: float, share: float, still_step: float,
-               still_frames: float, fps: float, stall: float, lever: float, quick: Any, margin: int,
+               still_frames: float, fps: float, stall: float, lever: float, quick: float, margin: int,
                creep: float, out_step: int, rows: Any, weights: Any, gait: Any, contacts: Any,
                stitches: Any) -> None:
     """Frames ``[t0, t0 + len(v))`` of one character (speeds ``v``, path ``pts`` from t0 on, turning
@@ -439,7 +439,7 @@ def advance(t0: int, v: Any, pts: Any, turned: Any, h: Any, tempo: Any, lead: An
             cyclic: Any, source: Any, target: Any, tr_kind: Any, entry: Any, exit_: Any, total: Any, low: Any,
             high: Any, curve_at: Any, curves: Any, contacts_of: Any, resume: Any, slowest: int, fastest: int,
             max_rate: float, slow: float, share: float, still_step: float, still_frames: float, fps: float,
-            stall: float, lever: float, quick: Any, margin: int, creep: float, out_step: int, rows: Any,
+            stall: float, lever: float, quick: float, margin: int, creep: float, out_step: int, rows: Any,
             weights: Any, gait: Any, contacts: Any, stitches: Any) -> None:
     """:func:`_character` for every character ``c`` (row c of every array but the tables),
     characters in parallel on numba's threads, each taking the next ones as it is free: split in

@@ -200,7 +200,7 @@ class Tables:
     still_frames: float  # frames of such steps that make a stop
     fps: float  # the library's
     lever: float  # how far a turn sweeps the feet (bank.turn_lever)
-    quick: Floats  # per kind: the speed a turn may quicken its stride to (turn_speeds)
+    quick: float  # the speed a turn may quicken the slowest gait's stride to (turn_speed)
 
     def args(self) -> tuple[Any, ...]:
         """The kernel's arguments from ``offset`` to ``quick`` (see plan_kernels.advance)."""
@@ -239,19 +239,17 @@ def tables(bank: Bank) -> Tables:
                   give_way_phases(bank),
                   min(bank.speeds), max(bank.speeds), slow, bank.creep, STAND_SHARE * slow / bank.fps,
                   float(round(STILL_S * bank.fps)), float(bank.fps), turn_lever(bank),
-                  turn_speeds(bank, len(pieces)))
+                  turn_speed(bank))
 
 
-def turn_speeds(bank: Bank, kinds: int) -> Floats:
-    """Per kind (hubs, then transitions), the speed a turn may quicken its stride to
-    (plan_kernels._turning): the slowest gait's, its fastest clip's times its cycle over the
-    library's shortest -- as quick as the quickest stride (a horse's walk twice as quick) --; no
-    other's (-inf). The body's turn sweeps the forehand round the hips: a trot quickened so in a
-    0.5 m U-turn swung a forefoot 40 cm a frame (low-latency horse, uturn_trot)."""
-    quick, walk = np.full(kinds, -np.inf), min(bank.gaits)
-    shortest = min(p.frames for p in bank.gaits.values())
-    quick[walk] = float(bank.speeds[walk][-1]) * bank.gaits[walk].frames / shortest
-    return quick
+def turn_speed(bank: Bank) -> float:
+    """The speed a turn may quicken the slowest gait's stride clock to (plan_kernels._turning): its
+    fastest clip's times its cycle over the library's shortest -- as quick as the quickest stride (a
+    horse's walk twice as quick). No other gait quickens: the body's turn sweeps the forehand round
+    the hips, and a trot quickened so in a 0.5 m U-turn swung a forefoot 40 cm a frame (low-latency
+    horse, uturn_trot)."""
+    walk = min(bank.gaits)
+    return float(bank.speeds[walk][-1]) * bank.gaits[walk].frames / min(p.frames for p in bank.gaits.values())
 
 
 def give_way_phases(bank: Bank) -> NDArray[np.int64]:
