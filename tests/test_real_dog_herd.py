@@ -19,7 +19,7 @@ from synth_core.build.generated_transitions import walk_frames
 from synth_core.build.manifest import build_from_manifest, gait_cycles
 from synth_core.build.motion_graph import HUBS
 from synth_core.motion import contacts as C
-from synth_core.quality import edge
+from synth_core.quality import edge, evaluate
 from synth_core.quality import herd_sim as crowd
 from synth_core.quality import metrics as M
 from synth_core.quality.evaluate import edge_suite, feet_after_fk, world_positions
@@ -203,6 +203,18 @@ def test_a_pivot_walks_round_on_two_paws(mann: Library) -> None:
     walking = result.gait[2] == HUBS.index("walk")
     assert walking.sum() > 0.5 * len(walking)  # it walks round, not stands
     assert (down[walking].sum(axis=-1) >= 2).all(), np.flatnonzero(walking & (down.sum(axis=-1) < 2))
+
+
+def test_a_trotting_corner_keeps_two_paws_down_through_its_walk_to_trot(mann: Library) -> None:
+    """Issue 27's walk support, after FK, where the real dog starts into a trotting corner and
+    U-turn (1.5 m/s, its body turning up to 170 deg/s): its walk -> trot, played by the hips'
+    distance, stood on a forepaw the turn swept 43 cm under it -- out of reach at both ends of its
+    stance, a walk on one paw as it ended (0.9971 and 0.9941 of walk frames with two down). A
+    transition now keeps pace with the paws' distance there too (plan_kernels._walk_on)."""
+    report = edge_suite(build_bank(mann), names=["corner_trot", "uturn_trot"])
+    for name, scenario in report["scenarios"].items():
+        share = scenario["figures"]["walk_support_share"]
+        assert evaluate.passes("walk_support_share", share), (name, share)
 
 
 def bends(positions: np.ndarray, rigs: tuple[ik.LimbRig, ...]) -> np.ndarray:

@@ -316,14 +316,20 @@ def _give_way(s: Any, f: Any, t: int, speeds: Any, travelled: float, rates: Any,
 
 
 @jit(inline="always")
-def _walk_on(f: Any, pts: Any, i: int, still: float, swept: float, top: float) -> None:
+def _walk_on(f: Any, pts: Any, i: int, still: float, swept: float, top: float, max_rate: float) -> None:
     """The distance walked and the frames stood still (steps under ``still``) by point i + 1: a
     transition plays by distance, the feet's as the body turns (``swept``, the lever's arc over the
-    turn into frame i; :func:`_turning`, up to ``top`` a frame: the slowest clip's pace)."""
+    turn into frame i; :func:`_turning`), up to ``top`` a frame (the slowest clip's pace) or
+    ``max_rate`` times the path's step, the faster. Kept to the path's step alone past the slowest
+    pace, a real dog's walk -> trot through a trotting corner (1.5 m/s, the body turning 170 deg/s)
+    stood on a forepaw the turn swept 43 cm under it, out of reach at both ends of its stance: a
+    walk on one paw as it ended. Up to the slowest pace alone is what a body turning on the spot
+    (no step) gets; ``max_rate`` (plan.MAX_RATE) is as much faster as a gait's stride plays past its
+    fastest clip (unbounded, a horse's turn on the spot hopped 5.6 cm and stood on a foot longer)."""
     dx = pts[i + 1, 0] - pts[i, 0]
     dz = pts[i + 1, 2] - pts[i, 2]
     step = math.sqrt(dx * dx + dz * dz)
-    f[WALKED] += _turning(step, swept, top)
+    f[WALKED] += _turning(step, swept, max(top, max_rate * step))
     f[STILL] = f[STILL] + 1.0 if step < still else 0.0
 
 
@@ -430,7 +436,7 @@ def _character(t0: int, v: Any, pts: Any, turned: Any, h: float, tempo: float, l
             sent, o = sent + out_step, o + 1
         _tick(f, t, v[i], spin, quick, tempo, high, max_rate, slowest, fastest, slow, share)
         if i + 1 < pts.shape[0]:
-            _walk_on(f, pts, i, still_step * h, abs(turned[i]) * lever * h, slow * h * tempo / fps)
+            _walk_on(f, pts, i, still_step * h, abs(turned[i]) * lever * h, slow * h * tempo / fps, max_rate)
 
 
 @jit(parallel=True)
