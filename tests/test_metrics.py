@@ -172,6 +172,20 @@ def test_strict_plants_need_three_frames_within_1cm() -> None:
     assert np.array_equal(M.strict_plants(crowd)[1], np.roll(plants, 2, axis=0))
 
 
+def test_a_run_cut_off_by_the_end_of_a_motion_is_a_plant_with_open_ends() -> None:
+    """A synthesized run stops mid-stride: a foot set down on its second-last frame is not known
+    to lift again (the real dog's uturn_walk read as a walk on one paw in its last two frames)."""
+    h = np.full((12, 4), 0.5)
+    h[0:2, 0] = 0.0  # at the first frame
+    h[5:7, 0] = 0.0  # inside: too short either way
+    h[10:12, 1] = 0.005  # at the last frame
+    assert not M.strict_plants(h).any()
+    plants = M.strict_plants(h, open_ends=True)
+    assert np.flatnonzero(plants[:, 0]).tolist() == [0, 1]
+    assert np.flatnonzero(plants[:, 1]).tolist() == [10, 11]
+    assert not plants[:, 2:].any()
+
+
 def test_glide_weights_speed_by_height_and_divides_by_body_speed() -> None:
     body = np.zeros((40, 3))
     body[:, 2] = np.arange(40) * 0.010  # 10 mm/frame

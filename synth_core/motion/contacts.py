@@ -78,9 +78,10 @@ def fill_gaps(mask: NDArray[np.bool_], max_gap: int) -> NDArray[np.bool_]:
     return np.asarray(mask | _short_runs(~mask, max_gap + 1, interior=True))
 
 
-def drop_short_runs(mask: NDArray[np.bool_], min_len: int) -> NDArray[np.bool_]:
-    """Per column of a (F, K) mask: runs of fewer than ``min_len`` True frames dropped."""
-    return np.asarray(mask & ~_short_runs(mask, min_len, interior=False))
+def drop_short_runs(mask: NDArray[np.bool_], min_len: int, interior: bool = False) -> NDArray[np.bool_]:
+    """Per column of a (F, K) mask: runs of fewer than ``min_len`` True frames dropped (``interior``:
+    only those touching neither the first nor the last frame)."""
+    return np.asarray(mask & ~_short_runs(mask, min_len, interior=interior))
 
 
 def _fill_gaps_and_drop_short(mask: NDArray[np.bool_], max_gap: int, min_len: int) -> NDArray[np.bool_]:

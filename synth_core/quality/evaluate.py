@@ -263,7 +263,7 @@ def feet_after_fk(bank: Bank, result: Result, ref: LibraryReference,
     soles = on_lead(result, ref.soles, ref.mirror_soles)  # (C, hubs, 4)
     standing = soles[np.arange(len(soles))[:, None], result.gait]  # (C, T, 4)
     heights = above_ground - standing * result.scales[:, None, None]
-    return Feet(pos, feet, above_ground, heights, M.strict_plants(heights))
+    return Feet(pos, feet, above_ground, heights, M.strict_plants(heights, open_ends=True))
 
 
 def rest_pitch(bank: Bank) -> float:

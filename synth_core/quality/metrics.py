@@ -266,11 +266,15 @@ def near_ground_glide(foot_pos: Floats, heights: Floats, body_pos: Floats,
     return Glide(foot_mm / body_mm, foot_mm, body_mm, int(low.sum()))
 
 
-def strict_plants(heights: Floats, height: float = STRICT_PLANT_M,
-                  min_frames: int = STRICT_PLANT_FRAMES) -> NDArray[np.bool_]:
-    """Feet within ``height`` of the ground for ``min_frames`` frames or more, ``(..., F, 4)``."""
+def strict_plants(heights: Floats, height: float = STRICT_PLANT_M, min_frames: int = STRICT_PLANT_FRAMES,
+                  open_ends: bool = False) -> NDArray[np.bool_]:
+    """Feet within ``height`` of the ground for ``min_frames`` frames or more, ``(..., F, 4)``.
+    ``open_ends``: the frames are a stretch of a motion going on before and after them (a
+    synthesized run, which stops mid-stride): a run at the first or last frame is a plant whatever
+    its length, as nothing says it ends there (a foot set down on a run's second-last frame read as
+    in the air, the animal on one foot)."""
     low = np.moveaxis(np.asarray(heights) < height, -2, 0)  # frames first, every foot a column
-    kept = drop_short_runs(low.reshape(len(low), -1), min_frames).reshape(low.shape)
+    kept = drop_short_runs(low.reshape(len(low), -1), min_frames, interior=open_ends).reshape(low.shape)
     return np.asarray(np.moveaxis(kept, 0, -2))
 
 
