@@ -186,6 +186,28 @@ def test_a_run_cut_off_by_the_end_of_a_motion_is_a_plant_with_open_ends() -> Non
     assert not plants[:, 2:].any()
 
 
+def test_a_foot_hangs_while_off_the_ground_on_a_straight_leg() -> None:
+    """``longest_hang``: frames in a row a foot is over HANG_UP on a straight thigh and shin; a
+    bent leg up high swings, and a straight one on the ground stands."""
+    from synth_core.build.ik import limb_rigs
+    skel = toy_skeleton()
+    rigs = limb_rigs(skel)
+    F = 12
+    pos = np.zeros((1, F, len(skel.names), 3))
+    heights = np.zeros((1, F, 4))
+    for f, rig in enumerate(rigs):  # every leg bent at its hinge ...
+        pos[0, :, rig.upper] = (f, 1.0, 0.0)
+        pos[0, :, rig.hinge] = (f + 0.3, 0.5, 0.0)
+        pos[0, :, rig.ankle] = (f, 0.0, 0.0)
+    heights[0, :, 1] = 0.2  # ... one of them swinging high
+    pos[0, :, rigs[0].hinge] = (0.0, 0.5, 0.0)  # the first straight ...
+    heights[0, 3:8, 0] = 0.1  # ... and off the ground for 5 frames
+    assert M.longest_hang(pos, skel, heights, np.ones(1)) == 5
+    assert M.longest_hang(pos, skel, heights, np.full(1, 3.0)) == 0  # 0.1 m is on the ground at size 3
+    heights[0, :, 0] = 0.0
+    assert M.longest_hang(pos, skel, heights, np.ones(1)) == 0
+
+
 def test_glide_weights_speed_by_height_and_divides_by_body_speed() -> None:
     body = np.zeros((40, 3))
     body[:, 2] = np.arange(40) * 0.010  # 10 mm/frame

@@ -350,7 +350,6 @@ def edge_figures(bank: Bank, result: Result, reference_path: NDArray[np.floating
     nan = float("nan")
     yaw = M.yaw_rates_deg(result.rotations[:, :, 0], fps)
     footfall = footfall_preserved(bank, result, down, ref.clip_plants)
-    T = result.root_pos.shape[1]
     return {
         "glide_ratio": _round(glide.ratio),
         "glide_mm": _round(glide.foot_mm, 3),
@@ -365,6 +364,7 @@ def edge_figures(bank: Bank, result: Result, reference_path: NDArray[np.floating
         "walk_support_share": _round(float(np.mean(feet_down[walk] >= 2)) if walk.any() else float("nan")),
         "single_support_ratio_max": _round(float((alone / stance_frames(ref, result)).max()), 3),
         "stretch_pct_max": _round(max(0.0, float(stretch) - 1.0) * 100, 2),
+        "hanging_s_max": _round(M.longest_hang(pos, sk, above_ground, result.scales) / fps, 3),
         "floating_cm_max": _round(max(0.0, M.floating_m(heights, speed, SLOW_BODY)) * 100, 2),
         "still_four_down_share": _round(float(np.mean(feet_down[still] == 4)) if still.any() else nan),
         "still_highest_foot_cm": _round(float(heights.max(axis=-1)[still].max(initial=0.0)) * 100, 2),
@@ -375,7 +375,7 @@ def edge_figures(bank: Bank, result: Result, reference_path: NDArray[np.floating
         "yaw_deg_s_p95": _round(float(np.percentile(yaw, 95)) if yaw.size else 0.0, 1),
         "footfall_preserved": _share(footfall[0]),
         "footfall_across_transitions": _share(footfall[1]),
-        "clock_kept": int(T == frames_in),
+        "clock_kept": int(result.root_pos.shape[1] == frames_in),
         "resample_rate": round(result.resample_rate, 4),
         "gait_frames": {name: int(n) for name, n in
                         zip(HUBS, np.bincount(result.gait.ravel(), minlength=N_HUBS), strict=False)},

@@ -21,6 +21,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from synth_core import FOOT_NAMES, UP_AXIS
+from synth_core.build.ik import limb_rigs
 from synth_core.motion import quat
 from synth_core.motion.contacts import drop_short_runs, touchdowns
 from synth_core.motion.skeleton import Skeleton
@@ -337,6 +338,24 @@ def limb_reach(positions: Floats, skeleton: Skeleton) -> Floats:
     p = np.asarray(positions, np.float64)
     top = np.array([f.chain[0] for f in skeleton.feet])
     return np.asarray(np.linalg.norm(p[..., skeleton.foot_joints, :] - p[..., top, :], axis=-1))
+
+
+HANG_UP = 0.05  # metres over the ground (times the character's scale) ...
+HANG_STRAIGHT = 0.995  # ... with the leg's upper joint this share of thigh and shin from its ankle
+
+
+def longest_hang(positions: Floats, skeleton: Skeleton, heights: Floats, scales: Floats) -> int:
+    """The most frames in a row a foot hangs -- off the ground by more than HANG_UP with its leg
+    straight (thigh and shin, the foot lock's IK chain), pointing at a target it cannot reach.
+    A gallop's foreleg reaching forward is straight for a few frames; a foot left behind by a
+    turning body hangs for a second (the horse's turn on the spot: a forefoot 45 cm up for 28)."""
+    p = np.asarray(positions, np.float64)
+    legs = np.array([(r.upper, r.hinge, r.ankle) for r in limb_rigs(skeleton)])
+    upper, hinge, ankle = p[..., legs[:, 0], :], p[..., legs[:, 1], :], p[..., legs[:, 2], :]
+    chain = np.linalg.norm(hinge - upper, axis=-1) + np.linalg.norm(ankle - hinge, axis=-1)
+    straight = np.linalg.norm(ankle - upper, axis=-1) >= HANG_STRAIGHT * chain
+    up = np.asarray(heights) > HANG_UP * np.asarray(scales, np.float64)[..., None, None]
+    return int(run_lengths(np.moveaxis(straight & up, -1, -2)).max(initial=0))
 
 
 def run_lengths(mask: NDArray[np.bool_]) -> NDArray[np.int64]:
