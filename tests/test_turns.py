@@ -17,6 +17,7 @@ from synth_core.motion.skeleton import forward_kinematics
 from synth_core.quality import edge, evaluate
 from synth_core.quality import metrics as M
 from synth_core.runtime.bank import STATIC, Bank, build_bank
+from synth_core.runtime.footlock import STEP_S
 from synth_core.runtime.plan import (
     GENTLE_LEAN,
     LEAN_RATE,
@@ -209,6 +210,7 @@ def test_the_root_stays_on_the_path_it_was_sent_at_any_speed(animal: str, name: 
     assert float(path.max()) <= 1.0
 
 
+@functools.cache  # (read only: three tests' figures of one run)
 def turn_figures(animal: str) -> dict[str, float]:
     """The edge figures (after FK) of turn_on_spot: arrive, stop, leave at 90 / 180 degrees (the
     body pivots on its hips at MAX_YAW_RATE), and a pivot on a 0.2 m circle."""
@@ -262,15 +264,27 @@ def test_a_walk_quickens_its_stride_through_a_tight_turn(animal: str, name: str)
     assert evaluate.passes("walk_support_share", fig["walk_support_share"]), fig["walk_support_share"]
 
 
-@pytest.mark.xfail(strict=True, reason="not yet: the built-in static -> walk clip lifts two feet at once "
-                   "(tracks.blend_track's duty drops ~0.3 in a frame where it switches to the stance blend), "
-                   "so a turn's step there finds no window with two others down (horse 0.9957, dog 0.996 of "
-                   "walk frames with two feet down; docs/turns.md)")
-@pytest.mark.parametrize("animal", ANIMALS)
+@pytest.mark.parametrize("animal", [
+    "horse", pytest.param("dog", marks=pytest.mark.xfail(strict=True, reason=(
+        "not yet: the built-in static -> walk clip lifts two feet at once (tracks.blend_track's duty "
+        "drops ~0.3 in a frame where it switches to the stance blend), so a turn's step there finds no "
+        "window with two others down (0.996 of walk frames with two feet down; docs/turns.md)")))])
 def test_turning_on_the_spot_keeps_two_feet_down_at_a_walk(animal: str) -> None:
-    """Issue 27's support target through the turn, after FK: every walk frame has two feet down."""
+    """Issue 27's support target through the turn, after FK: every walk frame has two feet down.
+    The horse's forefoot, its plant carried out of reach with no two other feet down to lift it,
+    hung in the air on a straight leg (0.9947); it is now dragged round where its leg reaches."""
     fig = turn_figures(animal)
     assert evaluate.passes("walk_support_share", fig["walk_support_share"]), fig["walk_support_share"]
+
+
+@pytest.mark.parametrize("animal", ANIMALS)
+def test_no_foot_hangs_in_the_air_through_a_turn_on_the_spot(animal: str) -> None:
+    """After FK, no foot stays off the ground on a straight leg longer than a turn step takes
+    (footlock.STEP_S): a plant the pivoting body carried out of reach that could not be lifted
+    (no two other feet down) was held where it stood, the leg reaching for it straight, the foot
+    hanging (the horse's forefoot 45 cm up for 0.47 s; metrics.longest_hang). Dragged round with
+    the body where its leg reaches, it stands (replant_kernels._drag)."""
+    assert turn_figures(animal)["hanging_s_max"] <= STEP_S, turn_figures(animal)["hanging_s_max"]
 
 
 @pytest.mark.parametrize("animal", ANIMALS)

@@ -124,7 +124,7 @@ def replant(feet: Any, down: Any, f: int, s: int, t: int, out: Any, most: int, r
             step_over(out, f, lift, a, height)
             air[lift:a, f] = True
         if t - b < step + step // 2:  # no room for a step and a plant after it
-            _lift_off(out, down, air, f, a, b, t, step)
+            _lift_off(out, down, air, f, (a, b, t), step, reach)
             return
         lift, a = b, b + step
 
@@ -151,11 +151,12 @@ def _held(feet: Any, f: int, a: int, t: int, first: int, reach: Any, air: Any) -
 
 
 @_jit()
-def _lift_off(out: Any, down: Any, air: Any, f: int, a: int, b: int, t: int, step: int) -> None:
-    """Foot f's plant [a, t) strays at frame b with no room left for a step: it lifts off early
-    into its swing (``down`` unmarked), the two at least a step long (a few frames of the clip's
-    swing moved the foot the body had carried far in a jerk), if two other feet stand meanwhile;
-    else it is held where it stands to the plant's end."""
+def _lift_off(out: Any, down: Any, air: Any, f: int, frames: Any, step: int, reach: Any) -> None:
+    """Foot f's plant [a, t) strays at frame b (``frames``: a, b, t) with no room left for a step:
+    it lifts off early into its swing (``down`` unmarked), the two at least a step long (a few
+    frames of the clip's swing moved the foot the body had carried far in a jerk), if two other
+    feet stand meanwhile; else it stands to the plant's end where its leg reaches (:func:`_drag`)."""
+    a, b, t = frames
     e = t
     while e < down.shape[0] and not down[e]:
         e += 1
@@ -167,6 +168,29 @@ def _lift_off(out: Any, down: Any, air: Any, f: int, a: int, b: int, t: int, ste
     for u in range(b, t):
         for k in range(3):
             out[u, f, k] = out[b - 1, f, k]
+        _drag(out, f, u, reach)
+
+
+@_jit()
+def _drag(out: Any, f: int, u: int, reach: Any) -> None:
+    """Foot f's target on frame u moved across the ground toward its leg's upper joint until the
+    leg reaches it (reach_sink's rule, the sink's bound taken): a plant the body carries out of
+    reach that cannot be lifted (no two other feet down) is dragged round with the body. Held
+    where it stood, the leg reached for it straight and the foot hung: the horse's turn on the
+    spot, a forefoot 45 cm up for 28 frames (the edge suite's hanging_s_max)."""
+    legs, bend, limit, path, lift = reach[0], reach[1], reach[2], reach[4], reach[5]
+    if u < reach[3] or not limit < np.inf:  # (not posed: no leg to reach with)
+        return
+    leg = legs[u, f]
+    up, across2 = from_hip((out[u, f, 0], out[u, f, 1] + path[u, 1] * lift, out[u, f, 2]), leg)
+    allowed = min(REACH * leg[LEG_REACH], (1.0 + LONGEST_OVER) * bend[4])
+    room = allowed * allowed - (up + limit) ** 2  # the squared distance across it reaches, sunk by limit
+    if across2 <= room or across2 <= 0.0:
+        return
+    keep = math.sqrt(max(room, 0.0) / across2)  # of the way across from the upper joint
+    for k in (0, 2):
+        ankle = out[u, f, k] - leg[LEG_TOE + k] - leg[LEG_UP + k]
+        out[u, f, k] -= (1.0 - keep) * ankle
 
 
 @_jit()
