@@ -99,7 +99,8 @@ def replant(feet: Any, down: Any, f: int, s: int, t: int, out: Any, most: int, r
     place (the average of its first ``most`` frames so far), the foot lifted STEP_HEIGHT of the
     leg between them over a step's frames to the next (marked in ``air``), when the other
     feet stand on it (:func:`_in_turn`). Where no step and a plant after it fit before the plant
-    ends, the foot lifts off into its swing (:func:`_lift_off`).
+    ends, the foot lifts off into its swing, or, no two other feet down, stands where its leg
+    reaches (:func:`_lift_off`).
     ``keep_first``: the first one keeps its place (pinned, see foot_kernels._plants)."""
     step, height = int(reach[1][5]), STEP_HEIGHT * reach[1][4]
     a = s
@@ -168,6 +169,7 @@ def _lift_off(out: Any, down: Any, air: Any, f: int, frames: Any, step: int, rea
     for u in range(b, t):
         for k in range(3):
             out[u, f, k] = out[b - 1, f, k]
+    for u in range(a, t):  # (from its start: a step's turn, b, may come frames after it strayed)
         _drag(out, f, u, reach)
 
 
@@ -177,17 +179,21 @@ def _drag(out: Any, f: int, u: int, reach: Any) -> None:
     leg reaches it (reach_sink's rule, the sink's bound taken): a plant the body carries out of
     reach that cannot be lifted (no two other feet down) is dragged round with the body. Held
     where it stood, the leg reached for it straight and the foot hung: the horse's turn on the
-    spot, a forefoot 45 cm up for 28 frames (the edge suite's hanging_s_max)."""
+    spot, a forefoot 45 cm up for 28 frames (the edge suite's hanging_s_max). The wire flags it
+    planted (foot_kernels.held: its leg reaches it): on the ground, moving a few mm a frame.
+    Only where steps are made (``replant``'s caller: a batch's render, not a live window's)."""
     legs, bend, limit, path, lift = reach[0], reach[1], reach[2], reach[4], reach[5]
-    if u < reach[3] or not limit < np.inf:  # (not posed: no leg to reach with)
+    if u < reach[3]:  # (not posed: no leg to reach with)
         return
     leg = legs[u, f]
     up, across2 = from_hip((out[u, f, 0], out[u, f, 1] + path[u, 1] * lift, out[u, f, 2]), leg)
     allowed = min(REACH * leg[LEG_REACH], (1.0 + LONGEST_OVER) * bend[4])
-    room = allowed * allowed - (up + limit) ** 2  # the squared distance across it reaches, sunk by limit
-    if across2 <= room or across2 <= 0.0:
+    # The squared distance across it reaches, the hips sunk by limit (sink_within's rule); none
+    # under them: lower than the leg reaches even there, moving it would not help.
+    room = allowed * allowed - max(-up - limit, 0.0) ** 2
+    if across2 <= room or room <= 0.0:
         return
-    keep = math.sqrt(max(room, 0.0) / across2)  # of the way across from the upper joint
+    keep = math.sqrt(room / across2)  # of the way across from the upper joint
     for k in (0, 2):
         ankle = out[u, f, k] - leg[LEG_TOE + k] - leg[LEG_UP + k]
         out[u, f, k] -= (1.0 - keep) * ankle
