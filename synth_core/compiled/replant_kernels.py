@@ -53,13 +53,20 @@ def no_steps(T: int) -> tuple[Any, ...]:
             np.zeros((T, 3)), 1.0, False, 0, (np.zeros((2, 4, 3)), NOWHERE))
 
 
-@_jit()
-def _needs(x: float, y: float, z: float, reach: Any, f: int, u: int) -> float:
-    """How far the root must come down on frame u for leg f to reach (x, y, z) (reach_sink's rule;
-    ``reach``: see foot_kernels._plants)."""
+@_jit(inline="always")
+def _from_leg(x: float, y: float, z: float, reach: Any, f: int, u: int) -> tuple[float, float, float]:
+    """(x, y, z) from leg f's upper joint on frame u (:func:`from_hip`: up, across squared) and how
+    far the leg may reach (reach_sink's rule; ``reach``: see foot_kernels._plants)."""
     legs, bend, path, lift = reach[0], reach[1], reach[4], reach[5]
     up, across2 = from_hip((x, y + path[u, 1] * lift, z), legs[u, f])
-    return sink_within(up, across2, min(REACH * legs[u, f, LEG_REACH], (1.0 + LONGEST_OVER) * bend[4]))
+    return up, across2, min(REACH * legs[u, f, LEG_REACH], (1.0 + LONGEST_OVER) * bend[4])
+
+
+@_jit()
+def _needs(x: float, y: float, z: float, reach: Any, f: int, u: int) -> float:
+    """How far the root must come down on frame u for leg f to reach (x, y, z) (reach_sink's rule)."""
+    up, across2, allowed = _from_leg(x, y, z, reach, f, u)
+    return sink_within(up, across2, allowed)
 
 
 @_jit()
@@ -182,18 +189,16 @@ def _drag(out: Any, f: int, u: int, reach: Any) -> None:
     spot, a forefoot 45 cm up for 28 frames (the edge suite's hanging_s_max). The wire flags it
     planted (foot_kernels.held: its leg reaches it): on the ground, moving a few mm a frame.
     Only where steps are made (``replant``'s caller: a batch's render, not a live window's)."""
-    legs, bend, limit, path, lift = reach[0], reach[1], reach[2], reach[4], reach[5]
     if u < reach[3]:  # (not posed: no leg to reach with)
         return
-    leg = legs[u, f]
-    up, across2 = from_hip((out[u, f, 0], out[u, f, 1] + path[u, 1] * lift, out[u, f, 2]), leg)
-    allowed = min(REACH * leg[LEG_REACH], (1.0 + LONGEST_OVER) * bend[4])
-    # The squared distance across it reaches, the hips sunk by limit (sink_within's rule); none
+    up, across2, allowed = _from_leg(out[u, f, 0], out[u, f, 1], out[u, f, 2], reach, f, u)
+    # The squared distance across it reaches, the hips sunk by the bound (sink_within's rule); none
     # under them: lower than the leg reaches even there, moving it would not help.
-    room = allowed * allowed - max(-up - limit, 0.0) ** 2
+    room = allowed * allowed - max(-up - reach[2], 0.0) ** 2
     if across2 <= room or room <= 0.0:
         return
     keep = math.sqrt(room / across2)  # of the way across from the upper joint
+    leg = reach[0][u, f]
     for k in (0, 2):
         ankle = out[u, f, k] - leg[LEG_TOE + k] - leg[LEG_UP + k]
         out[u, f, k] -= (1.0 - keep) * ankle
