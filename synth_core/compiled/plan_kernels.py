@@ -77,7 +77,8 @@ DUE = 3  # the stride clock (of FROM) at which the transition may start
 WALKED = 4  # distance along the path (unscaled) at the next frame
 STILL = 5  # frames the path has stood still (each step under ``still_step``) by the next frame
 OLD_CLOCK0 = 6
-CLOCKS = 7  # + kind row (hubs, then every transition's: time): stride frames played by the next frame
+STEP = 7  # the distance WALKED grew by into the next frame: what a transition is shown by there
+CLOCKS = 8  # + kind row (hubs, then every transition's: time): stride frames played by the next frame
 FREE, WAITING, MOVING = 0, 1, 2
 
 
@@ -228,12 +229,11 @@ def _settle(s: Any, f: Any, t: int, travelled: float, hub: int, first: int, cycl
 @jit(inline="always")
 def _pace(s: Any, f: Any, t: int, step: float, travelled: float, cyclic: Any, source: Any, target: Any,
           curve_at: Any, curves: Any, creep: float) -> float:
-    """The clip frames a frame the transition playing shows at frame t, the path covering ``step``
-    a frame (inf: a gait, a start or a stop -- they slow with their path, and a path stopping is
-    settled by :func:`_stopped` -- or its first frame). Played by distance, a canter -> trot on a
-    path braking to a crawl (0.2-0.5 m/s) crept over a second or more at a tenth of its pace, a
-    horse on one foreleg, the others folded (issue 27: a lone foot 2.7-6.6 times the longest
-    stance)."""
+    """The clip frames a frame the transition playing shows at frame t, walked ``step`` into it
+    (inf: a gait, a start or a stop -- they slow with their path, and a path stopping is settled
+    by :func:`_stopped` -- or its first frame). Played by distance, a canter -> trot on a path
+    braking to a crawl (0.2-0.5 m/s) crept over a second or more at a tenth of its pace, a horse
+    on one foreleg, the others folded (issue 27: a lone foot 2.7-6.6 times the longest stance)."""
     kind = s[KIND]
     if cyclic[kind] or source[kind] == STATIC or target[kind] == STATIC or t == s[START]:
         return np.inf
@@ -287,25 +287,28 @@ def _give_way(s: Any, f: Any, t: int, speeds: Any, travelled: float, rates: Any,
               source: Any, target: Any, low: Any, slowest: int, curve_at: Any, curves: Any, creep: float,
               margin: int) -> bool:
     """Rule 2 at frame t (``speeds``: the speed now, the decisions' look-ahead speeds and the next
-    one's index; ``rates``: the frames still that make a stop, fps and MIN_TRANSITION_RATE;
-    ``tables``: offset, frames_of, contacts_of and resume; all as _character has them): a stopped
-    character settles into the idle (:func:`_stopped`), a transition stalled on a crawl (its
-    :func:`_pace` under MIN_TRANSITION_RATE) gives way to the gait of the slower of the speed now
-    and ahead (the slowest gait if a stop is coming: it slows with the path, then settles; the
-    idle at once stood a body still moving, and a gait too fast for the crawl -- a trot at its
-    own pace, which never slows -- floated it over a flight), at the clip frame nearest the one
-    shown (``resume``: plan.give_way_phases), not while a foot it sets down has just lifted
-    (:func:`_just_lifted`). Whether one did."""
-    v, asked, k = speeds
+    one's index, the distance walked into frame t over h: STEP; ``rates``: the frames still that
+    make a stop, fps, MIN_TRANSITION_RATE and the tempo (the speeds are over it); ``tables``:
+    offset, frames_of, contacts_of and resume; all as _character has them): a stopped character
+    settles into the idle (:func:`_stopped`), a transition stalled on a crawl (its :func:`_pace`
+    under MIN_TRANSITION_RATE, read from the distance it plays by: a segment's speed averaged a
+    stop shorter than it away, and a trot -> walk stood over its flight, every hoof 3.6 cm up)
+    gives way to the gait of the slowest of the speed now, ahead and walked (the slowest gait if
+    a stop is coming: it slows with the path, then settles; the idle at once stood a body still
+    moving, and a gait too fast for the crawl -- a trot at its own pace, which never slows --
+    floated it over a flight), at the clip frame nearest the one shown (``resume``:
+    plan.give_way_phases), not while a foot it sets down has just lifted (:func:`_just_lifted`).
+    Whether one did."""
+    v, asked, k, now = speeds
     offset, frames_of, contacts_of, resume = tables
-    still_frames, fps, stall = rates
+    still_frames, fps, stall, tempo = rates
     ahead = asked[k] if 0 <= k < asked.shape[0] else v
     if _stopped(s, f, t, v < low[slowest], f[STILL] >= still_frames, source, cyclic):
         _settle(s, f, t, travelled, STATIC, 0, cyclic, curve_at, curves, creep, margin)
         return True
-    pace = _pace(s, f, t, v / fps, travelled, cyclic, source, target, curve_at, curves, creep)
+    pace = _pace(s, f, t, now, travelled, cyclic, source, target, curve_at, curves, creep)
     if pace < stall:
-        hub = _slower(min(v, ahead), low, slowest)
+        hub = _slower(min(v, ahead, now * fps / tempo), low, slowest)
         shown = min(_shown(s, f, t, travelled, curve_at, curves, creep), frames_of[s[KIND]] - 1.0)
         first = resume[offset[s[KIND]] + int(math.floor(shown)), hub]
         if _just_lifted(contacts_of, offset[s[KIND]], shown, offset[hub] + first, pace):
@@ -317,19 +320,20 @@ def _give_way(s: Any, f: Any, t: int, speeds: Any, travelled: float, rates: Any,
 
 @jit(inline="always")
 def _walk_on(f: Any, pts: Any, i: int, still: float, swept: float, top: float, max_rate: float) -> None:
-    """The distance walked and the frames stood still (steps under ``still``) by point i + 1: a
-    transition plays by distance, the feet's as the body turns (``swept``, the lever's arc over the
-    turn into frame i; :func:`_turning`), up to ``top`` a frame (the slowest clip's pace) or
-    ``max_rate`` times the path's step, the faster. Kept to the path's step alone past the slowest
-    pace, a real dog's walk -> trot through a trotting corner (1.5 m/s, the body turning 170 deg/s)
-    stood on a forepaw the turn swept 43 cm under it, out of reach at both ends of its stance: a
-    walk on one paw as it ended. Up to the slowest pace alone is what a body turning on the spot
-    (no step) gets; ``max_rate`` (plan.MAX_RATE) is as much faster as a gait's stride plays past its
-    fastest clip (unbounded, a horse's turn on the spot hopped 5.6 cm and stood on a foot longer)."""
-    dx = pts[i + 1, 0] - pts[i, 0]
-    dz = pts[i + 1, 2] - pts[i, 2]
+    """The distance walked (and into point i + 1: STEP) and the frames stood still (steps under
+    ``still``) by point i + 1: a transition plays by distance, the feet's as the body turns
+    (``swept``, the lever's arc over the turn into frame i; :func:`_turning`), up to ``top`` a
+    frame (the slowest clip's pace) or ``max_rate`` times the path's step, the faster. Kept to the
+    path's step alone past the slowest pace, a real dog's walk -> trot through a trotting corner
+    (1.5 m/s, the body turning 170 deg/s) stood on a forepaw the turn swept 43 cm under it, out of
+    reach at both ends of its stance: a walk on one paw as it ended. Up to the slowest pace alone
+    is what a body turning on the spot (no step) gets; ``max_rate`` (plan.MAX_RATE) is as much
+    faster as a gait's stride plays past its fastest clip (unbounded, a horse's turn on the spot
+    hopped 5.6 cm and stood on a foot longer)."""
+    dx, dz = pts[i + 1, 0] - pts[i, 0], pts[i + 1, 2] - pts[i, 2]
     step = math.sqrt(dx * dx + dz * dz)
-    f[WALKED] += _turning(step, swept, max(top, max_rate * step))
+    f[STEP] = _turning(step, swept, max(top, max_rate * step))
+    f[WALKED] += f[STEP]
     f[STILL] = f[STILL] + 1.0 if step < still else 0.0
 
 
@@ -401,9 +405,9 @@ def _character(t0: int, v: Any, pts: Any, turned: Any, h: float, tempo: float, l
         travelled = f[WALKED] / h  # in the library's unit
         started = _arrive(s, f, t, travelled, total, n_hubs, creep, margin, frames_of, tr_kind, entry, exit_)
         if not cyclic[s[KIND]] or v[i] < low[slowest] or f[STILL] >= still_frames:  # (else rule 2 cannot act)
-            started |= _give_way(s, f, t, (v[i], asked_speed, k), travelled, (still_frames, fps, stall),
-                                 (offset, frames_of, contacts_of, resume), cyclic, source, target, low,
-                                 slowest, curve_at, curves, creep, margin)
+            started |= _give_way(s, f, t, (v[i], asked_speed, k, f[STEP] / h), travelled,
+                                 (still_frames, fps, stall, tempo), (offset, frames_of, contacts_of, resume),
+                                 cyclic, source, target, low, slowest, curve_at, curves, creep, margin)
         if t == ask:
             if 0 <= k < asked_speed.shape[0]:
                 _decide(s, f, t, asked_speed[k], draws[k], low, high, slowest, fastest, step, frames_of,

@@ -31,6 +31,7 @@ from synth_core.quality import herd_sim as crowd
 from synth_core.quality import metrics as M
 from synth_core.quality.reference import LibraryReference, library_reference
 from synth_core.runtime.bank import STATIC, Bank
+from synth_core.runtime.plan import MARGIN
 from synth_core.runtime.synthesis import N_HUBS, Options, Result, headings, synthesize
 from synth_core.runtime.terrain import HeightField
 
@@ -260,9 +261,8 @@ def feet_after_fk(bank: Bank, result: Result, ref: LibraryReference,
         above_ground = np.asarray(M.foot_heights(feet, result.path[..., UP_AXIS]), np.float64)
     else:
         above_ground = feet[..., UP_AXIS] - ground.sample(feet[..., 0], feet[..., 2])
-    soles = on_lead(result, ref.soles, ref.mirror_soles)  # (C, hubs, 4)
-    standing = soles[np.arange(len(soles))[:, None], result.gait]  # (C, T, 4)
-    heights = above_ground - standing * result.scales[:, None, None]
+    soles = on_lead(result, ref.soles, ref.mirror_soles) * result.scales[:, None, None]  # (C, hubs, 4)
+    heights = np.asarray(M.over_standing(above_ground, soles, result.gait, MARGIN), np.float64)
     return Feet(pos, feet, above_ground, heights, M.strict_plants(heights, open_ends=True))
 
 

@@ -38,8 +38,9 @@ transitions play by distance, so the chain trot -> walk -> static on a stopped p
 of frames, the animal frozen mid-stride); it leaves standing by the static -> walk transition, as
 from the start, once its path moves (chosen on the speed ahead, the transition crept on the spot
 with a hoof up for as long as the path still stood). A transition on a path braking to a crawl
--- no stop -- is shown slower and slower: under ``MIN_TRANSITION_RATE`` of its pace it gives way
-to the gait the crawl is in the same way, at its nearest frame (a horse stood on one foreleg
+-- no stop, or one shorter than the segments see -- is shown slower and slower: under
+``MIN_TRANSITION_RATE`` of its pace (read from the distance walked, which it plays by) it gives
+way to the gait the crawl is in the same way, at its nearest frame (a horse stood on one foreleg
 1.5 s inside canter -> trot).
 
 The heading follows the path's direction (:class:`Headings`) where it moves (a slow path only
