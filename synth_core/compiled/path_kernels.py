@@ -1,6 +1,6 @@
 """A path's timing smoothed and its shape kept (:func:`synth_core.runtime.gaussian.along_frames`):
 each frame's point walked along the path's own segments by the Gaussian average of the distance
-along it around that frame."""
+along it around that frame; and a live session's points checked (:func:`points_fine`)."""
 
 from __future__ import annotations
 
@@ -87,3 +87,21 @@ def along(x: Any, w: Any, first: int, out: Any) -> None:
                 out[c, i, a] = xc[k, a]
                 if seg > 0.0:
                     out[c, i, a] += (xc[k + way, a] - xc[k, a]) * (left / seg)
+
+
+@jit()
+def points_fine(last: Any, pts: Any, limit: float) -> bool:
+    """Whether every point of ``pts (C, n, 3)`` is finite and within ``limit`` of the one before
+    (``last (C, 3)``: each character's point before them; NaN: none)."""
+    ok = True
+    for c in range(pts.shape[0]):
+        px, py, pz = last[c, 0], last[c, 1], last[c, 2]
+        for i in range(pts.shape[1]):
+            x, y, z = pts[c, i, 0], pts[c, i, 1], pts[c, i, 2]
+            dx, dy, dz = x - px, y - py, z - pz
+            ok = ok and math.isfinite(x) and math.isfinite(y) and math.isfinite(z)
+            # A NaN last point means none before (a session's first points): no jump to check,
+            # and any comparison with NaN is false, so isnan is asked first.
+            ok = ok and (math.isnan(px) or dx * dx + dy * dy + dz * dz <= limit * limit)
+            px, py, pz = x, y, z
+    return ok

@@ -39,9 +39,10 @@ from typing import Any
 
 import numpy as np
 
-from synth_core.compiled import heading_kernels, row_kernels
+from synth_core.compiled import heading_kernels, path_kernels, row_kernels
 from synth_core.compiled.heading_kernels import headings, turn
 from synth_core.compiled.jit import AVAILABLE, interpreted, jit, prange
+from synth_core.compiled.path_kernels import points_fine
 from synth_core.compiled.row_kernels import fade, frame_rows, interp, local_frame, on_lead, tween
 from synth_core.runtime.bank import STATIC
 
@@ -78,15 +79,19 @@ WALKED = 4  # distance along the path (unscaled) at the next frame
 STILL = 5  # frames the path has stood still (each step under ``still_step``) by the next frame
 OLD_CLOCK0 = 6
 STEP = 7  # the distance WALKED grew by into the next frame: what a transition is shown by there
-CLOCKS = 8  # + kind row (hubs, then every transition's: time): stride frames played by the next frame
+BY_STEP = 8  # 1: a transition's pace is read from STEP; 0: from the speed (plan.Planner's ``walked``)
+CLOCKS = 9  # + kind row (hubs, then every transition's: time): stride frames played by the next frame
 FREE, WAITING, MOVING = 0, 1, 2
 
 
-def initial_state(characters: int, hubs: int) -> tuple[Any, Any]:
-    """``(ints, floats)`` of characters standing at frame 0 (the idle playing from its frame 0)."""
+def initial_state(characters: int, hubs: int, by_step: bool = True) -> tuple[Any, Any]:
+    """``(ints, floats)`` of characters standing at frame 0 (the idle playing from its frame 0), a
+    transition's pace read from the distance walked (``by_step``) or the speed (see BY_STEP)."""
     ints = np.zeros((characters, N_INTS), np.int64)
     ints[:, ASKED] = -1
-    return ints, np.zeros((characters, CLOCKS + hubs + 1))
+    floats = np.zeros((characters, CLOCKS + hubs + 1))
+    floats[:, BY_STEP] = float(by_step)
+    return ints, floats
 
 
 @jit(inline="always")
@@ -287,28 +292,29 @@ def _give_way(s: Any, f: Any, t: int, speeds: Any, travelled: float, rates: Any,
               source: Any, target: Any, low: Any, slowest: int, curve_at: Any, curves: Any, creep: float,
               margin: int) -> bool:
     """Rule 2 at frame t (``speeds``: the speed now, the decisions' look-ahead speeds and the next
-    one's index, the distance walked into frame t over h: STEP; ``rates``: the frames still that
-    make a stop, fps, MIN_TRANSITION_RATE and the tempo (the speeds are over it); ``tables``:
-    offset, frames_of, contacts_of and resume; all as _character has them): a stopped character
-    settles into the idle (:func:`_stopped`), a transition stalled on a crawl (its :func:`_pace`
-    under MIN_TRANSITION_RATE, read from the distance it plays by: a segment's speed averaged a
-    stop shorter than it away, and a trot -> walk stood over its flight, every hoof 3.6 cm up)
-    gives way to the gait of the slowest of the speed now, ahead and walked (the slowest gait if
+    one's index, the distance walked into frame t over h: STEP, read if BY_STEP; ``rates``: the
+    frames still that make a stop, fps, MIN_TRANSITION_RATE and the tempo (the speeds are over it);
+    ``tables``: offset, frames_of, contacts_of and resume; all as _character has them): a stopped
+    character settles into the idle (:func:`_stopped`), a transition stalled on a crawl (its
+    :func:`_pace` under MIN_TRANSITION_RATE, read from the distance it plays by: a segment's speed
+    averaged a stop shorter than it away, and a trot -> walk stood over its flight, every hoof 3.6 cm
+    up) gives way to the gait of the slowest of the speed now, ahead and walked (the slowest gait if
     a stop is coming: it slows with the path, then settles; the idle at once stood a body still
-    moving, and a gait too fast for the crawl -- a trot at its own pace, which never slows --
-    floated it over a flight), at the clip frame nearest the one shown (``resume``:
-    plan.give_way_phases), not while a foot it sets down has just lifted (:func:`_just_lifted`).
-    Whether one did."""
+    moving, and a gait too fast for the crawl -- a trot at its own pace, which never slows -- floated
+    it over a flight), at the clip frame nearest the one shown (``resume``: plan.give_way_phases),
+    not while a foot it sets down has just lifted (:func:`_just_lifted`). Whether one did."""
     v, asked, k, now = speeds
     offset, frames_of, contacts_of, resume = tables
     still_frames, fps, stall, tempo = rates
+    walked = now * fps / tempo if f[BY_STEP] > 0.0 else v  # (a live low-latency plan: the segment's)
     ahead = asked[k] if 0 <= k < asked.shape[0] else v
     if _stopped(s, f, t, v < low[slowest], f[STILL] >= still_frames, source, cyclic):
         _settle(s, f, t, travelled, STATIC, 0, cyclic, curve_at, curves, creep, margin)
         return True
-    pace = _pace(s, f, t, now, travelled, cyclic, source, target, curve_at, curves, creep)
+    pace = _pace(s, f, t, now if f[BY_STEP] > 0.0 else v / fps, travelled, cyclic, source, target, curve_at,
+                 curves, creep)
     if pace < stall:
-        hub = _slower(min(v, ahead, now * fps / tempo), low, slowest)
+        hub = _slower(min(v, ahead, walked), low, slowest)
         shown = min(_shown(s, f, t, travelled, curve_at, curves, creep), frames_of[s[KIND]] - 1.0)
         first = resume[offset[s[KIND]] + int(math.floor(shown)), hub]
         if _just_lifted(contacts_of, offset[s[KIND]], shown, offset[hub] + first, pace):
@@ -321,19 +327,20 @@ def _give_way(s: Any, f: Any, t: int, speeds: Any, travelled: float, rates: Any,
 @jit(inline="always")
 def _walk_on(f: Any, pts: Any, i: int, still: float, swept: float, top: float, max_rate: float) -> None:
     """The distance walked (and into point i + 1: STEP) and the frames stood still (steps under
-    ``still``) by point i + 1: a transition plays by distance, the feet's as the body turns
-    (``swept``, the lever's arc over the turn into frame i; :func:`_turning`), up to ``top`` a
-    frame (the slowest clip's pace) or ``max_rate`` times the path's step, the faster. Kept to the
-    path's step alone past the slowest pace, a real dog's walk -> trot through a trotting corner
-    (1.5 m/s, the body turning 170 deg/s) stood on a forepaw the turn swept 43 cm under it, out of
-    reach at both ends of its stance: a walk on one paw as it ended. Up to the slowest pace alone
-    is what a body turning on the spot (no step) gets; ``max_rate`` (plan.MAX_RATE) is as much
-    faster as a gait's stride plays past its fastest clip (unbounded, a horse's turn on the spot
-    hopped 5.6 cm and stood on a foot longer)."""
+    ``still``) by point i + 1: a transition plays by distance, the feet's as the body turns (``swept``, the
+    lever's arc over the turn into frame i; :func:`_turning`), up to ``top`` a frame (the slowest
+    clip's pace) or ``max_rate`` times the path's step, the faster. Kept to the path's step alone
+    past the slowest pace, a real dog's walk -> trot through a trotting corner (1.5 m/s, the body
+    turning 170 deg/s) stood on a forepaw the turn swept 43 cm under it, out of reach at both ends
+    of its stance: a walk on one paw as it ended. Up to the slowest pace alone is what a body
+    turning on the spot (no step) gets; ``max_rate`` (plan.MAX_RATE) is as much faster as a gait's
+    stride plays past its fastest clip (unbounded, a horse's turn on the spot hopped 5.6 cm and
+    stood on a foot longer)."""
     dx, dz = pts[i + 1, 0] - pts[i, 0], pts[i + 1, 2] - pts[i, 2]
     step = math.sqrt(dx * dx + dz * dz)
-    f[STEP] = _turning(step, swept, max(top, max_rate * step))
-    f[WALKED] += f[STEP]
+    walked = _turning(step, swept, max(top, max_rate * step))
+    f[STEP] = walked
+    f[WALKED] += walked
     f[STILL] = f[STILL] + 1.0 if step < still else 0.0
 
 
@@ -463,24 +470,6 @@ def advance(t0: int, v: Any, pts: Any, turned: Any, h: Any, tempo: Any, lead: An
                    rows[c], weights[c], gait[c], contacts[c], stitches[c])
 
 
-@jit()
-def points_fine(last: Any, pts: Any, limit: float) -> bool:
-    """Whether every point of ``pts (C, n, 3)`` is finite and within ``limit`` of the one before
-    (``last (C, 3)``: each character's point before them; NaN: none)."""
-    ok = True
-    for c in range(pts.shape[0]):
-        px, py, pz = last[c, 0], last[c, 1], last[c, 2]
-        for i in range(pts.shape[1]):
-            x, y, z = pts[c, i, 0], pts[c, i, 1], pts[c, i, 2]
-            dx, dy, dz = x - px, y - py, z - pz
-            ok = ok and math.isfinite(x) and math.isfinite(y) and math.isfinite(z)
-            # A NaN last point means none before (a session's first points): no jump to check,
-            # and any comparison with NaN is false, so isnan is asked first.
-            ok = ok and (math.isnan(px) or dx * dx + dy * dy + dz * dz <= limit * limit)
-            px, py, pz = x, y, z
-    return ok
-
-
 @dataclass(frozen=True)
 class Kernels:
     """The planner's entry points; :data:`COMPILED` and :data:`REFERENCE` have the same signatures."""
@@ -489,10 +478,11 @@ class Kernels:
     advance: Any  # see advance()
     headings: Any  # see headings()
     turn: Any  # see turn()
-    points_fine: Any  # see points_fine()
+    points_fine: Any  # see path_kernels.points_fine()
 
 
-_PLAIN = {**interpreted(vars(heading_kernels)), **interpreted(globals(), vars(row_kernels))}
+_PLAIN = {**interpreted(vars(heading_kernels)), **interpreted(vars(path_kernels)),
+          **interpreted(globals(), vars(row_kernels))}
 # (Without numba each is its own source already.)
 REFERENCE = Kernels("numpy", *(_PLAIN.get(name, globals()[name])
                               for name in ("advance", "headings", "turn", "points_fine")))

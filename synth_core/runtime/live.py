@@ -199,7 +199,7 @@ class LiveSynth(LivePath):
         # The plan and the heading, carried from block to block. The exact mode's heading reads the
         # path as the batch's; the low-latency one's a step either side, its turn averaged (TURN_S).
         self.planner = Planner(self.bank, self.scales, self.tempo, self.leads, margin, backend,
-                               0.0 if self.latency_ms is None else TURN_S)
+                               0.0 if self.latency_ms is None else TURN_S, self.latency_ms is None)
         self.heading_state = Headings(C, backend) if self.latency_ms is None else Headings(C, backend, 1)
         self.decisions = self.planned = self.emitted = 0
 

@@ -125,7 +125,12 @@ WAY_SPEED = 0.06  # m/s
 # 10 Hz simulator's held points swings the body +-11 deg at the hold's rate, and a walk read from
 # each frame's turn hurried and slowed with it (jitter_10hz: a hoof's jump 7.8 -> 11.9 cm). The
 # batch reads each frame's: averaged over 0.1 s, the turn came late for the horse's walking
-# U-turns, a hoof hanging alone at their start.
+# U-turns, a hoof hanging alone at their start. Nor does it read a transition's pace from the
+# distance walked a frame, as the batch does (plan_kernels.BY_STEP), but from the speed: its fit
+# walks nothing on five frames of a held tick's six, and a trot's walk -> trot read as stalled there
+# gave way to the walk (the dog's jitter_10hz with the simulator's velocity: trotting 23% of the
+# time, not 95%); averaged over 0.2 s, the distance lagged a brake and a real dog's canter ->
+# trot stood over its flight, every paw 7-20 cm up for 15 frames (accel_brake).
 TURN_S = 0.2  # s
 LOOKAHEAD = 2  # segments: gaits are chosen on the speed this far ahead, as transitions take time
 DECISION_SHARE = 4  # gait decisions this many times a segment
@@ -400,14 +405,16 @@ def character_leads(bank: Bank, keys: NDArray[np.uint64]) -> NDArray[np.int64]:
 class Planner:
     """The plans of ``len(scales)`` characters, advanced frame block by frame block (the state of
     :mod:`synth_core.compiled.plan_kernels`' machine carried between blocks). ``tempo (C,)``: clip
-    frames per output frame (synthesis.character_tempo); ``leads (C,)``: :func:`character_leads`."""
+    frames per output frame (synthesis.character_tempo); ``leads (C,)``: :func:`character_leads`;
+    ``turn_s``, ``by_step``: a low-latency session's (see TURN_S)."""
 
     def __init__(self, bank: Bank, scales: Floats, tempo: Floats, leads: NDArray[np.int64],
-                 margin: int = MARGIN, backend: str = "auto", turn_s: float = 0.0) -> None:
+                 margin: int = MARGIN, backend: str = "auto", turn_s: float = 0.0,
+                 by_step: bool = True) -> None:
         self.tables, self.kernels = tables(bank), planner(backend)
         self.scales, self.tempo, self.leads, self.margin = scales, tempo, leads, margin
         self.step = decision_step(bank.mean_cycle)
-        self.ints, self.floats = pk.initial_state(len(scales), N_HUBS)
+        self.ints, self.floats = pk.initial_state(len(scales), N_HUBS, by_step)
         # The body's turn a frame averaged over ``turn_s`` (0: each frame's), at the last frame planned.
         self.turning = np.zeros(len(scales))
         self.keep_turn = 1.0 - float(np.exp(-1.0 / (turn_s * bank.fps))) if turn_s > 0 else 1.0
