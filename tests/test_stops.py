@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import zlib
 
 import numpy as np
 import pytest
@@ -231,3 +232,57 @@ def test_a_trot_stopped_short_does_not_freeze_its_transition_in_the_air() -> Non
     ref = library_reference(bank)
     figures = evaluate.edge_figures(bank, result, positions, positions.shape[1], ref, None)
     assert figures["floating_cm_max"] <= 1.0
+
+
+def stutter_herd(bank: Bank, seed: int, characters: int = 8) -> np.ndarray:
+    """A crowd simulator's stop-and-go herd: each character at its walk's or trot's cruise
+    speed, stopping every 0.6-1.5 s -- braking in 0.05-0.2 s, standing 0.1-0.5 s, starting as
+    fast -- for 10 s, along a gentle curve; positions ``(C, F, 3)`` at the library's rate. (Seed 23:
+    the herd of the audit, a checker of paths the edge suite had not tried, that found it.)"""
+    gaits = {HUBS[h]: (float(s[0]), float(s[-1])) for h, s in bank.speeds.items()}
+    rng = np.random.default_rng([seed, zlib.crc32(b"stutter")])
+    frames = int(10 * bank.fps) + 1
+    positions = np.zeros((characters, frames, 3))
+    for c in range(characters):
+        v = edge.cruise(gaits, ("walk", "trot")[c % 2])
+        knots, t = [(0.0, 0.0), (0.3, v)], 0.3
+        while t < 10:
+            t += float(rng.uniform(0.6, 1.5))
+            brake = float(rng.uniform(0.05, 0.2))
+            knots += [(t, v), (t + brake, 0.0)]
+            t += brake + float(rng.uniform(0.1, 0.5))
+            knots += [(t, 0.0), (t + brake, v)]
+            t += brake
+        s = edge.distance(edge.speed_profile(frames, bank.fps, knots), bank.fps)
+        ground = edge.curve(s, [(3.0, 0.8, 8.0)], heading=float(rng.uniform(-np.pi, np.pi)))
+        positions[c, :, 0] = ground[:, 0] + c * edge.SPACING
+        positions[c, :, 2] = ground[:, 1]
+    return positions
+
+
+def stutter_floating_cm(animal: str, seed: int) -> float:
+    """Issue 27's floating figure (cm, after FK) of :func:`stutter_herd`."""
+    bank = animal_bank(animal)
+    positions = stutter_herd(bank, seed)
+    result = synthesize(bank, positions, bank.fps, scales=np.ones(len(positions)), options=Options(seed=0))
+    ref = library_reference(bank)
+    figures = evaluate.edge_figures(bank, result, positions, positions.shape[1], ref, None)
+    return float(figures["floating_cm_max"])
+
+
+@pytest.mark.parametrize("animal", ANIMALS)
+def test_a_stuttering_herd_never_hangs_every_foot_in_the_air(animal: str) -> None:
+    """Stops shorter than the plan's speed segments see (0.7 s) and than STILL_S of standing: a
+    gait whose segment still read a trot played on at its pace over the stop, trotting on the
+    spot, its flight 1.8 cm up a frame before the stop settled (the horse; and a transition stood
+    still over its flight: the test above). A path walked slower than a standing character's pace
+    settles at once, as a stop does: after FK, issue 27's floating target (1 cm) while the body is
+    slower than 0.1 m/s, on the audit's herd."""
+    assert stutter_floating_cm(animal, 23) <= 1.0
+
+
+@pytest.mark.xfail(strict=True, reason="not yet: a dog trotting into a 0.05-0.2 s brake plays its trot at "
+                   "its slowest clip's pace until the path stands, its flight 1-2 frames before the stop "
+                   "settles (1.1-1.8 cm; other herds of the same kind: docs/edge_suite.md)")
+def test_other_stuttering_herds_never_hang_a_dogs_feet_in_the_air() -> None:
+    assert max(stutter_floating_cm("dog", seed) for seed in (31, 41)) <= 1.0

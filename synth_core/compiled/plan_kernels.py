@@ -260,11 +260,11 @@ def _slower(v: float, low: Any, slowest: int) -> int:
 
 @jit(inline="always")
 def _stopped(s: Any, f: Any, t: int, slow: bool, still: bool, source: Any, cyclic: Any) -> bool:
-    """Rule 2: whether the character settles at frame t, its path slower than the slowest gait
-    (``slow``) or standing still STILL_S (``still``). A start (static -> walk), which waits for
-    the path to move, settles only where the path has moved since it began and stands still
-    again: played by distance, it crept on over the stop with a paw up (the real dog's start,
-    2.3 s of its mocap, outlasts a short walk to a stop)."""
+    """Rule 2: whether the character settles at frame t, its path (or the distance it walks a frame)
+    slower than the slowest gait (``slow``) or standing still STILL_S (``still``). A start (static ->
+    walk), which waits for the path to move, settles only where the path has moved since it began and
+    stands still again: played by distance, it crept on over the stop with a paw up (the real dog's
+    start, 2.3 s of its mocap, outlasts a short walk to a stop)."""
     if source[s[KIND]] != STATIC:
         return slow or still
     return still and f[STILL] < t - s[START] and s[KIND] != STATIC and not cyclic[s[KIND]]
@@ -292,27 +292,30 @@ def _give_way(s: Any, f: Any, t: int, speeds: Any, travelled: float, rates: Any,
               source: Any, target: Any, low: Any, slowest: int, curve_at: Any, curves: Any, creep: float,
               margin: int) -> bool:
     """Rule 2 at frame t (``speeds``: the speed now, the decisions' look-ahead speeds and the next
-    one's index, the distance walked into frame t over h: STEP, read if BY_STEP; ``rates``: the
-    frames still that make a stop, fps, MIN_TRANSITION_RATE and the tempo (the speeds are over it);
-    ``tables``: offset, frames_of, contacts_of and resume; all as _character has them): a stopped
-    character settles into the idle (:func:`_stopped`), a transition stalled on a crawl (its
-    :func:`_pace` under MIN_TRANSITION_RATE, read from the distance it plays by: a segment's speed
-    averaged a stop shorter than it away, and a trot -> walk stood over its flight, every hoof 3.6 cm
-    up) gives way to the gait of the slowest of the speed now, ahead and walked (the slowest gait if
-    a stop is coming: it slows with the path, then settles; the idle at once stood a body still
-    moving, and a gait too fast for the crawl -- a trot at its own pace, which never slows -- floated
-    it over a flight), at the clip frame nearest the one shown (``resume``: plan.give_way_phases),
-    not while a foot it sets down has just lifted (:func:`_just_lifted`). Whether one did."""
-    v, asked, k, now = speeds
+    one's index, and the speed walked into frame t, as the speed now reads: STEP's, if BY_STEP; a
+    stop shorter than a segment is one, the trot on the spot over it, its flight 1.8 cm up;
+    ``rates``: the frames still that make a stop, fps, MIN_TRANSITION_RATE and the tempo (the speeds
+    are over it); ``tables``: offset, frames_of, contacts_of and resume; all as _character has them):
+    a stopped character settles into the idle (:func:`_stopped`), a transition stalled on a crawl
+    (its :func:`_pace` under MIN_TRANSITION_RATE, read from the distance it plays by: a segment's
+    speed averaged a stop shorter than it away, and a trot -> walk stood over its flight, every hoof
+    3.6 cm up) gives way to the gait of the slowest of the speed now, ahead and walked (the slowest
+    gait if a stop is coming: it slows with the path, then settles; the idle at once stood a body
+    still moving, and a gait too fast for the crawl -- a trot at its own pace, which never slows --
+    floated it over a flight), at the clip frame nearest the one shown (``resume``:
+    plan.give_way_phases), not while a foot it sets down has just lifted (:func:`_just_lifted`).
+    Whether one did."""
+    v, asked, k, walked = speeds
     offset, frames_of, contacts_of, resume = tables
     still_frames, fps, stall, tempo = rates
-    walked = now * fps / tempo if f[BY_STEP] > 0.0 else v  # (a live low-latency plan: the segment's)
     ahead = asked[k] if 0 <= k < asked.shape[0] else v
-    if _stopped(s, f, t, v < low[slowest], f[STILL] >= still_frames, source, cyclic):
+    # (A walk slows with its path down to a stand, and a transition to standing is a stop under way.)
+    stop = walked if s[KIND] != slowest and target[s[KIND]] != STATIC else v
+    if _stopped(s, f, t, min(v, stop) < low[slowest], f[STILL] >= still_frames, source, cyclic):
         _settle(s, f, t, travelled, STATIC, 0, cyclic, curve_at, curves, creep, margin)
         return True
-    pace = _pace(s, f, t, now if f[BY_STEP] > 0.0 else v / fps, travelled, cyclic, source, target, curve_at,
-                 curves, creep)
+    pace = _pace(s, f, t, walked * tempo / fps if f[BY_STEP] > 0.0 else v / fps, travelled, cyclic, source,
+                 target, curve_at, curves, creep)
     if pace < stall:
         hub = _slower(min(v, ahead, walked), low, slowest)
         shown = min(_shown(s, f, t, travelled, curve_at, curves, creep), frames_of[s[KIND]] - 1.0)
@@ -411,8 +414,9 @@ def _character(t0: int, v: Any, pts: Any, turned: Any, h: float, tempo: float, l
         t, spin = t0 + i, abs(turned[i]) * lever * fps / tempo  # spin: the feet's round the root, as v reads
         travelled = f[WALKED] / h  # in the library's unit
         started = _arrive(s, f, t, travelled, total, n_hubs, creep, margin, frames_of, tr_kind, entry, exit_)
-        if not cyclic[s[KIND]] or v[i] < low[slowest] or f[STILL] >= still_frames:  # (else rule 2 cannot act)
-            started |= _give_way(s, f, t, (v[i], asked_speed, k, f[STEP] / h), travelled,
+        walked = f[STEP] * fps / (h * tempo) if t > 0 and f[BY_STEP] > 0.0 else v[i]  # as v reads
+        if not cyclic[s[KIND]] or min(v[i], walked) < low[slowest] or f[STILL] >= still_frames:
+            started |= _give_way(s, f, t, (v[i], asked_speed, k, walked), travelled,
                                  (still_frames, fps, stall, tempo), (offset, frames_of, contacts_of, resume),
                                  cyclic, source, target, low, slowest, curve_at, curves, creep, margin)
         if t == ask:
@@ -420,8 +424,7 @@ def _character(t0: int, v: Any, pts: Any, turned: Any, h: float, tempo: float, l
                 _decide(s, f, t, asked_speed[k], draws[k], low, high, slowest, fastest, step, frames_of,
                         tr_kind, entry, exit_)
             ask, k = ask + step, k + 1
-        # Leaving a stand waits for the path to move: chosen on the speed ahead, static -> walk (played by
-        # distance) stepped in place with a hoof up for up to a second before (turn_on_spot: 32 cm up).
+        # Leaving a stand waits for the path to move (turn_on_spot: a hoof 32 cm up on the spot before).
         if s[STAGE] == WAITING and f[CLOCKS + s[FROM]] >= f[DUE] and not (s[FROM] == STATIC and f[STILL] > 0):
             _start(s, f, s[TRANSITION], 0, t, float(t), travelled, margin)  # a transition's clock is time
             s[STAGE], started = MOVING, True

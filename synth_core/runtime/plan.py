@@ -17,31 +17,31 @@ One planner serves the batch and the live mode. Its design:
 - Around it, in numpy: the library's tables (:func:`tables`), each frame's speed
   (:func:`frame_speeds`) and each decision's random draws (:mod:`synth_core.runtime.draws`).
 
-The rules the machine follows. Every character starts standing and moves through the motion
-graph one hub at a time. A segment's speed ``s / (h k)`` (scale h, stride tempo k) picks the gait:
-the current one while its range covers the speed (hysteresis), else one of the gaits covering it
--- at random where ranges overlap -- reached one transition per step; gaits are chosen
-``DECISION_SHARE`` times a segment on the speed ``LOOKAHEAD`` segments ahead, as transitions take
-time. A transition starts when the stride reaches the phase the clip starts from and plays by
-distance; the next gait picks up at the phase the transition ends in, so the footfall sequence
-carries on across it. Within a gait every speed-map clip has the same frames and contacts, so the
-stride phase runs on (k clip frames per output frame; above its fastest clip, the fastest gait up to
-``MAX_RATE`` faster, a slower one waiting for its transition as fast as the path; down to
-``STAND_SHARE`` below the slowest gait's slowest) and the speed only moves the pair of clips
-blended, ``M = (1 - a) M_i + a M_j``. Where a piece starts, the piece before it fades out over
-``margin`` frames; where it starts within the margin of the one before's start, what
-fades out is the blend shown (the one before over the one before that, each by its nearer row),
-so no piece vanishes in one frame (issue 27: 25-38 cm hoof jumps between two transitions). A
-character whose path stops (slower than a standing one's, or still for ``STILL_S``) stands at
-once: the idle fades in over the margin, from whatever gait or transition played (issue 27:
-transitions play by distance, so the chain trot -> walk -> static on a stopped path took hundreds
-of frames, the animal frozen mid-stride); it leaves standing by the static -> walk transition, as
-from the start, once its path moves (chosen on the speed ahead, the transition crept on the spot
-with a hoof up for as long as the path still stood). A transition on a path braking to a crawl
--- no stop, or one shorter than the segments see -- is shown slower and slower: under
-``MIN_TRANSITION_RATE`` of its pace (read from the distance walked, which it plays by) it gives
-way to the gait the crawl is in the same way, at its nearest frame (a horse stood on one foreleg
-1.5 s inside canter -> trot).
+The rules the machine follows. Every character starts standing and moves through the motion graph
+one hub at a time. A segment's speed ``s / (h k)`` (scale h, stride tempo k) picks the gait: the
+current one while its range covers the speed (hysteresis), else one of the gaits covering it -- at
+random where ranges overlap -- reached one transition per step; gaits are chosen ``DECISION_SHARE``
+times a segment on the speed ``LOOKAHEAD`` segments ahead, as transitions take time. A transition
+starts when the stride reaches the phase the clip starts from and plays by distance; the next gait
+picks up at the phase the transition ends in, so the footfall sequence carries on across it. Within
+a gait every speed-map clip has the same frames and contacts, so the stride phase runs on (k clip
+frames per output frame; above its fastest clip, the fastest gait up to ``MAX_RATE`` faster, a
+slower one waiting for its transition as fast as the path; down to ``STAND_SHARE`` below the
+slowest gait's slowest) and the speed only moves the pair of clips blended, ``M = (1 - a) M_i + a
+M_j``. Where a piece starts, the piece before it fades out over ``margin`` frames; where it starts
+within the margin of the one before's start, what fades out is the blend shown (the one before over
+the one before that, each by its nearer row), so no piece vanishes in one frame (issue 27: 25-38 cm
+hoof jumps between two transitions). A character whose path stops (its segment's speed or, in a
+batch, the distance it walks a frame -- not a walk's, which slows with it -- slower than a standing
+one's, or still for ``STILL_S``) stands at once: the idle fades in over the margin, from whatever
+gait or transition played (issue 27: transitions play by distance, so the chain trot -> walk ->
+static on a stopped path took hundreds of frames, the animal frozen mid-stride); it leaves standing
+by the static -> walk transition, as from the start, once its path moves (chosen on the speed
+ahead, the transition crept on the spot with a hoof up for as long as the path still stood). A
+transition on a path braking to a crawl -- no stop, or one shorter than the segments see -- is
+shown slower and slower: under ``MIN_TRANSITION_RATE`` of its pace (read from the distance walked,
+which it plays by) it gives way to the gait the crawl is in the same way, at its nearest frame (a
+horse stood on one foreleg 1.5 s inside canter -> trot).
 
 The heading follows the path's direction (:class:`Headings`) where it moves (a slow path only
 while it drags an anchor ``HOLD_RADIUS`` behind it: a simulator's jitter round a standing agent
