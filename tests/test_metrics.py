@@ -343,15 +343,20 @@ def test_a_body_sliding_over_four_planted_feet_drifts_and_one_carrying_them_does
 
 
 def test_a_foot_is_judged_over_the_standing_heights_of_the_pieces_its_pose_blends() -> None:
-    """A paw planted at its trot's standing height (3 cm) stays put as the label becomes the
-    walk's (standing 1.5 cm): for the fade's frames after the change the pose is mostly the
-    trot's, and the paw reads 0 over it; after them, over the walk's only (1.5 cm)."""
+    """A paw planted at its trot's standing height (3 cm) stays put as a piece labelled the walk's
+    starts (standing 1.5 cm): for the fade's frames after the start the pose is mostly the trot's,
+    and the paw reads 0 over it; after them, over the walk's only (1.5 cm). A label changing with
+    no piece starting (halfway through a transition) fades nothing."""
     standing = np.array([[[0.0] * 4, [0.015] * 4, [0.03] * 4]])  # (1, labels, 4): static, walk, trot
     labels = np.array([[2, 2, 2, 1, 1, 1, 1, 1]])
+    started = np.zeros((1, 8), bool)
+    started[0, 3] = True
     heights = np.full((1, 8, 4), 0.03)
-    over = M.over_standing(heights, standing, labels, fade=3)
-    assert np.allclose(over[0, :6], 0.0)  # the trot's frames, then the three after the change
+    over = M.over_standing(heights, standing, labels, started, fade=3)
+    assert np.allclose(over[0, :6], 0.0)  # the trot's frames, then the three after the start
     assert np.allclose(over[0, 6:], 0.015)
     # A foot nearer the walk's height reads over that (the nearest of the pieces blended).
-    near = M.over_standing(np.full((1, 8, 4), 0.016), standing, labels, fade=3)
+    near = M.over_standing(np.full((1, 8, 4), 0.016), standing, labels, started, fade=3)
     assert near[0, 4, 0] == pytest.approx(0.001)
+    unstarted = M.over_standing(heights, standing, labels, np.zeros((1, 8), bool), fade=3)
+    assert np.allclose(unstarted[0, 3:], 0.015)

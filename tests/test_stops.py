@@ -270,19 +270,18 @@ def stutter_floating_cm(animal: str, seed: int) -> float:
     return float(figures["floating_cm_max"])
 
 
-@pytest.mark.parametrize("animal", ANIMALS)
-def test_a_stuttering_herd_never_hangs_every_foot_in_the_air(animal: str) -> None:
+@pytest.mark.parametrize("animal", [
+    "horse",
+    pytest.param("dog", marks=pytest.mark.xfail(strict=True, reason=(
+        "not yet: a dog trotting into a 0.05-0.2 s brake plays its trot at its slowest clip's pace "
+        "until the path stands, its flight a frame before the stop settles (2.05 cm, 1 of 24 "
+        "characters; docs/edge_suite.md)"))),
+])
+def test_stuttering_herds_never_hang_every_foot_in_the_air(animal: str) -> None:
     """Stops shorter than the plan's speed segments see (0.7 s) and than STILL_S of standing: a
     gait whose segment still read a trot played on at its pace over the stop, trotting on the
-    spot, its flight 1.8 cm up a frame before the stop settled (the horse; and a transition stood
-    still over its flight: the test above). A path walked slower than a standing character's pace
-    settles at once, as a stop does: after FK, issue 27's floating target (1 cm) while the body is
-    slower than 0.1 m/s, on the audit's herd."""
-    assert stutter_floating_cm(animal, 23) <= 1.0
-
-
-@pytest.mark.xfail(strict=True, reason="not yet: a dog trotting into a 0.05-0.2 s brake plays its trot at "
-                   "its slowest clip's pace until the path stands, its flight 1-2 frames before the stop "
-                   "settles (1.1-1.8 cm; other herds of the same kind: docs/edge_suite.md)")
-def test_other_stuttering_herds_never_hang_a_dogs_feet_in_the_air() -> None:
-    assert max(stutter_floating_cm("dog", seed) for seed in (31, 41)) <= 1.0
+    spot, its flight 1.8 cm up a frame before the stop settled (the horse in the audit's herd,
+    seed 23; and a transition stood still over its flight: the test above). A path walked slower
+    than a standing character's pace settles at once, as a stop does: after FK, issue 27's
+    floating target (1 cm) while the body is slower than 0.1 m/s, in three herds."""
+    assert max(stutter_floating_cm(animal, seed) for seed in (23, 31, 41)) <= 1.0

@@ -79,7 +79,7 @@ WALKED = 4  # distance along the path (unscaled) at the next frame
 STILL = 5  # frames the path has stood still (each step under ``still_step``) by the next frame
 OLD_CLOCK0 = 6
 STEP = 7  # the distance WALKED grew by into the next frame: what a transition is shown by there
-BY_STEP = 8  # 1: a transition's pace is read from STEP; 0: from the speed (plan.Planner's ``walked``)
+BY_STEP = 8  # 1: a transition's pace and a stop are read from STEP too; 0: not (plan.Planner's by_step)
 CLOCKS = 9  # + kind row (hubs, then every transition's: time): stride frames played by the next frame
 FREE, WAITING, MOVING = 0, 1, 2
 
@@ -234,11 +234,12 @@ def _settle(s: Any, f: Any, t: int, travelled: float, hub: int, first: int, cycl
 @jit(inline="always")
 def _pace(s: Any, f: Any, t: int, step: float, travelled: float, cyclic: Any, source: Any, target: Any,
           curve_at: Any, curves: Any, creep: float) -> float:
-    """The clip frames a frame the transition playing shows at frame t, walked ``step`` into it
-    (inf: a gait, a start or a stop -- they slow with their path, and a path stopping is settled
-    by :func:`_stopped` -- or its first frame). Played by distance, a canter -> trot on a path
-    braking to a crawl (0.2-0.5 m/s) crept over a second or more at a tenth of its pace, a horse
-    on one foreleg, the others folded (issue 27: a lone foot 2.7-6.6 times the longest stance)."""
+    """The clip frames a frame the transition playing shows at frame t over the character's tempo,
+    walked ``step`` (over the tempo too) into it (inf: a gait, a start or a stop -- they slow with
+    their path, and a path stopping is settled by :func:`_stopped` -- or its first frame). Played by
+    distance, a canter -> trot on a path braking to a crawl (0.2-0.5 m/s) crept over a second or more
+    at a tenth of its pace, a horse on one foreleg, the others folded (issue 27: a lone foot 2.7-6.6
+    times the longest stance)."""
     kind = s[KIND]
     if cyclic[kind] or source[kind] == STATIC or target[kind] == STATIC or t == s[START]:
         return np.inf
@@ -294,28 +295,28 @@ def _give_way(s: Any, f: Any, t: int, speeds: Any, travelled: float, rates: Any,
     """Rule 2 at frame t (``speeds``: the speed now, the decisions' look-ahead speeds and the next
     one's index, and the speed walked into frame t, as the speed now reads: STEP's, if BY_STEP; a
     stop shorter than a segment is one, the trot on the spot over it, its flight 1.8 cm up;
-    ``rates``: the frames still that make a stop, fps, MIN_TRANSITION_RATE and the tempo (the speeds
-    are over it); ``tables``: offset, frames_of, contacts_of and resume; all as _character has them):
-    a stopped character settles into the idle (:func:`_stopped`), a transition stalled on a crawl
-    (its :func:`_pace` under MIN_TRANSITION_RATE, read from the distance it plays by: a segment's
-    speed averaged a stop shorter than it away, and a trot -> walk stood over its flight, every hoof
-    3.6 cm up) gives way to the gait of the slowest of the speed now, ahead and walked (the slowest
-    gait if a stop is coming: it slows with the path, then settles; the idle at once stood a body
-    still moving, and a gait too fast for the crawl -- a trot at its own pace, which never slows --
-    floated it over a flight), at the clip frame nearest the one shown (``resume``:
-    plan.give_way_phases), not while a foot it sets down has just lifted (:func:`_just_lifted`).
-    Whether one did."""
+    ``rates``: the frames still that make a stop, fps and MIN_TRANSITION_RATE; ``tables``: offset,
+    frames_of, contacts_of and resume; all as _character has them): a stopped character settles into
+    the idle (:func:`_stopped`), a transition stalled on a crawl (its :func:`_pace` under
+    MIN_TRANSITION_RATE of its own -- over the tempo, as the speeds are; read with the tempo a
+    half-size dog's canter -> trot played on at half its pace, its lone paw 2.8 times the longest
+    stance -- read from the distance it plays by: a segment's speed averaged a stop shorter than it
+    away, and a trot -> walk stood over its flight, every hoof 3.6 cm up) gives way to the gait of
+    the slowest of the speed now, ahead and walked (the slowest gait if a stop is coming: it slows
+    with the path, then settles; the idle at once stood a body still moving, and a gait too fast for
+    the crawl -- a trot at its own pace, which never slows -- floated it over a flight), at the clip
+    frame nearest the one shown (``resume``: plan.give_way_phases), not while a foot it sets down has
+    just lifted (:func:`_just_lifted`). Whether one did."""
     v, asked, k, walked = speeds
     offset, frames_of, contacts_of, resume = tables
-    still_frames, fps, stall, tempo = rates
+    still_frames, fps, stall = rates
     ahead = asked[k] if 0 <= k < asked.shape[0] else v
     # (A walk slows with its path down to a stand, and a transition to standing is a stop under way.)
     stop = walked if s[KIND] != slowest and target[s[KIND]] != STATIC else v
     if _stopped(s, f, t, min(v, stop) < low[slowest], f[STILL] >= still_frames, source, cyclic):
         _settle(s, f, t, travelled, STATIC, 0, cyclic, curve_at, curves, creep, margin)
         return True
-    pace = _pace(s, f, t, walked * tempo / fps if f[BY_STEP] > 0.0 else v / fps, travelled, cyclic, source,
-                 target, curve_at, curves, creep)
+    pace = _pace(s, f, t, walked / fps, travelled, cyclic, source, target, curve_at, curves, creep)
     if pace < stall:
         hub = _slower(min(v, ahead, walked), low, slowest)
         shown = min(_shown(s, f, t, travelled, curve_at, curves, creep), frames_of[s[KIND]] - 1.0)
@@ -417,7 +418,7 @@ def _character(t0: int, v: Any, pts: Any, turned: Any, h: float, tempo: float, l
         walked = f[STEP] * fps / (h * tempo) if t > 0 and f[BY_STEP] > 0.0 else v[i]  # as v reads
         if not cyclic[s[KIND]] or min(v[i], walked) < low[slowest] or f[STILL] >= still_frames:
             started |= _give_way(s, f, t, (v[i], asked_speed, k, walked), travelled,
-                                 (still_frames, fps, stall, tempo), (offset, frames_of, contacts_of, resume),
+                                 (still_frames, fps, stall), (offset, frames_of, contacts_of, resume),
                                  cyclic, source, target, low, slowest, curve_at, curves, creep, margin)
         if t == ask:
             if 0 <= k < asked_speed.shape[0]:

@@ -262,7 +262,7 @@ def feet_after_fk(bank: Bank, result: Result, ref: LibraryReference,
     else:
         above_ground = feet[..., UP_AXIS] - ground.sample(feet[..., 0], feet[..., 2])
     soles = on_lead(result, ref.soles, ref.mirror_soles) * result.scales[:, None, None]  # (C, hubs, 4)
-    heights = np.asarray(M.over_standing(above_ground, soles, result.gait, MARGIN), np.float64)
+    heights = M.over_standing(above_ground, soles, result.gait, result.stitches, MARGIN).astype(np.float64)
     return Feet(pos, feet, above_ground, heights, M.strict_plants(heights, open_ends=True))
 
 

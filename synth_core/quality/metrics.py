@@ -240,19 +240,21 @@ def foot_heights(foot_pos: Floats, ground: Floats | float = 0.0) -> Floats:
     return np.asarray(np.asarray(foot_pos, np.float64)[..., UP_AXIS] - np.asarray(ground)[..., None])
 
 
-def over_standing(heights: Floats, standing: Floats, labels: NDArray[np.integer], fade: int) -> Floats:
+def over_standing(heights: Floats, standing: Floats, labels: NDArray[np.integer], started: NDArray[np.bool_],
+                  fade: int) -> Floats:
     """``heights (C, F, 4)`` over each foot's standing height ``standing (C, L, 4)`` of the label
-    shown (``labels (C, F)``: a gait per frame), or of a label of the ``fade`` frames before it,
-    whichever the foot stands nearest: a new piece fades in over the one before for that long
-    (plan.MARGIN), so a frame's pose is still mostly the one before's -- a real dog's paw planted at
-    its trot's 3.1 cm read 1.4 cm up the frame the label became the walk's (1.7 cm), unmoved."""
-    rows = np.arange(len(heights))[:, None]
-    frames = np.arange(heights.shape[1])
-    best = heights - standing[rows, labels]
-    for k in range(1, fade + 1):  # (a loop over the lags, each over every frame at once)
-        h = heights - standing[rows, labels[:, np.maximum(frames - k, 0)]]
-        best = np.where(np.abs(h) < np.abs(best), h, best)
-    return np.asarray(best)
+    shown (``labels (C, F)``: a gait per frame), or, for ``fade`` frames after a piece starts
+    (``started (C, F)``: Result.stitches), of the label before it, whichever the foot stands nearest:
+    the new piece fades in over the one before for that long (plan.MARGIN), so a frame's pose is
+    still mostly the one before's -- a real dog's paw planted at its trot's 3.1 cm read 1.4 cm up
+    the frame the label became the walk's (1.7 cm), unmoved. (A label changing with no piece
+    starting -- halfway through a transition -- fades nothing.)"""
+    rows, frames = np.arange(len(heights))[:, None], np.arange(heights.shape[1])
+    last = np.maximum.accumulate(np.where(started, frames, -fade - 1), axis=1)  # the latest start so far
+    before = labels[rows, np.maximum(last - 1, 0)]
+    fading = ((frames - last) < fade) & (last >= 1)
+    own, prior = heights - standing[rows, labels], heights - standing[rows, before]
+    return np.asarray(np.where((fading[..., None]) & (np.abs(prior) < np.abs(own)), prior, own))
 
 
 @dataclass(frozen=True)

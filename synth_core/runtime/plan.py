@@ -432,11 +432,12 @@ class Planner:
 
     def advance(self, t0: int, v: Floats, pts: Floats, turned: Floats, decisions: Decisions, out: Plan,
                 out_step: int = 1) -> None:
-        """Frames ``[t0, t0 + n)`` of speeds ``v (C, n)`` (the library's: over scale and tempo)
-        and path ``pts (C, >= n, 3)`` from frame t0 on (its frame t0 + n, if given, carries the
-        distance walked on), the body turning ``turned (C, n)`` (Headings.advance), with ``decisions``
-        made there; the rows, weights, gait, contacts and stitches of frames a multiple of
-        ``out_step`` into ``out``'s arrays (one per frame)."""
+        """Frames ``[t0, t0 + n)`` of speeds ``v (C, n)`` (the library's: over scale and tempo) and
+        path ``pts (C, >= n, 3)`` from frame t0 on (its frame t0 + n, if given, carries the distance
+        walked on, and the step into it the next block's first frame reads), the body turning
+        ``turned (C, n)`` (Headings.advance), with ``decisions`` made there; the rows, weights, gait,
+        contacts and stitches of frames a multiple of ``out_step`` into ``out``'s arrays (one per
+        frame)."""
         tb, turned = self.tables, self.averaged(turned)
         self.kernels.advance(t0, v, pts, turned, self.scales, self.tempo, self.leads, decisions.speed,
                              decisions.draws, decisions.first, self.step, self.ints, self.floats, *tb.args(),
